@@ -1,0 +1,250 @@
+"""Common interface of rigid tools: projection result, rigid motion, tool base class.
+
+Conventions (THEORY §0.2): the gap ``d`` is the signed distance to the tool surface, positive in
+free space and negative inside the tool; ``normal`` is the *outward tool normal* ``∇d`` at the
+closest point; ``hessian`` is ``∇²d`` (symmetric, annihilates the normal).
+
+A tool is described in its *reference frame* (its position at ``t = 0``). Its position at time
+``t`` is given by a :class:`RigidMotion`: a translation ``c(t) = ∫₀ᵗ v`` and a rotation by the
+angle ``θ(t) = ∫₀ᵗ ω`` about an axis through ``axis_point + c(t)``. Concrete tools only implement
+:meth:`Tool._project_reference`; the base class maps points to the reference frame and the
+results back.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from typing import Callable, Optional, Union
+
+import numpy as np
+from scipy.integrate import quad
+
+__all__ = ["Projection", "RigidMotion", "Tool", "as_points"]
+
+VectorOrCallable = Union[np.ndarray, tuple, list, Callable[[float], np.ndarray]]
+ScalarOrCallable = Union[float, Callable[[float], float]]
+
+
+def as_points(x) -> np.ndarray:
+    """Return ``x`` as a C-contiguous float64 (N, 3) array, with a clear error otherwise."""
+    a = np.ascontiguousarray(x, dtype=np.float64)
+    if a.ndim == 1 and a.shape[0] == 3:
+        a = a.reshape(1, 3)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"points must have shape (N, 3), got {np.shape(x)}")
+    if not np.all(np.isfinite(a)):
+        bad = np.flatnonzero(~np.all(np.isfinite(a), axis=1))
+        raise ValueError(f"points contain NaN/inf at rows {bad[:10].tolist()}")
+    return a
+
+
+@dataclass
+class Projection:
+    """Result of projecting N points on a tool.
+
+    Attributes:
+        gap: (N,) signed distance, positive in free space.
+        normal: (N, 3) outward unit tool normal at the closest point (``∇gap``).
+        point: (N, 3) closest point on the tool surface.
+        hessian: (N, 3, 3) Hessian of the gap, or ``None`` where the tool does not provide it.
+        feature: (N,) integer id of the surface feature the point projects on (facet, patch,
+            analytic region), used to detect feature switching between Newton iterations.
+        flag: (N,) integer status, 0 = normal; tools document other values (e.g. fall-back to
+            the flat projection for Nagata patches = 1).
+    """
+
+    gap: np.ndarray
+    normal: np.ndarray
+    point: np.ndarray
+    hessian: Optional[np.ndarray] = None
+    feature: Optional[np.ndarray] = None
+    flag: Optional[np.ndarray] = None
+
+    def __len__(self) -> int:
+        return self.gap.shape[0]
+
+    def take(self, idx) -> "Projection":
+        """Sub-selection of the points ``idx``."""
+
+        def sel(a):
+            return None if a is None else a[idx]
+
+        return Projection(self.gap[idx], self.normal[idx], self.point[idx], sel(self.hessian),
+                          sel(self.feature), sel(self.flag))
+
+
+def _vector_function(value: VectorOrCallable, name: str) -> Callable[[float], np.ndarray]:
+    if callable(value):
+        def f(t, _v=value):
+            out = np.asarray(_v(t), dtype=np.float64).reshape(-1)
+            if out.shape != (3,) or not np.all(np.isfinite(out)):
+                raise ValueError(f"{name}({t}) must return a finite 3-vector, got {out}")
+            return out
+        return f
+    v = np.asarray(value, dtype=np.float64).reshape(-1)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ValueError(f"{name} must be a finite 3-vector or a function of t, got {value!r}")
+    return lambda t, _v=v: _v.copy()
+
+
+def _scalar_function(value: ScalarOrCallable, name: str) -> Callable[[float], float]:
+    if callable(value):
+        def f(t, _v=value):
+            out = float(_v(t))
+            if not np.isfinite(out):
+                raise ValueError(f"{name}({t}) is not finite")
+            return out
+        return f
+    w = float(value)
+    if not np.isfinite(w):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return lambda t, _w=w: _w
+
+
+def unit_vector(v, name: str) -> np.ndarray:
+    """Normalised copy of a 3-vector; ValueError if it is zero or not finite."""
+    a = np.asarray(v, dtype=np.float64).reshape(-1)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be a finite 3-vector, got {v!r}")
+    n = np.linalg.norm(a)
+    if n < 1e-300:
+        raise ValueError(f"{name} must be non-zero, got {v!r}")
+    return a / n
+
+
+@dataclass(frozen=True)
+class RigidMotion:
+    """Rigid motion of a tool: translation plus rotation about one axis.
+
+    Args:
+        velocity: translation velocity, a constant 3-vector or a function ``v(t)``.
+        angular_velocity: rotation speed ω [rad/s] about ``axis`` (right-hand rule), constant or
+            a function ``ω(t)``.
+        axis_point: a point of the rotation axis at ``t = 0`` (it translates with the tool).
+        axis: direction of the rotation axis.
+
+    Constant rates are integrated exactly; callables are integrated with ``scipy.integrate.quad``.
+    """
+
+    velocity: VectorOrCallable = (0.0, 0.0, 0.0)
+    angular_velocity: ScalarOrCallable = 0.0
+    axis_point: tuple = (0.0, 0.0, 0.0)
+    axis: tuple = (0.0, 0.0, 1.0)
+    _v: Callable = field(init=False, repr=False, compare=False)
+    _w: Callable = field(init=False, repr=False, compare=False)
+    _a0: np.ndarray = field(init=False, repr=False, compare=False)
+    _ax: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "_v", _vector_function(self.velocity, "velocity"))
+        object.__setattr__(self, "_w", _scalar_function(self.angular_velocity, "angular_velocity"))
+        a0 = np.asarray(self.axis_point, dtype=np.float64).reshape(-1)
+        if a0.shape != (3,) or not np.all(np.isfinite(a0)):
+            raise ValueError(f"axis_point must be a finite 3-vector, got {self.axis_point!r}")
+        object.__setattr__(self, "_a0", a0)
+        object.__setattr__(self, "_ax", unit_vector(self.axis, "rotation axis"))
+
+    @property
+    def is_static(self) -> bool:
+        return (not callable(self.velocity) and not np.any(self._v(0.0))
+                and not callable(self.angular_velocity) and self._w(0.0) == 0.0)
+
+    @property
+    def rotates(self) -> bool:
+        return callable(self.angular_velocity) or self._w(0.0) != 0.0
+
+    def translation(self, t: float) -> np.ndarray:
+        """Displacement c(t) = ∫₀ᵗ v(s) ds of the tool."""
+        if not callable(self.velocity):
+            return self._v(0.0) * t
+        return np.array([quad(lambda s, k=k: self._v(s)[k], 0.0, t)[0] for k in range(3)])
+
+    def angle(self, t: float) -> float:
+        """Rotation angle θ(t) = ∫₀ᵗ ω(s) ds."""
+        if not callable(self.angular_velocity):
+            return self._w(0.0) * t
+        return quad(self._w, 0.0, t)[0]
+
+    def rotation(self, t: float) -> np.ndarray:
+        """Rotation matrix Q(t) (Rodrigues) about the axis."""
+        th = self.angle(t)
+        if th == 0.0:
+            return np.eye(3)
+        w = self._ax
+        W = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+        return np.eye(3) + np.sin(th) * W + (1.0 - np.cos(th)) * (W @ W)
+
+    def axis_point_at(self, t: float) -> np.ndarray:
+        return self._a0 + self.translation(t)
+
+    def to_reference(self, x: np.ndarray, t: float) -> np.ndarray:
+        """Map current positions to the reference (t = 0) frame: Qᵀ(x − a(t)) + a₀."""
+        a = self.axis_point_at(t)
+        Q = self.rotation(t)
+        return (x - a) @ Q + self._a0
+
+    def from_reference(self, y: np.ndarray, t: float) -> np.ndarray:
+        """Map reference positions to the current frame: Q(y − a₀) + a(t)."""
+        return (y - self._a0) @ self.rotation(t).T + self.axis_point_at(t)
+
+    def point_velocity(self, p: np.ndarray, t: float) -> np.ndarray:
+        """Material velocity of the tool at current points p: v(t) + ω(t) w × (p − a(t))."""
+        p = as_points(p)
+        v = np.broadcast_to(self._v(t), p.shape).copy()
+        w = self._w(t)
+        if w != 0.0:
+            v += w * np.cross(self._ax, p - self.axis_point_at(t))
+        return v
+
+
+class Tool(abc.ABC):
+    """A rigid tool. Subclasses implement :meth:`_project_reference` in the reference frame.
+
+    Attributes:
+        motion: the tool's :class:`RigidMotion`.
+        name: a label used in histories and outputs.
+    """
+
+    motion: RigidMotion
+    name: str = "tool"
+    #: True if the tool provides the gap Hessian (needed by the ``implicit-exact`` scheme).
+    has_hessian: bool = True
+
+    @abc.abstractmethod
+    def _project_reference(self, y: np.ndarray, hessian: bool) -> Projection:
+        """Project (N, 3) points given in the reference frame; results in the reference frame.
+
+        ``hessian=False`` allows the tool to skip the Hessian (return ``None``)."""
+
+    def project(self, x, t: float = 0.0, hessian: bool = True) -> Projection:
+        """Project (N, 3) points on the tool at its position at time ``t``.
+
+        Args:
+            x: (N, 3) points in the current frame.
+            t: time at which the tool position is taken.
+            hessian: whether the gap Hessian is needed (tools may skip computing it).
+
+        Returns:
+            A :class:`Projection` in the current frame.
+        """
+        x = as_points(x)
+        if self.motion.is_static:
+            pr = self._project_reference(x, hessian)
+            if not hessian:
+                pr.hessian = None
+            return pr
+        y = self.motion.to_reference(x, t)
+        pr = self._project_reference(y, hessian)
+        Q = self.motion.rotation(t)
+        pr.normal = pr.normal @ Q.T
+        pr.point = self.motion.from_reference(pr.point, t)
+        if hessian and pr.hessian is not None:
+            pr.hessian = np.einsum("ij,njk,lk->nil", Q, pr.hessian, Q)
+        else:
+            pr.hessian = None
+        return pr
+
+    def velocity(self, p, t: float = 0.0) -> np.ndarray:
+        """Material velocity of the tool at current points ``p`` (N, 3)."""
+        return self.motion.point_velocity(p, t)
