@@ -1,0 +1,103 @@
+"""Every dolfinx-version-specific call of fxcontact lives here (tested with dolfinx 0.5.2).
+
+When the stack moves to a newer dolfinx, this is the module to change: names such as
+``form_compiler_params`` (→ ``form_compiler_options``), ``FunctionSpace`` (→ ``functionspace``),
+``create_vtk_mesh`` (→ ``vtk_mesh``), ``dofmap.list.array`` (→ 2D array) changed after 0.5.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import dolfinx
+import dolfinx.fem
+import dolfinx.fem.petsc
+import dolfinx.mesh
+import dolfinx.plot
+
+__all__ = [
+    "DOLFINX_VERSION", "form", "function_space", "collapse", "dofmap_array", "cell_dofs",
+    "entities_to_geometry", "vtk_mesh", "interpolation_points", "locate_dofs_topological",
+    "cell_vertices", "model_to_mesh", "num_owned", "XDMFFile", "VTKFile",
+]
+
+DOLFINX_VERSION = dolfinx.__version__
+
+XDMFFile = dolfinx.io.XDMFFile
+VTKFile = dolfinx.io.VTKFile
+
+
+def form(f, jit_params=None):
+    """Compile a UFL form (or nested list of forms)."""
+    fcp = {}
+    return dolfinx.fem.form(f, form_compiler_params=fcp, jit_params=dict(jit_params or {}))
+
+
+def expression(expr, points):
+    """Compile a UFL expression evaluated at reference points."""
+    return dolfinx.fem.Expression(expr, points)
+
+
+def function_space(msh, element):
+    """Function space from a UFL element or an ("family", degree) tuple."""
+    return dolfinx.fem.FunctionSpace(msh, element)
+
+
+def vector_function_space(msh, family: str, degree: int):
+    return dolfinx.fem.VectorFunctionSpace(msh, (family, degree))
+
+
+def collapse(V):
+    """Collapse a sub-space: returns (collapsed space, map collapsed dof -> parent dof)."""
+    Vc, dofs = V.collapse()
+    return Vc, np.asarray(dofs, dtype=np.int32)
+
+
+def dofmap_array(V) -> np.ndarray:
+    """The cell→dof list of ``V`` as a 2D (num_cells, dofs_per_cell) array."""
+    ncells = V.mesh.topology.index_map(V.mesh.topology.dim).size_local \
+        + V.mesh.topology.index_map(V.mesh.topology.dim).num_ghosts
+    return np.asarray(V.dofmap.list.array, dtype=np.int32).reshape(ncells, -1)
+
+
+def cell_dofs(V, cell: int) -> np.ndarray:
+    return np.asarray(V.dofmap.cell_dofs(cell), dtype=np.int32)
+
+
+def cell_vertices(msh) -> np.ndarray:
+    """(num_cells, vertices_per_cell) cell→vertex connectivity (local indices)."""
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim, 0)
+    c2v = msh.topology.connectivity(tdim, 0)
+    ncells = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
+    return np.asarray(c2v.array, dtype=np.int32).reshape(ncells, -1)
+
+
+def entities_to_geometry(msh, dim: int, entities) -> np.ndarray:
+    """Geometry node indices of mesh entities (vertices: one node each)."""
+    return np.asarray(dolfinx.cpp.mesh.entities_to_geometry(
+        msh._mesh, dim, np.asarray(entities, dtype=np.int32), False), dtype=np.int32)
+
+
+def vtk_mesh(msh):
+    """(topology, cell_types, geometry) of the owned cells, for pyvista."""
+    return dolfinx.plot.create_vtk_mesh(msh)
+
+
+def interpolation_points(V) -> np.ndarray:
+    ip = V.element.interpolation_points
+    return ip() if callable(ip) else ip
+
+
+def locate_dofs_topological(V, dim: int, entities):
+    return dolfinx.fem.locate_dofs_topological(V, dim, entities)
+
+
+def num_owned(index_map) -> int:
+    return index_map.size_local
+
+
+def model_to_mesh(model, comm, rank: int = 0, gdim: int = 3):
+    """gmsh model → (mesh, cell_tags, facet_tags) (``read_from_msh`` is broken in 0.5.2)."""
+    from dolfinx.io import gmshio
+    return gmshio.model_to_mesh(model, comm, rank, gdim=gdim)

@@ -1,0 +1,1 @@
+"""Nodal penalty contact: contact boundary, schemes, penalty kernels."""

@@ -1,0 +1,180 @@
+"""Constitutive laws in the incremental velocity setting (THEORY §1).
+
+Each material builds the UFL residual of one increment on the current configuration for the mixed
+unknown ``(v, p)``: :meth:`residual`. The numpy methods (``stress``, ``tangent``, ``potential``) are
+point-wise reference implementations used in tests (finite-difference checks) and diagnostics.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import ufl
+
+__all__ = ["NortonHoff", "LinearElastic", "Material"]
+
+
+def _check_positive(name, value):
+    if not (isinstance(value, (int, float, np.floating, np.integer)) and math.isfinite(value)
+            and value > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+
+
+def _dev(e):
+    d = e.ufl_shape[0]
+    return e - ufl.tr(e) / d * ufl.Identity(d)
+
+
+def _dev_np(e):
+    d = e.shape[-1]
+    return e - np.trace(e, axis1=-2, axis2=-1)[..., None, None] / d * np.eye(d)
+
+
+class Material:
+    """Base class: marker for the materials fxcontact knows how to assemble."""
+
+    #: Small-strain materials are solved on the fixed reference mesh with an accumulated
+    #: displacement; large-strain (viscoplastic) materials use the updated-Lagrangian mesh motion.
+    small_strain: bool = False
+
+    def residual(self, v, p, w, q, dx, dt, u_prev=None):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class NortonHoff(Material):
+    """Incompressible Norton–Hoff viscoplasticity, ``s = 2K z^(m-1) ε̇`` (THEORY §1.1).
+
+    The potential is regularised, ``z_r² = 2 ε̇:ε̇ + 3 ε̇₀²``, so the residual stays the exact gradient
+    of a convex potential and the tangent is finite in rigid zones. The strain rate entering the
+    potential is the deviator of ``ε(v)`` (THEORY §1.1 design choice: MINI enforces div v = 0 only
+    weakly).
+
+    Args:
+        K: consistency [MPa·s^m], > 0.
+        m: strain-rate sensitivity, 0 < m ≤ 1 (m = 1 is a Newtonian fluid of viscosity K).
+        regularization: ε̇₀ [1/s], > 0; choose 1e-3–1e-4 × the characteristic strain rate.
+    """
+
+    K: float
+    m: float
+    regularization: float = 1e-6
+
+    small_strain = False
+
+    def __post_init__(self):
+        _check_positive("K (Norton-Hoff consistency)", self.K)
+        if not (isinstance(self.m, (int, float, np.floating)) and 0.0 < self.m <= 1.0):
+            raise ValueError(f"m (strain-rate sensitivity) must be in (0, 1], got {self.m!r}")
+        _check_positive("regularization (reference strain rate)", self.regularization)
+
+    # -- UFL -----------------------------------------------------------------------------
+    def z_ufl(self, eps):
+        e = _dev(eps)
+        return ufl.sqrt(2.0 * ufl.inner(e, e) + 3.0 * self.regularization**2)
+
+    def stress_ufl(self, eps):
+        """Deviatoric stress ``s = 2 K z_r^(m-1) dev ε`` as a UFL expression."""
+        return 2.0 * self.K * self.z_ufl(eps) ** (self.m - 1.0) * _dev(eps)
+
+    def equivalent_strain_rate_ufl(self, eps):
+        """Un-regularised ε̄̇ = sqrt(2/3 dev ε : dev ε)."""
+        e = _dev(eps)
+        return ufl.sqrt(2.0 / 3.0 * ufl.inner(e, e))
+
+    def residual(self, v, p, w, q, dx, dt, u_prev=None):
+        eps = ufl.sym(ufl.grad(v))
+        return (ufl.inner(self.stress_ufl(eps), ufl.sym(ufl.grad(w))) * dx
+                - p * ufl.div(w) * dx - q * ufl.div(v) * dx)
+
+    def viscosity(self, strain_rate: float) -> float:
+        """Secant viscosity η = K z^(m-1) at an equivalent strain rate (for penalty scaling)."""
+        z = math.sqrt(3.0 * strain_rate**2 + 3.0 * self.regularization**2)
+        return self.K * z ** (self.m - 1.0)
+
+    def flow_stress(self, strain_rate: float) -> float:
+        """Equivalent (von Mises) stress σ̄ = √3 K (√3 ε̄̇)^m."""
+        return math.sqrt(3.0) * self.K * (math.sqrt(3.0) * strain_rate) ** self.m
+
+    # -- numpy reference ------------------------------------------------------------------
+    def _z(self, eps):
+        e = _dev_np(eps)
+        return np.sqrt(2.0 * np.einsum("...ij,...ij", e, e) + 3.0 * self.regularization**2)
+
+    def potential(self, eps: np.ndarray) -> np.ndarray:
+        """φ_r(ε) = K/(m+1) z_r^(m+1)."""
+        return self.K / (self.m + 1.0) * self._z(eps) ** (self.m + 1.0)
+
+    def stress(self, eps: np.ndarray) -> np.ndarray:
+        return 2.0 * self.K * self._z(eps)[..., None, None] ** (self.m - 1.0) * _dev_np(eps)
+
+    def tangent(self, eps: np.ndarray) -> np.ndarray:
+        """Consistent tangent ∂s/∂ε (d×d×d×d), acting on symmetric increments."""
+        d = eps.shape[-1]
+        e = _dev_np(eps)
+        z = self._z(eps)
+        eye = np.eye(d)
+        Isym = 0.5 * (np.einsum("ik,jl->ijkl", eye, eye) + np.einsum("il,jk->ijkl", eye, eye))
+        Pdev = Isym - np.einsum("ij,kl->ijkl", eye, eye) / d
+        return 2.0 * self.K * z ** (self.m - 1.0) * (
+            Pdev + 2.0 * (self.m - 1.0) / z**2 * np.einsum("ij,kl->ijkl", e, e))
+
+
+@dataclass(frozen=True)
+class LinearElastic(Material):
+    """Linear isotropic elasticity in the incremental velocity setting (THEORY §1.4).
+
+    ``u^{t+dt} = u^t + dt v``; the residual is ``∫ σ(u^{t+dt}) : ε(w)`` with the mixed pressure
+    ``p = -κ div u`` (so ν → 0.5 stays well posed); the pressure equation is divided by ``dt`` so
+    the Jacobian ``[[dt A, Bᵀ], [B, -M/(κ dt)]]`` is symmetric. Small strain: the mesh is not
+    moved, the displacement is accumulated.
+
+    Args:
+        E: Young's modulus [MPa], > 0.
+        nu: Poisson's ratio, -1 < ν < 0.5.
+    """
+
+    E: float
+    nu: float
+
+    small_strain = True
+
+    def __post_init__(self):
+        _check_positive("E (Young's modulus)", self.E)
+        if not (isinstance(self.nu, (int, float, np.floating)) and -1.0 < self.nu < 0.5):
+            raise ValueError(f"nu (Poisson's ratio) must be in (-1, 0.5), got {self.nu!r}")
+
+    @property
+    def mu(self) -> float:
+        return self.E / (2.0 * (1.0 + self.nu))
+
+    @property
+    def lmbda(self) -> float:
+        return self.E * self.nu / ((1.0 + self.nu) * (1.0 - 2.0 * self.nu))
+
+    def bulk_modulus(self, gdim: int) -> float:
+        """κ such that p = -κ div u: λ + 2μ/d (d = 3; plane strain: d = 2 gives λ + μ)."""
+        return self.lmbda + 2.0 * self.mu / gdim
+
+    @property
+    def plane_strain_modulus(self) -> float:
+        """E* = E / (1 - ν²) (Hertz, rigid indenter)."""
+        return self.E / (1.0 - self.nu**2)
+
+    def residual(self, v, p, w, q, dx, dt, u_prev=None):
+        if u_prev is None:
+            raise ValueError("LinearElastic.residual needs the accumulated displacement u_prev")
+        d = v.ufl_shape[0]
+        kappa = self.bulk_modulus(d)
+        u = u_prev + dt * v
+        eps = ufl.sym(ufl.grad(u))
+        s = 2.0 * self.mu * _dev(eps)
+        return (ufl.inner(s, ufl.sym(ufl.grad(w))) * dx - p * ufl.div(w) * dx
+                - q * (ufl.div(u) / dt + p / (kappa * dt)) * dx)
+
+    def stress(self, eps: np.ndarray) -> np.ndarray:
+        d = eps.shape[-1]
+        tr = np.trace(eps, axis1=-2, axis2=-1)[..., None, None]
+        return self.lmbda * tr * np.eye(d) + 2.0 * self.mu * eps

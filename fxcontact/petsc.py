@@ -1,0 +1,224 @@
+"""All PETSc insertion of fxcontact: UFL residual/Jacobian assembly plus nodal terms, for SNES.
+
+Order of operations (PLATFORM.md, verified):
+
+* residual: assemble the UFL vector, apply lifting, reverse ghost update, **then** add the nodal
+  residual entries to owned rows, **then** ``set_bc``;
+* Jacobian: ``zeroEntries``, add the nodal blocks with one ``setValuesLocalRCV`` (never with zero
+  rows: that kills the process), **then** ``assemble_matrix`` (which ends by *inserting* the BC
+  diagonal), then the final ``assemble()``.
+
+Nodal terms never touch Dirichlet rows/columns in the matrix (they are masked to −1, which PETSc
+ignores) and only owned rows, so each vertex is counted once under MPI.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Sequence
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx.fem
+import dolfinx.fem.petsc
+
+from fxcontact import compat
+
+__all__ = ["NodalTerms", "NonlinearProblem", "Timers", "add_nodal_residual",
+           "add_nodal_jacobian", "ContributorError"]
+
+log = logging.getLogger(__name__)
+
+
+class ContributorError(RuntimeError):
+    """A nodal contributor refused the current iterate (e.g. a node deep inside a tool)."""
+
+
+@dataclass
+class NodalTerms:
+    """Per-node residual entries and Jacobian blocks on velocity dofs.
+
+    Attributes:
+        dofs: (N, bs) local dof indices in W (owned rows only); −1 entries are skipped.
+        residual: (N, bs) entries added to the residual.
+        jacobian: (N, bs, bs) blocks added to the Jacobian, or None.
+    """
+
+    dofs: np.ndarray
+    residual: np.ndarray
+    jacobian: Optional[np.ndarray] = None
+
+    @staticmethod
+    def empty(bs: int) -> "NodalTerms":
+        return NodalTerms(np.zeros((0, bs), np.int32), np.zeros((0, bs)), np.zeros((0, bs, bs)))
+
+
+@dataclass
+class Timers:
+    """Accumulated wall times of named phases (seconds)."""
+
+    times: Dict[str, float] = field(default_factory=dict)
+
+    def add(self, name: str, dt: float):
+        self.times[name] = self.times.get(name, 0.0) + dt
+
+    def get(self, name: str) -> float:
+        return self.times.get(name, 0.0)
+
+    def reset(self):
+        self.times.clear()
+
+    class _Ctx:
+        def __init__(self, timers, name):
+            self.timers, self.name = timers, name
+
+        def __enter__(self):
+            self.t0 = time.perf_counter()
+
+        def __exit__(self, *exc):
+            self.timers.add(self.name, time.perf_counter() - self.t0)
+
+    def __call__(self, name: str):
+        return Timers._Ctx(self, name)
+
+
+def add_nodal_residual(b: PETSc.Vec, terms: NodalTerms):
+    """Add nodal residual entries into the owned part of ``b`` (after the ghost update)."""
+    if terms.dofs.size == 0:
+        return
+    dofs = terms.dofs.ravel()
+    vals = terms.residual.ravel()
+    keep = dofs >= 0
+    arr = b.getArray(readonly=False)
+    np.add.at(arr, dofs[keep], vals[keep])
+
+
+def add_nodal_jacobian(A: PETSc.Mat, terms: NodalTerms, bc_marker: np.ndarray):
+    """Add nodal blocks to ``A`` before the UFL assembly; Dirichlet rows/columns masked."""
+    if terms.jacobian is None or terms.dofs.shape[0] == 0:
+        return
+    rows = terms.dofs.astype(np.int32).copy()
+    rows[rows >= 0] = np.where(bc_marker[rows[rows >= 0]], -1, rows[rows >= 0])
+    active = np.any(rows >= 0, axis=1)
+    if not np.any(active):
+        return  # never call setValuesLocalRCV with zero rows (SIGFPE)
+    rows = np.ascontiguousarray(rows[active])
+    vals = np.ascontiguousarray(terms.jacobian[active]).reshape(rows.shape[0], -1)
+    A.setValuesLocalRCV(rows, rows, vals, addv=PETSc.InsertMode.ADD_VALUES)
+
+
+class NonlinearProblem:
+    """Residual/Jacobian callbacks for SNES: a UFL problem plus nodal contributors.
+
+    Args:
+        F: UFL residual form in ``w``.
+        w: the unknown Function (mixed space).
+        bcs: Dirichlet conditions.
+        J: UFL Jacobian (default: Gâteaux derivative of F).
+        contributors: objects with ``evaluate(w, jacobian: bool) -> NodalTerms`` called with the
+            current iterate (after the ghost update) before every residual/Jacobian assembly.
+        jit_params: passed to the form compiler.
+    """
+
+    def __init__(self, F, w, bcs=(), J=None, contributors: Sequence = (), jit_params=None):
+        import ufl
+        self.w = w
+        self.bcs = list(bcs)
+        if J is None:
+            J = ufl.derivative(F, w, ufl.TrialFunction(w.function_space))
+        self.L = compat.form(F, jit_params=jit_params)
+        self.a = compat.form(J, jit_params=jit_params)
+        self.contributors = list(contributors)
+        self.timers = Timers()
+        self.comm = w.function_space.mesh.comm
+        V = w.function_space
+        n_local = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
+        self.bc_marker = np.zeros(n_local * V.dofmap.index_map_bs, dtype=bool)
+        for bc in self.bcs:
+            self.bc_marker[bc.dof_indices()[0]] = True
+        self.error: Optional[str] = None
+        self._cache_terms: Optional[List[NodalTerms]] = None
+
+    def create_vector(self) -> PETSc.Vec:
+        return dolfinx.fem.petsc.create_vector(self.L)
+
+    def create_matrix(self) -> PETSc.Mat:
+        return dolfinx.fem.petsc.create_matrix(self.a)
+
+    # ------------------------------------------------------------------------------------
+    def _update(self, x: PETSc.Vec):
+        # x may be a line-search work vector: copy into the solution function first.
+        if x.handle != self.w.vector.handle:
+            x.copy(self.w.vector)
+        self.w.x.scatter_forward()
+
+    def _evaluate_contributors(self, jacobian: bool) -> Optional[List[NodalTerms]]:
+        """Evaluate every contributor; errors are made collective (never a hang under MPI)."""
+        terms, msg = [], None
+        with self.timers("contact"):
+            try:
+                for c in self.contributors:
+                    terms.append(c.evaluate(self.w, jacobian))
+            except ContributorError as e:
+                msg = str(e)
+        msgs = self.comm.allgather(msg)
+        bad = [m for m in msgs if m is not None]
+        if bad:
+            self.error = bad[0]
+            return None
+        return terms
+
+    def residual(self, snes, x: PETSc.Vec, b: PETSc.Vec):
+        """SNES residual callback."""
+        self._update(x)
+        terms = self._evaluate_contributors(jacobian=False) if self.contributors else []
+        with self.timers("assembly"):
+            with b.localForm() as bl:
+                bl.set(0.0)
+            dolfinx.fem.petsc.assemble_vector(b, self.L)
+            dolfinx.fem.petsc.apply_lifting(b, [self.a], bcs=[self.bcs], x0=[x], scale=-1.0)
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        if terms is None:  # a contributor refused this iterate: poison the residual
+            b.set(np.nan)
+            return
+        with self.timers("contact"):
+            for t in terms:
+                add_nodal_residual(b, t)
+        with self.timers("assembly"):
+            dolfinx.fem.petsc.set_bc(b, self.bcs, x, -1.0)
+
+    def jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat):
+        """SNES Jacobian callback."""
+        self._update(x)
+        terms = self._evaluate_contributors(jacobian=True) if self.contributors else []
+        A.zeroEntries()
+        if terms:
+            with self.timers("contact"):
+                for t in terms:
+                    add_nodal_jacobian(A, t, self.bc_marker)
+        with self.timers("assembly"):
+            dolfinx.fem.petsc.assemble_matrix(A, self.a, bcs=self.bcs)
+            A.assemble()
+        if terms is None:
+            raise ContributorError(self.error)
+
+    def assemble_residual(self, b: Optional[PETSc.Vec] = None) -> PETSc.Vec:
+        """Residual at the current ``w`` (for diagnostics/tests)."""
+        if b is None:
+            b = self.create_vector()
+        self.residual(None, self.w.vector, b)
+        return b
+
+    def assemble_jacobian(self, A: Optional[PETSc.Mat] = None) -> PETSc.Mat:
+        if A is None:
+            A = self.create_matrix()
+        self.jacobian(None, self.w.vector, A, A)
+        return A
+
+
+def owned_sum(comm: MPI.Comm, value) -> float:
+    return comm.allreduce(value, op=MPI.SUM)

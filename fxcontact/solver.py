@@ -1,0 +1,210 @@
+"""Newton solver (petsc4py SNES) for a UFL problem with nodal contributors.
+
+Options live under a prefix (default ``fxc_``), never in the global database unprefixed. The
+convergence test requires, besides a small residual or step, that every contributor reports a
+stable state (e.g. an unchanged contact active set, THEORY §3.6).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional
+
+import numpy as np
+from petsc4py import PETSc
+
+from fxcontact.petsc import NonlinearProblem
+
+__all__ = ["NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS"]
+
+log = logging.getLogger(__name__)
+
+#: Linear solver presets (PETSc options without prefix).
+LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
+    "mumps": {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps",
+              "mat_mumps_icntl_14": 200, "mat_mumps_icntl_24": 1},
+    # Schur-complement field split (velocity block: hypre AMG; Schur: pressure mass-like
+    # preconditioner from the selfp approximation), flexible GMRES outside.
+    "fieldsplit": {"ksp_type": "fgmres", "ksp_rtol": 1e-10, "ksp_atol": 1e-14,
+                   "ksp_max_it": 500, "ksp_gmres_restart": 200,
+                   "pc_type": "fieldsplit", "pc_fieldsplit_type": "schur",
+                   "pc_fieldsplit_schur_fact_type": "upper",
+                   "pc_fieldsplit_schur_precondition": "selfp",
+                   "fieldsplit_u_ksp_type": "preonly", "fieldsplit_u_pc_type": "hypre",
+                   "fieldsplit_p_ksp_type": "preonly", "fieldsplit_p_pc_type": "jacobi"},
+}
+
+
+@dataclass
+class SolverOptions:
+    """Newton settings, validated at construction.
+
+    Attributes:
+        rtol: relative residual tolerance ‖R‖/‖R₀‖.
+        atol: absolute residual tolerance.
+        stol: relative step tolerance ‖Δx‖/‖x‖ (a converged Newton step).
+        max_it: maximum Newton iterations per solve.
+        line_search: PETSc SNES line search ("bt", "basic", "l2", "cp").
+        linear_solver: key of :data:`LINEAR_SOLVERS` or a dict of PETSc options.
+        prefix: PETSc options prefix.
+        petsc_options: extra PETSc options (without prefix) that override the presets.
+    """
+
+    rtol: float = 1e-9
+    atol: float = 1e-10
+    stol: float = 1e-9
+    max_it: int = 30
+    line_search: str = "bt"
+    linear_solver: object = "mumps"
+    prefix: str = "fxc_"
+    petsc_options: Dict[str, object] = field(default_factory=dict)
+
+    def __post_init__(self):
+        for name in ("rtol", "atol", "stol"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+        if not (isinstance(self.max_it, (int, np.integer)) and self.max_it >= 1):
+            raise ValueError(f"max_it must be an integer >= 1, got {self.max_it!r}")
+        if self.line_search not in ("bt", "basic", "l2", "cp", "nleqerr"):
+            raise ValueError(f"unknown line search {self.line_search!r}")
+        if isinstance(self.linear_solver, str) and self.linear_solver not in LINEAR_SOLVERS:
+            raise ValueError(f"unknown linear solver {self.linear_solver!r}; choose one of "
+                             f"{sorted(LINEAR_SOLVERS)} or pass a dict of PETSc options")
+
+
+@dataclass
+class SolveInfo:
+    """Outcome of one Newton solve."""
+
+    converged: bool
+    iterations: int
+    reason: int
+    residual_norms: List[float]
+    message: str = ""
+    times: Dict[str, float] = field(default_factory=dict)
+
+
+class NewtonSolver:
+    """SNES Newton with line search, prefixed options and a contributor-aware convergence test.
+
+    Args:
+        problem: the :class:`~fxcontact.petsc.NonlinearProblem`.
+        options: :class:`SolverOptions`.
+        fieldsplit_is: optional (velocity IS, pressure IS) for the field-split preconditioner.
+    """
+
+    def __init__(self, problem: NonlinearProblem, options: Optional[SolverOptions] = None,
+                 fieldsplit_is=None):
+        self.problem = problem
+        self.options = options or SolverOptions()
+        comm = problem.comm
+        self.comm = comm
+        self.b = problem.create_vector()
+        self.A = problem.create_matrix()
+        snes = PETSc.SNES().create(comm)
+        snes.setOptionsPrefix(self.options.prefix)
+        opts = PETSc.Options()
+        lin = (LINEAR_SOLVERS[self.options.linear_solver]
+               if isinstance(self.options.linear_solver, str) else self.options.linear_solver)
+        all_opts = {"snes_type": "newtonls", "snes_linesearch_type": self.options.line_search,
+                    "snes_max_it": self.options.max_it, "snes_max_funcs": 100000}
+        all_opts.update(lin)
+        all_opts.update(self.options.petsc_options)
+        p = self.options.prefix
+        for k, v in all_opts.items():
+            opts[p + k] = v
+        snes.setFunction(problem.residual, self.b)
+        snes.setJacobian(problem.jacobian, self.A, self.A)
+        snes.setConvergenceTest(self._converged)
+        snes.setFromOptions()
+        ksp = snes.getKSP()
+        if lin.get("pc_type") == "fieldsplit":
+            if fieldsplit_is is None:
+                raise ValueError("the field-split linear solver needs the velocity/pressure ISs")
+            ksp.getPC().setFieldSplitIS(("u", fieldsplit_is[0]), ("p", fieldsplit_is[1]))
+        ksp.setFromOptions()
+        self.snes = snes
+        self._norms: List[float] = []
+        self._f0 = None
+        PETSc.Log.begin()
+        self._ev = [PETSc.Log.Event("KSPSolve"), PETSc.Log.Event("PCSetUp")]
+
+    def _converged(self, snes, it, norms):
+        xnorm, snorm, fnorm = norms
+        if not np.isfinite(fnorm):
+            return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
+        if it == 0:
+            self._f0 = fnorm
+            self._norms = [fnorm]
+        else:
+            self._norms.append(fnorm)
+        o = self.options
+        # every contributor must report a stable state at this (accepted) iterate
+        # (called at every iteration, including 0, so each contributor takes its snapshot)
+        stable = all([c.stable() for c in self.problem.contributors])
+        log.debug("Newton it %d: |R| = %.3e  |dx| = %.3e  stable=%s", it, fnorm, snorm, stable)
+        if stable:
+            if fnorm <= o.atol:
+                return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
+            if it > 0 and fnorm <= o.rtol * self._f0:
+                return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_RELATIVE
+            if it > 0 and snorm <= o.stol * max(xnorm, 1e-300):
+                return PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE
+        if it >= o.max_it:
+            return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
+        return PETSc.SNES.ConvergedReason.ITERATING
+
+    def _linear_time(self) -> float:
+        return sum(e.getPerfInfo()["time"] for e in self._ev)
+
+    def solve(self) -> SolveInfo:
+        """Solve from the current content of ``problem.w`` (the initial guess)."""
+        prob = self.problem
+        prob.error = None
+        prob.timers.reset()
+        for c in prob.contributors:
+            if hasattr(c, "begin_solve"):
+                c.begin_solve()
+        w = prob.w
+        x = w.vector.copy()
+        t0 = time.perf_counter()
+        lin0 = self._linear_time()
+        try:
+            self.snes.solve(None, x)
+            reason = self.snes.getConvergedReason()
+            its = self.snes.getIterationNumber()
+            msg = ""
+        except Exception as e:  # a contributor error raised through PETSc (collective)
+            reason, its = -100, self.snes.getIterationNumber()
+            msg = prob.error or str(e)
+        wall = time.perf_counter() - t0
+        if prob.error and not msg:
+            msg = prob.error
+        converged = reason > 0
+        if converged:
+            x.copy(w.vector)
+            w.x.scatter_forward()
+        x.destroy()
+        lin = self._linear_time() - lin0
+        times = {"assembly": prob.timers.get("assembly"), "contact": prob.timers.get("contact"),
+                 "linear_solve": lin}
+        times["other"] = max(wall - sum(times.values()), 0.0)
+        times["total"] = wall
+        if not converged and not msg:
+            msg = f"SNES diverged: {_reason_name(reason)} after {its} iterations"
+        return SolveInfo(converged, its, reason, list(self._norms), msg, times)
+
+    def destroy(self):
+        self.snes.destroy()
+        self.A.destroy()
+        self.b.destroy()
+
+
+def _reason_name(reason: int) -> str:
+    for k, v in PETSc.SNES.ConvergedReason.__dict__.items():
+        if isinstance(v, int) and v == reason and not k.startswith("_"):
+            return k
+    return str(reason)

@@ -1,0 +1,179 @@
+"""Mixed velocity–pressure spaces (MINI, Taylor–Hood) and velocity boundary conditions.
+
+MINI (P1 ⊕ bubble / P1) is the default: its velocity trace on the boundary is exactly P1, so the
+contact nodes are the boundary vertices (THEORY §1.3). The quadrature degree is always explicit:
+the default estimate for the Norton–Hoff power law is absurd, and MINI needs degree ≥ 6 to
+integrate its bubble block (PLATFORM.md).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Callable, Optional, Sequence, Union
+
+import numpy as np
+import ufl
+from mpi4py import MPI
+
+import dolfinx
+import dolfinx.fem
+
+from fxcontact import compat
+
+__all__ = ["MixedSpace", "velocity_bc", "facets_with_tags"]
+
+log = logging.getLogger(__name__)
+
+#: Default quadrature degree per element kind.
+DEFAULT_QUADRATURE = {"mini": 6, "taylor-hood": 4, "p1p1": 4}
+
+
+class MixedSpace:
+    """The mixed space W = V × Q of one mesh, with the maps the contact code needs.
+
+    Args:
+        msh: a simplex mesh (triangles or tetrahedra, affine geometry).
+        element: ``"mini"`` (default) or ``"taylor-hood"``.
+        quadrature_degree: quadrature degree of the volume integrals (default 6 for MINI,
+            4 for Taylor–Hood; MINI below 6 under-integrates the bubble block and raises).
+
+    Attributes:
+        W: the mixed function space; ``W.sub(0)`` velocity, ``W.sub(1)`` pressure.
+        V, V_to_W: collapsed velocity space and its dof map into W.
+        Q, Q_to_W: collapsed pressure space and its dof map into W.
+        dx: volume measure with the explicit quadrature degree.
+        vertex_dofs: (num_vertices, gdim) W-dof of each velocity component at each mesh vertex
+            (local indices, owned and ghost vertices).
+        vertex_geometry: (num_vertices,) geometry node of each vertex.
+    """
+
+    def __init__(self, msh, element: str = "mini", quadrature_degree: Optional[int] = None):
+        kinds = ("mini", "taylor-hood")
+        if element not in kinds:
+            raise ValueError(f"unknown element {element!r}; choose one of {kinds}")
+        tdim = msh.topology.dim
+        gdim = msh.geometry.dim
+        if tdim != gdim or tdim not in (2, 3):
+            raise ValueError(f"need a 2D or 3D mesh of full dimension, got tdim={tdim}, gdim={gdim}")
+        if msh.topology.cell_type not in (dolfinx.mesh.CellType.triangle,
+                                          dolfinx.mesh.CellType.tetrahedron):
+            raise ValueError("MixedSpace needs a simplex mesh (triangles or tetrahedra)")
+        if quadrature_degree is None:
+            quadrature_degree = DEFAULT_QUADRATURE[element]
+        if element == "mini" and quadrature_degree < 6:
+            raise ValueError("MINI needs quadrature_degree >= 6 (the bubble block is "
+                             f"under-integrated below), got {quadrature_degree}")
+        self.mesh = msh
+        self.element = element
+        self.quadrature_degree = int(quadrature_degree)
+        self.gdim = gdim
+        cell = msh.ufl_cell()
+        P1 = ufl.FiniteElement("Lagrange", cell, 1)
+        if element == "mini":
+            B = ufl.FiniteElement("Bubble", cell, tdim + 1)
+            Ve = ufl.VectorElement(ufl.EnrichedElement(P1, B))
+        else:
+            Ve = ufl.VectorElement("Lagrange", cell, 2)
+        self.W = compat.function_space(msh, ufl.MixedElement([Ve, P1]))
+        self.V, self.V_to_W = compat.collapse(self.W.sub(0))
+        self.Q, self.Q_to_W = compat.collapse(self.W.sub(1))
+        self.dx = ufl.dx(domain=msh, metadata={"quadrature_degree": self.quadrature_degree})
+        self.P1 = compat.vector_function_space(msh, "Lagrange", 1)
+        self.DG0 = compat.function_space(msh, ("DG", 0))
+        self._build_vertex_maps()
+
+    # -------------------------------------------------------------------------------------
+    def _build_vertex_maps(self):
+        msh = self.mesh
+        c2v = compat.cell_vertices(msh)
+        nv_cell = c2v.shape[1]
+        imap = msh.topology.index_map(0)
+        nverts = imap.size_local + imap.num_ghosts
+        vd = np.full((nverts, self.gdim), -1, dtype=np.int32)
+        for k in range(self.gdim):
+            cd = compat.dofmap_array(self.W.sub(0).sub(k))[:, :nv_cell]
+            vd[c2v.ravel(), k] = cd.ravel()
+        self.vertex_dofs = vd
+        self.vertex_geometry = compat.entities_to_geometry(
+            msh, 0, np.arange(nverts, dtype=np.int32)).ravel()
+        # ownership of a vertex = ownership of its velocity dofs
+        nown = self.W.dofmap.index_map.size_local * self.W.dofmap.index_map_bs
+        self.vertex_owned = np.all(vd < nown, axis=1)
+
+    @property
+    def num_owned_dofs(self) -> int:
+        return self.W.dofmap.index_map.size_local * self.W.dofmap.index_map_bs
+
+    def global_dofs(self) -> int:
+        return self.W.dofmap.index_map.size_global * self.W.dofmap.index_map_bs
+
+    def vertex_positions(self) -> np.ndarray:
+        """(num_vertices, gdim) current coordinates of the vertices."""
+        return self.mesh.geometry.x[self.vertex_geometry, : self.gdim].copy()
+
+
+def facets_with_tags(msh, facet_tags, tags: Union[int, Sequence[int]]) -> np.ndarray:
+    """Local facet indices carrying any of ``tags``; ValueError if a tag is absent everywhere.
+
+    The check is collective (a tag may live on one rank only), so it never hangs under MPI.
+    """
+    if facet_tags is None:
+        raise ValueError("facet tags are required to select boundaries by tag")
+    tags = [int(tags)] if np.isscalar(tags) else [int(t) for t in tags]
+    out = []
+    for t in tags:
+        f = facet_tags.indices[facet_tags.values == t]
+        n = msh.comm.allreduce(len(f), op=MPI.SUM)
+        if n == 0:
+            present = sorted(set(int(x) for vals in msh.comm.allgather(
+                np.unique(facet_tags.values).tolist()) for x in vals))
+            raise ValueError(f"boundary tag {t} is not present in the facet tags "
+                             f"(tags present: {present})")
+        out.append(f)
+    return np.unique(np.concatenate(out)).astype(np.int32)
+
+
+def velocity_bc(space: MixedSpace, facets: np.ndarray, value: Union[float, Callable, Sequence],
+                component: Optional[int] = None):
+    """Dirichlet condition on the velocity (one component or the full vector) on facets.
+
+    Args:
+        space: the mixed space.
+        facets: local facet indices (see :func:`facets_with_tags`).
+        value: constant, a function ``f(x) -> (N,)`` (component) / ``(gdim, N)`` (vector)
+            interpolated at the dofs, or a vector for the full velocity.
+        component: velocity component index, or None for the whole vector.
+
+    Returns:
+        ``(bc, g)``: the dolfinx DirichletBC and the Function holding its values (re-interpolate
+        into ``g`` to change the value between increments).
+    """
+    msh = space.mesh
+    fdim = msh.topology.dim - 1
+    if component is None:
+        Wsub, Vc = space.W.sub(0), space.V
+    else:
+        if not 0 <= component < space.gdim:
+            raise ValueError(f"component must be in [0, {space.gdim}), got {component}")
+        Wsub = space.W.sub(0).sub(component)
+        Vc, _ = compat.collapse(Wsub)
+    dofs = compat.locate_dofs_topological((Wsub, Vc), fdim, facets)
+    g = dolfinx.fem.Function(Vc)
+    set_function_value(g, value, space.gdim if component is None else None)
+    bc = dolfinx.fem.dirichletbc(g, dofs, Wsub)
+    return bc, g
+
+
+def set_function_value(g, value, gdim: Optional[int] = None):
+    """Fill ``g`` with a constant, a constant vector or by interpolating a callable."""
+    if callable(value):
+        g.interpolate(value)
+    else:
+        val = np.asarray(value, dtype=np.float64)
+        if val.ndim == 0:
+            g.x.array[:] = float(val)
+        else:
+            if gdim is None or val.shape != (gdim,):
+                raise ValueError(f"vector value must have shape ({gdim},), got {val.shape}")
+            g.x.array[:] = np.tile(val, g.x.array.size // gdim)
+    g.x.scatter_forward()
