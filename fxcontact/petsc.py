@@ -180,7 +180,9 @@ class NonlinearProblem:
             with b.localForm() as bl:
                 bl.set(0.0)
             dolfinx.fem.petsc.assemble_vector(b, self.L)
-            dolfinx.fem.petsc.apply_lifting(b, [self.a], bcs=[self.bcs], x0=[x], scale=-1.0)
+            # x0 must have current ghost values: use the (scattered) solution vector
+            dolfinx.fem.petsc.apply_lifting(b, [self.a], bcs=[self.bcs], x0=[self.w.vector],
+                                            scale=-1.0)
             b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         if terms is None:  # a contributor refused this iterate: poison the residual
             b.set(np.nan)
@@ -189,7 +191,7 @@ class NonlinearProblem:
             for t in terms:
                 add_nodal_residual(b, t)
         with self.timers("assembly"):
-            dolfinx.fem.petsc.set_bc(b, self.bcs, x, -1.0)
+            dolfinx.fem.petsc.set_bc(b, self.bcs, self.w.vector, -1.0)
 
     def jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat):
         """SNES Jacobian callback."""

@@ -137,6 +137,7 @@ class Simulation:
         self._x_ref = self.mesh.geometry.x.copy()
         self._writer = None
         self._history_writer = None
+        self._reactions: Dict[str, np.ndarray] = {}
 
     # ------------------------------------------------------------------------ set-up
     def _p1_vertex_dofs(self) -> np.ndarray:
@@ -161,6 +162,12 @@ class Simulation:
         bc, g = velocity_bc(self.space, facets, v0, component)
         self._bcs.append(_BC(bc, g, value, self.space.gdim if component is None else None))
         return bc
+
+    def add_reaction(self, name: str, facets: np.ndarray):
+        """Record, each increment, the force exerted on the body through the Dirichlet dofs of
+        ``facets`` (history columns ``{name}_x``, ``{name}_y``, ``{name}_z``), computed on the
+        configuration of the increment (before the geometry update)."""
+        self._reactions[name] = np.asarray(facets, dtype=np.int32)
 
     def add_contributor(self, contributor):
         """Register a nodal contributor (``evaluate``, ``stable``; optional ``begin_increment``,
@@ -257,8 +264,9 @@ class Simulation:
     def reaction_force(self, facets: np.ndarray) -> np.ndarray:
         """Force exerted *on the body* through the Dirichlet dofs of ``facets`` (gdim,).
 
-        Computed as minus the sum of the (bc-free) UFL residual entries at the velocity dofs of
-        the facets, owned dofs only, summed over ranks.
+        Computed as the sum of the (bc-free) UFL residual entries (internal forces) at the
+        velocity dofs of the facets, owned dofs only, summed over ranks, on the *current*
+        geometry (use :meth:`add_reaction` for the value on the increment's configuration).
         """
         self._build()
         sp = self.space
@@ -273,7 +281,7 @@ class Simulation:
             Vk, _ = compat.collapse(Wk)
             dofs = compat.locate_dofs_topological((Wk, Vk), fdim, facets)[0]
             dofs = dofs[dofs < nown]
-            out[k] = -np.sum(arr[dofs])
+            out[k] = np.sum(arr[dofs])
         b.destroy()
         return self.comm.allreduce(out, op=MPI.SUM)
 
@@ -306,6 +314,8 @@ class Simulation:
         rate = self._cell_average(self._rate_form)
         self.strain_rate.x.array[:] = rate
         self.strain.x.array[:] += dt * rate
+        reactions = {name: self.reaction_force(f) for name, f in self._reactions.items()}
+        div_v = self.divergence_integral()
         # geometry / displacement update with the same map as the contact condition
         X = self.kinematics.positions(x_t, v_vert, dt)
         if self.u is None:
@@ -323,6 +333,10 @@ class Simulation:
         for k in ("assembly", "linear_solve", "contact", "other", "total"):
             row[f"wall_{k}"] = info.times.get(k, 0.0)
         row["volume"] = self.volume()
+        row["div_v"] = div_v
+        for name, F in reactions.items():
+            for k, c in enumerate("xyz"[: sp.gdim]):
+                row[f"{name}_{c}"] = F[k]
         for c in self.contributors:
             if hasattr(c, "end_increment"):
                 c.end_increment(self, dt)

@@ -1,0 +1,30 @@
+"""Shared test utilities (meshes, parallel/serial comparison)."""
+
+import numpy as np
+from mpi4py import MPI
+
+import dolfinx
+
+
+def box_mesh(comm, L=(1.0, 1.0, 1.0), n=(4, 4, 4), perturb=0.0, seed=0):
+    msh = dolfinx.mesh.create_box(comm, [[0.0, 0.0, 0.0], list(L)], list(n),
+                                  dolfinx.mesh.CellType.tetrahedron)
+    if perturb > 0:
+        x = msh.geometry.x
+        h = np.array(L) / np.array(n)
+        # deterministic perturbation of interior nodes (function of position: rank independent)
+        inner = np.all((x[:, :3] > 1e-12) & (x[:, :3] < np.array(L) - 1e-12), axis=1)
+        ph = np.sin(12.9898 * x[:, 0] + 78.233 * x[:, 1] + 37.719 * x[:, 2] + seed) * 43758.5453
+        r = np.stack([np.sin(ph), np.sin(1.7 * ph), np.sin(2.3 * ph)], axis=1)
+        x[inner, :3] += perturb * h * r[inner]
+    return msh
+
+
+def gather_by_position(comm, x, values, decimals=9):
+    """Gather (position, value) pairs on all ranks, unique by position, sorted."""
+    xs = np.concatenate(comm.allgather(np.asarray(x)))
+    vs = np.concatenate(comm.allgather(np.asarray(values)))
+    key = np.round(xs, decimals)
+    _, idx = np.unique(key, axis=0, return_index=True)
+    order = np.lexsort(key[idx].T[::-1])
+    return xs[idx][order], vs[idx][order]

@@ -1,0 +1,201 @@
+"""Foundation: Norton–Hoff compression, elastic patch test, MPI agreement, bad input."""
+
+import numpy as np
+import pytest
+import ufl
+from mpi4py import MPI
+
+import dolfinx
+
+from fxcontact.materials import LinearElastic, NortonHoff
+from fxcontact.simulation import Simulation
+from fxcontact.solver import SolverOptions
+from fxcontact.spaces import MixedSpace, facets_with_tags
+
+from helpers import box_mesh, gather_by_position
+
+
+def _faces(msh, L):
+    fdim = msh.topology.dim - 1
+    loc = dolfinx.mesh.locate_entities_boundary
+    return {
+        "x0": loc(msh, fdim, lambda x: np.isclose(x[0], 0.0)),
+        "y0": loc(msh, fdim, lambda x: np.isclose(x[1], 0.0)),
+        "z0": loc(msh, fdim, lambda x: np.isclose(x[2], 0.0)),
+        "z1": loc(msh, fdim, lambda x: np.isclose(x[2], L[2])),
+    }
+
+
+def compression(comm, m, a=0.02, dt=0.1, n_inc=10, K=10.0, n=(3, 3, 3), perturb=0.15):
+    """Cube compressed between sliding plates: a fraction ``a`` of the height per increment."""
+    L = (1.0, 1.0, 1.0)
+    msh = box_mesh(comm, L, n, perturb=perturb)
+    space = MixedSpace(msh)
+    sim = Simulation(space, NortonHoff(K=K, m=m, regularization=1e-8), progress=False)
+    f = _faces(msh, L)
+    H0 = L[2]
+
+    def top(t):
+        k = int(round(t / dt)) - 1  # increments already done
+        return -a * H0 * (1 - a) ** k / dt
+
+    sim.add_velocity_bc(f["x0"], 0.0, 0)
+    sim.add_velocity_bc(f["y0"], 0.0, 1)
+    sim.add_velocity_bc(f["z0"], 0.0, 2)
+    sim.add_velocity_bc(f["z1"], top, 2)
+    sim.add_reaction("top", f["z1"])
+    out = []
+    V0 = sim.volume()
+    for i in range(n_inc):
+        area = sim.volume() / (H0 * (1 - a) ** i)  # uniform deformation: A = V/H
+        sim.step(dt)
+        F = sim.history[-1]["top_z"]
+        out.append(dict(stress=F / area, div=sim.history[-1]["div_v"], volume=sim.volume(),
+                        V=sim.volume()))
+    return sim, out, V0
+
+
+@pytest.mark.parametrize("m", [0.3, 0.14])
+def test_uniaxial_compression_norton_hoff(m):
+    a, dt, K = 0.02, 0.1, 10.0
+    sim, out, V0 = compression(MPI.COMM_WORLD, m, a=a, dt=dt, K=K)
+    rate = a / dt
+    sigma = -np.sqrt(3.0) * K * (np.sqrt(3.0) * rate) ** m
+    vol = V0
+    for i, o in enumerate(out):
+        # axial stress = -sqrt(3) K (sqrt(3) rate)^m within 0.5 %
+        assert abs(o["stress"] / sigma - 1.0) < 5e-3, (i, o["stress"], sigma)
+        # discrete incompressibility: |∫div v| < 1e-8 V rate
+        assert abs(o["div"]) < 1e-8 * vol * rate, (i, o["div"])
+        vol *= (1 + a / 2) ** 2 * (1 - a)
+        assert abs(o["volume"] / vol - 1.0) < 1e-6, (i, o["volume"], vol)
+    assert len(sim.history) == 10
+    assert all(r["newton_iterations"] >= 1 for r in sim.history)
+
+
+def test_compression_parallel_matches_serial():
+    """The distributed run equals a serial run of the same problem (on COMM_SELF) to 1e-8."""
+    comm = MPI.COMM_WORLD
+    sims = {}
+    for name, c in (("world", comm), ("self", MPI.COMM_SELF)):
+        sim, out, _ = compression(c, 0.2, n_inc=3, perturb=0.1)
+        sims[name] = (sim, out)
+    res = {}
+    for name, (sim, out) in sims.items():
+        sp = sim.space
+        owned = sp.vertex_owned
+        x = sp.vertex_positions()[owned]
+        v = sim.w.x.array[sp.vertex_dofs[owned]]
+        res[name] = gather_by_position(sim.comm if name == "world" else comm, x, v) \
+            if name == "world" else gather_by_position(MPI.COMM_SELF, x, v)
+    xw, vw = res["world"]
+    xs, vs = res["self"]
+    assert xw.shape == xs.shape
+    assert np.allclose(xw, xs, atol=1e-12)
+    assert np.max(np.abs(vw - vs)) <= 1e-8 * np.max(np.abs(vs))
+    for o_w, o_s in zip(sims["world"][1], sims["self"][1]):
+        for k in ("stress", "volume"):
+            assert abs(o_w[k] - o_s[k]) <= 1e-8 * abs(o_s[k])
+    for rw, rs in zip(sims["world"][0].history, sims["self"][0].history):
+        assert abs(rw["volume"] - rs["volume"]) <= 1e-8 * rs["volume"]
+        assert rw["newton_iterations"] == rs["newton_iterations"]
+
+
+def test_elastic_patch_test():
+    """Uniform uniaxial stress on a distorted mesh is reproduced exactly (1e-10)."""
+    comm = MPI.COMM_WORLD
+    L = (1.0, 2.0, 1.5)
+    msh = box_mesh(comm, L, (3, 4, 3), perturb=0.25, seed=3)
+    E, nu, s0, dt = 200.0, 0.3, -1.7, 0.5
+    mat = LinearElastic(E, nu)
+    space = MixedSpace(msh)
+    fdim = 2
+    ftop = dolfinx.mesh.locate_entities_boundary(msh, fdim, lambda x: np.isclose(x[2], L[2]))
+    tags = dolfinx.mesh.meshtags(msh, fdim, np.sort(ftop), np.full(len(ftop), 7, np.int32))
+    ds = ufl.ds(domain=msh, subdomain_data=tags)
+    traction = dolfinx.fem.Constant(msh, np.array([0.0, 0.0, s0]))
+
+    def extra(v, p, w, q):
+        return -ufl.inner(traction, w) * ds(7)
+
+    sim = Simulation(space, mat, extra_residual=extra, progress=False)
+    f = _faces(msh, L)
+    sim.add_velocity_bc(f["x0"], 0.0, 0)
+    sim.add_velocity_bc(f["y0"], 0.0, 1)
+    sim.add_velocity_bc(f["z0"], 0.0, 2)
+    sim.step(dt)
+    x = space.vertex_positions()  # reference mesh (small strain)
+    u_exact = np.c_[-nu * s0 / E * x[:, 0], -nu * s0 / E * x[:, 1], s0 / E * x[:, 2]]
+    v = sim.w.x.array[space.vertex_dofs]
+    err = np.max(np.abs(dt * v - u_exact))
+    err = comm.allreduce(err, op=MPI.MAX)
+    assert err <= 1e-10 * np.max(np.abs(u_exact)) + 1e-14, err
+    p = sim.w.x.array[space.Q_to_W]
+    assert np.allclose(p, -s0 / 3.0, rtol=1e-10, atol=1e-12)
+    # the displacement is accumulated: a second increment with the same load does nothing
+    sim.step(dt)
+    v2 = sim.w.x.array[space.vertex_dofs]
+    assert np.max(np.abs(v2)) <= 1e-10 * np.max(np.abs(v))
+
+
+@pytest.mark.parametrize("kwargs", [dict(K=0.0, m=0.2), dict(K=-1.0, m=0.2),
+                                    dict(K=1.0, m=0.0), dict(K=1.0, m=1.5),
+                                    dict(K=float("nan"), m=0.2), dict(K=1.0, m=0.2,
+                                                                      regularization=0.0)])
+def test_bad_norton_hoff(kwargs):
+    with pytest.raises(ValueError):
+        NortonHoff(**kwargs)
+
+
+@pytest.mark.parametrize("E,nu", [(0.0, 0.3), (-5.0, 0.3), (1.0, 0.5), (1.0, -1.0),
+                                  (1.0, 0.7)])
+def test_bad_elastic(E, nu):
+    with pytest.raises(ValueError, match="E|nu"):
+        LinearElastic(E, nu)
+
+
+def test_bad_dt_and_missing_tag():
+    comm = MPI.COMM_WORLD
+    msh = box_mesh(comm, n=(2, 2, 2))
+    space = MixedSpace(msh)
+    sim = Simulation(space, NortonHoff(1.0, 0.2), progress=False)
+    for dt in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="dt"):
+            sim.step(dt)
+    fdim = 2
+    f = dolfinx.mesh.locate_entities_boundary(msh, fdim, lambda x: np.isclose(x[2], 0.0))
+    tags = dolfinx.mesh.meshtags(msh, fdim, np.sort(f), np.full(len(f), 1, np.int32))
+    with pytest.raises(ValueError, match="tag 5"):
+        facets_with_tags(msh, tags, 5)
+    with pytest.raises(ValueError, match="element"):
+        MixedSpace(msh, element="P3")
+    with pytest.raises(ValueError, match="quadrature"):
+        MixedSpace(msh, quadrature_degree=4)
+
+
+def test_material_derivatives_fd():
+    """Norton–Hoff: s = ∂φ/∂ε and D = ∂s/∂ε by central finite differences (numpy reference)."""
+    rng = np.random.default_rng(0)
+    mat = NortonHoff(K=3.0, m=0.14, regularization=1e-2)
+    for _ in range(5):
+        a = rng.normal(size=(3, 3))
+        eps = 0.5 * (a + a.T)
+        h = 1e-6
+        g = np.zeros((3, 3))
+        for i in range(3):
+            for j in range(3):
+                d = np.zeros((3, 3))
+                d[i, j] = h
+                g[i, j] = (mat.potential(eps + d) - mat.potential(eps - d)) / (2 * h)
+        s = mat.stress(eps)
+        gs = 0.5 * (g + g.T)  # gradient w.r.t. a symmetric tensor
+        assert np.linalg.norm(gs - s) < 1e-6 * np.linalg.norm(s)
+        D = mat.tangent(eps)
+        Dfd = np.zeros((3, 3, 3, 3))
+        for k in range(3):
+            for l in range(3):
+                d = np.zeros((3, 3))
+                d[k, l] += 0.5 * h
+                d[l, k] += 0.5 * h
+                Dfd[:, :, k, l] = (mat.stress(eps + d) - mat.stress(eps - d)) / (2 * h)
+        assert np.linalg.norm(Dfd - D) < 1e-6 * np.linalg.norm(D)
