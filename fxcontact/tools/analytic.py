@@ -397,12 +397,19 @@ def _cone_numpy(y, apex, w, ca, sa, sgn, efix, tol, want_h) -> _Arrays:
     return gap, nrm, pt, hes, feat, flag
 
 
-def _numba_caller(kernel: Callable) -> Callable:
-    """Wrap a kernel as ``f(y, *params, want_h) -> arrays`` (allocating the outputs)."""
+def _numba_caller(kernel: Callable, zero_hessian: bool = False) -> Callable:
+    """Wrap a kernel as ``f(y, *params, want_h) -> arrays`` (allocating the outputs).
+
+    ``zero_hessian``: the Hessian is identically zero (plane); it is allocated with ``np.zeros``
+    (lazily zeroed pages) instead of being written by the kernel.
+    """
 
     def run(y, *args) -> _Arrays:
         want_h = bool(args[-1])
-        out = _allocate(y.shape[0], want_h)
+        out = _allocate(y.shape[0], want_h and not zero_hessian)
+        if zero_hessian and want_h:
+            out = out[:3] + (np.zeros((y.shape[0], 3, 3)),) + out[4:]
+            want_h = False
         kernel(y, *args[:-1], want_h, *out)
         return out
 
@@ -411,7 +418,7 @@ def _numba_caller(kernel: Callable) -> Callable:
 
 
 _IMPLEMENTATIONS = {
-    "plane": {"numba": _numba_caller(_plane_kernel), "numpy": _plane_numpy},
+    "plane": {"numba": _numba_caller(_plane_kernel, zero_hessian=True), "numpy": _plane_numpy},
     "sphere": {"numba": _numba_caller(_sphere_kernel), "numpy": _sphere_numpy},
     "cylinder": {"numba": _numba_caller(_cylinder_kernel), "numpy": _cylinder_numpy},
     "cone": {"numba": _numba_caller(_cone_kernel), "numpy": _cone_numpy},
