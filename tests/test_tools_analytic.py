@@ -64,8 +64,9 @@ def sample_points(kind, inside, n=40, seed=0):
     if kind == "plane":
         nrm = unit(PLANE["normal"])
         x = rng.uniform(-2, 2, (n, 3))
-        x[: n // 4] -= ((x[: n // 4] - PLANE["point"]) @ nrm)[:, None] * nrm  # on the plane …
-        x[: n // 4] += rng.choice([-1, 1], (n // 4, 1)) * 10 ** rng.uniform(-4, -2, (n // 4, 1)) * nrm
+        m = n // 4  # a quarter of the points within ±[1e-4, 1e-2] of the plane
+        x[:m] -= ((x[:m] - PLANE["point"]) @ nrm)[:, None] * nrm
+        x[:m] += rng.choice([-1, 1], (m, 1)) * 10 ** rng.uniform(-4, -2, (m, 1)) * nrm
         return x
     if kind == "sphere":
         R = SPHERE["radius"]

@@ -22,14 +22,15 @@ Projection flags and features:
     * cone, apex region: ``x`` numerically equal to the apex ``A`` (``|x − A|`` evaluates to 0).
 
     At a singular point the result is finite and deterministic: the radial direction ``e_r`` (the
-    direction ``e`` for the sphere and the cone apex) is replaced by the tool's fixed
+    direction ``e = (x − c)/|x − c|`` for the sphere) is replaced by the tool's fixed
     perpendicular :attr:`e_fixed` — the Cartesian basis vector least aligned with the axis (lowest
     index on ties), made orthogonal to the axis and normalised; for the sphere the spin axis is
     used, so the default ``axis=(0, 0, 1)`` gives ``e = (1, 0, 0)``. The gap keeps its true value
     (``ρ − R``, ``|x − c| − R``, ``ρ cos α − s sin α``, ...), the point is ``x − d n``, and in the
-    Hessian ``1/ρ`` is replaced by ``1/(AXIS_TOL·L)`` with ``L = R`` (sphere, cylinder) or
-    ``L = |x − A|`` (cone). At the cone apex itself the normal is ``∓w`` (``−w`` for the solid
-    cone, ``+w`` for the conical bore) and the Hessian is zero.
+    Hessian ``1/ρ`` (``1/|x − c|`` for the sphere) is replaced by ``1/(AXIS_TOL·L)`` with
+    ``L = R`` (sphere, cylinder) or ``L = |x − A|`` (cone): finite, but huge. At the cone apex
+    itself the normal is ``∓w`` (``−w`` for the solid cone, ``+w`` for the conical bore, the
+    axis of the normal cone of the apex) and the Hessian is zero.
 
 Cone apex region:
     The tool ``Cone(inside=False)`` is the solid, convex cone ``{s ≥ 0, ρ ≤ s tan α}``;
@@ -112,7 +113,7 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def fixed_perpendicular(w: np.ndarray) -> np.ndarray:
+def _fixed_perpendicular(w: np.ndarray) -> np.ndarray:
     """Deterministic unit vector orthogonal to the unit vector ``w``.
 
     The Cartesian basis vector with the smallest ``|w_k|`` (lowest index on ties), made orthogonal
@@ -456,6 +457,11 @@ class _AnalyticTool(Tool):
         y = as_points(y)
         impl = _IMPLEMENTATIONS[self._kind][self.backend]
         gap, nrm, pt, hes, feat, flag = impl(y, *self._params(), bool(hessian))
+        if logger.isEnabledFor(logging.DEBUG):
+            n_sing = int(np.count_nonzero(flag == 2))
+            if n_sing:
+                logger.debug("%s: %d singular point(s) (flag = 2, on the axis / centre)",
+                             self.name, n_sing)
         return Projection(gap, nrm, pt, hes if hessian else None, feat, flag)
 
     def _repr_fields(self) -> str:  # pragma: no cover - overridden
@@ -535,7 +541,7 @@ class Sphere(_AnalyticTool):
         self.radius = _positive_length(radius, "Sphere radius")
         self.inside = _check_flag(inside, "inside")
         self.axis = _readonly(unit_vector(axis, "Sphere spin axis"))
-        self.e_fixed = _readonly(fixed_perpendicular(self.axis))
+        self.e_fixed = _readonly(_fixed_perpendicular(self.axis))
         self._init_common(name, backend,
                           RigidMotion(velocity=velocity, angular_velocity=angular_velocity,
                                       axis_point=_tup(self.center), axis=_tup(self.axis)))
@@ -577,7 +583,7 @@ class Cylinder(_AnalyticTool):
         self.axis = _readonly(unit_vector(axis, "Cylinder axis"))
         self.radius = _positive_length(radius, "Cylinder radius")
         self.inside = _check_flag(inside, "inside")
-        self.e_fixed = _readonly(fixed_perpendicular(self.axis))
+        self.e_fixed = _readonly(_fixed_perpendicular(self.axis))
         self._init_common(name, backend,
                           RigidMotion(velocity=velocity, angular_velocity=angular_velocity,
                                       axis_point=_tup(self.point), axis=_tup(self.axis)))
@@ -629,7 +635,7 @@ class Cone(_AnalyticTool):
                              f"got {half_angle!r}")
         self.half_angle = alpha
         self.inside = _check_flag(inside, "inside")
-        self.e_fixed = _readonly(fixed_perpendicular(self.axis))
+        self.e_fixed = _readonly(_fixed_perpendicular(self.axis))
         self._init_common(name, backend,
                           RigidMotion(velocity=velocity, angular_velocity=angular_velocity,
                                       axis_point=_tup(self.apex), axis=_tup(self.axis)))
