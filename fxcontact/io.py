@@ -99,49 +99,74 @@ def gather_mesh_data(msh, cell_values: Optional[np.ndarray] = None):
 
 def render_png(msh, path: str, cell_values: Optional[np.ndarray] = None,
                scalar_name: str = "value", extra_meshes: Sequence = (), title: str = "",
-               camera: Optional[Sequence] = None, window_size=(1200, 900),
-               show_edges: bool = True, clim=None):
+               camera: Optional[str] = None, window_size=(1200, 900),
+               show_edges: bool = True, clim=None) -> bool:
     """Render the mesh (coloured by a cell field) offscreen to a PNG. Collective; rank 0 writes.
+
+    The picture is made by pyvista in a separate process (:mod:`fxcontact._render`): in a process
+    that has loaded dolfinx, the VTK wheel's text rendering (scalar bar, titles) crashes on a
+    library clash, so the gathered mesh is handed over as a ``.vtu`` file.
 
     Args:
         msh: the dolfinx mesh (current geometry).
         path: PNG file.
         cell_values: per-cell values (local cells, owned first) to colour by.
-        extra_meshes: pyvista meshes (e.g. tools) drawn in grey.
-        camera: pyvista camera position, or None for an isometric view.
+        extra_meshes: ``(points (N,3), triangles (M,3))`` surfaces (e.g. tools) drawn in grey.
+        camera: "iso" (default), "xy", "xz" or "yz".
     Returns:
-        True on rank 0 if the picture was written (False if pyvista is unavailable).
+        True on rank 0 if the picture was written.
     """
     data = gather_mesh_data(msh, cell_values)
     if msh.comm.rank != 0:
         return False
-    try:
-        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-        import pyvista
-    except ImportError:  # pragma: no cover
-        log.warning("pyvista is not installed: no picture %s", path)
-        return False
+    import json
+    import subprocess
+    import sys
+    import tempfile
+
+    import meshio
     topo, ctypes, pts, vals = data
     if pts.shape[1] == 2:
         pts = np.c_[pts, np.zeros(len(pts))]
-    grid = pyvista.UnstructuredGrid(topo, ctypes, pts)
-    pyvista.OFF_SCREEN = True
-    pl = pyvista.Plotter(off_screen=True, window_size=list(window_size))
-    if vals is not None:
-        grid.cell_data[scalar_name] = vals
-        pl.add_mesh(grid, scalars=scalar_name, show_edges=show_edges, cmap="viridis", clim=clim,
-                    scalar_bar_args={"title": scalar_name})
-    else:
-        pl.add_mesh(grid, show_edges=show_edges, color="lightsteelblue")
-    for m in extra_meshes:
-        pl.add_mesh(m, color="lightgrey", opacity=0.5)
-    if title:
-        pl.add_text(title, font_size=12)
-    if camera is not None:
-        pl.camera_position = camera
-    else:
-        pl.view_isometric()
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    pl.screenshot(path)
-    pl.close()
+    cells = _vtk_to_meshio(topo, ctypes)
+    out = os.path.abspath(path)
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        cd = {} if vals is None else {scalar_name: [np.asarray(vals, dtype=np.float64)]}
+        meshio.write(os.path.join(tmp, "body.vtu"), meshio.Mesh(pts, cells, cell_data=cd))
+        extras = []
+        for k, (p, t) in enumerate(extra_meshes):
+            f = os.path.join(tmp, f"tool{k}.vtu")
+            meshio.write(f, meshio.Mesh(np.asarray(p, float), [("triangle", np.asarray(t))]))
+            extras.append(f)
+        opts = dict(body=os.path.join(tmp, "body.vtu"), extras=extras, png=out,
+                    scalar=scalar_name if vals is not None else None, title=title,
+                    camera=camera or "iso", window_size=list(window_size),
+                    show_edges=show_edges, clim=clim)
+        spec = os.path.join(tmp, "spec.json")
+        with open(spec, "w") as fh:
+            json.dump(opts, fh)
+        env = dict(os.environ)
+        env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+        for k in list(env):  # the child is not an MPI process
+            if k.startswith(("OMPI_COMM", "PMIX_", "OMPI_MCA_ess", "OMPI_MCA_orte")):
+                env.pop(k)
+        r = subprocess.run([sys.executable, "-m", "fxcontact._render", spec], env=env,
+                           capture_output=True, text=True, timeout=300)
+    if r.returncode != 0 or not os.path.exists(out):
+        log.warning("picture %s not written: %s", path, r.stderr[-2000:])
+        return False
     return True
+
+
+_VTK_TO_MESHIO = {5: "triangle", 10: "tetra", 3: "line", 9: "quad", 12: "hexahedron"}
+
+
+def _vtk_to_meshio(topo: np.ndarray, ctypes: np.ndarray):
+    """Flat VTK connectivity ``[n, i0, …, n, …]`` → meshio cell blocks."""
+    blocks, pos = {}, 0
+    for ct in ctypes:
+        n = topo[pos]
+        blocks.setdefault(_VTK_TO_MESHIO[int(ct)], []).append(topo[pos + 1: pos + 1 + n])
+        pos += n + 1
+    return [(k, np.array(v)) for k, v in blocks.items()]

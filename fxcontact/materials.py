@@ -42,6 +42,10 @@ class Material:
     def residual(self, v, p, w, q, dx, dt, u_prev=None):  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def linearized(self) -> "Material":
+        """A linear material used to build the first Newton guess (itself if already linear)."""
+        return self
+
 
 @dataclass(frozen=True)
 class NortonHoff(Material):
@@ -88,6 +92,10 @@ class NortonHoff(Material):
         eps = ufl.sym(ufl.grad(v))
         return (ufl.inner(self.stress_ufl(eps), ufl.sym(ufl.grad(w))) * dx
                 - p * ufl.div(w) * dx - q * ufl.div(v) * dx)
+
+    def linearized(self) -> "NortonHoff":
+        """The Newtonian fluid (m = 1) of the same consistency: the start-up guess."""
+        return NortonHoff(self.K, 1.0, self.regularization)
 
     def viscosity(self, strain_rate: float) -> float:
         """Secant viscosity η = K z^(m-1) at an equivalent strain rate (for penalty scaling)."""

@@ -197,6 +197,18 @@ class Simulation:
         if isinstance(lin, str) and lin == "fieldsplit":
             fs_is = self.fieldsplit_is()
         self.solver = NewtonSolver(self.problem, self.solver_options, fs_is)
+        # start-up problem: the linearised material without contributors gives the first guess
+        # when there is no previous velocity (a power law from v = 0 converges badly)
+        lin_mat = self.material.linearized()
+        self._startup = None
+        if lin_mat is not self.material:
+            F0 = lin_mat.residual(v, p, wt, q, sp.dx, self.dt_c, self.u)
+            if self.extra_residual is not None:
+                F0 = F0 + self.extra_residual(v, p, wt, q)
+            opts = SolverOptions(**{**self.solver_options.__dict__, "prefix":
+                                    self.solver_options.prefix + "startup_"})
+            self._startup = NewtonSolver(NonlinearProblem(F0, self.w, [b.bc for b in self._bcs]),
+                                         opts, fs_is)
         # cell averages of the strain rate, volume
         q0 = ufl.TestFunction(sp.DG0)
         epsd = self._strain_rate_expr(v)
@@ -298,6 +310,15 @@ class Simulation:
         self.w.x.array[:] = self.w_prev.x.array
         dolfinx.fem.petsc.set_bc(self.w.vector, self.problem.bcs)
         self.w.x.scatter_forward()
+        if self._startup is not None and not np.any(self.w_prev.x.array):
+            self.comm.barrier()
+            info0 = self._startup.solve()
+            log.info("start-up (linearised material) solve: %d iterations, converged=%s",
+                     info0.iterations, info0.converged)
+            if not info0.converged:  # keep the zero guess
+                self.w.x.array[:] = 0.0
+                dolfinx.fem.petsc.set_bc(self.w.vector, self.problem.bcs)
+                self.w.x.scatter_forward()
         x_t = self.vertex_positions()
         for c in self.contributors:
             if hasattr(c, "begin_increment"):

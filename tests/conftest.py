@@ -11,8 +11,9 @@ os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 def _collective_cleanup():
     """Run collective destructors together on every rank after each test."""
     yield
-    gc.collect()
-    MPI.COMM_WORLD.barrier()
+    if MPI.COMM_WORLD.size > 1:
+        gc.collect()
+        MPI.COMM_WORLD.barrier()
 
 
 def pytest_configure(config):

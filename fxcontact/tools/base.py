@@ -240,7 +240,7 @@ class Tool(abc.ABC):
         pr.normal = pr.normal @ Q.T
         pr.point = self.motion.from_reference(pr.point, t)
         if hessian and pr.hessian is not None:
-            pr.hessian = np.einsum("ij,njk,lk->nil", Q, pr.hessian, Q)
+            pr.hessian = np.einsum("ij,njk,lk->nil", Q, pr.hessian, Q, optimize=True)
         else:
             pr.hessian = None
         return pr

@@ -1,0 +1,145 @@
+"""gmsh builders for workpieces. Each builder creates a gmsh model on rank 0 and distributes it.
+
+The facet tags use the names documented by each builder. gmsh is initialised if needed and the
+model is removed afterwards.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Dict, Tuple
+
+import numpy as np
+from mpi4py import MPI
+
+from fxcontact import compat
+
+__all__ = ["cylinder_billet", "block", "BILLET_TAGS", "BLOCK_TAGS"]
+
+log = logging.getLogger(__name__)
+
+#: facet tags of :func:`cylinder_billet`
+BILLET_TAGS: Dict[str, int] = {"bottom": 1, "top": 2, "lateral": 3, "symmetry_x": 4,
+                               "symmetry_y": 5}
+#: facet tags of :func:`block`
+BLOCK_TAGS: Dict[str, int] = {"xmin": 1, "xmax": 2, "ymin": 3, "ymax": 4, "zmin": 5, "zmax": 6}
+
+
+_GMSH_READY = False
+
+
+def _gmsh():
+    """Import and initialise gmsh once (gmsh 4.8 has no ``isInitialized``)."""
+    global _GMSH_READY
+    import gmsh
+    if not _GMSH_READY:
+        gmsh.initialize(readConfigFiles=False)
+        _GMSH_READY = True
+    gmsh.option.setNumber("General.Terminal", 0)
+    return gmsh
+
+
+def _finish(gmsh, comm, gdim):
+    msh, ct, ft = compat.model_to_mesh(gmsh.model, comm, 0, gdim=gdim)
+    gmsh.model.remove()
+    return msh, ct, ft
+
+
+def cylinder_billet(comm: MPI.Comm, radius: float, height: float, h: float,
+                    quarter: bool = True):
+    """Tetrahedral cylinder along z, base at z = 0; a quarter (x ≥ 0, y ≥ 0) by default.
+
+    Returns ``(mesh, cell_tags, facet_tags)`` with facet tags :data:`BILLET_TAGS`.
+    """
+    if not (radius > 0 and height > 0 and h > 0):
+        raise ValueError("radius, height and h must be > 0")
+    gmsh = _gmsh()
+    gmsh.model.add("billet")
+    if comm.rank == 0:
+        occ = gmsh.model.occ
+        cyl = occ.addCylinder(0, 0, 0, 0, 0, height, radius)
+        if quarter:
+            box = occ.addBox(0, 0, -1, 2 * radius, 2 * radius, height + 2)
+            occ.intersect([(3, cyl)], [(3, box)])
+        occ.synchronize()
+        vols = gmsh.model.getEntities(3)
+        gmsh.model.addPhysicalGroup(3, [v[1] for v in vols], 1)
+        groups = {k: [] for k in BILLET_TAGS}
+        eps = 1e-6 * max(radius, height)
+        for dim, tag in gmsh.model.getEntities(2):
+            c = np.array(gmsh.model.occ.getCenterOfMass(dim, tag))
+            if abs(c[2]) < eps:
+                groups["bottom"].append(tag)
+            elif abs(c[2] - height) < eps:
+                groups["top"].append(tag)
+            elif quarter and abs(c[0]) < eps:
+                groups["symmetry_x"].append(tag)
+            elif quarter and abs(c[1]) < eps:
+                groups["symmetry_y"].append(tag)
+            else:
+                groups["lateral"].append(tag)
+        for name, tags in groups.items():
+            if tags:
+                gmsh.model.addPhysicalGroup(2, tags, BILLET_TAGS[name])
+        gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
+        gmsh.option.setNumber("Mesh.CharacteristicLengthMin", 0.5 * h)
+        gmsh.model.mesh.generate(3)
+    return _finish(gmsh, comm, 3)
+
+
+def block(comm: MPI.Comm, lower, upper, h: float, refine_box=None, h_fine: float = None,
+          dim: int = 3):
+    """Box (3D) or rectangle (2D) meshed with simplices, optionally graded towards a box.
+
+    Args:
+        lower, upper: corners.
+        h: element size far from the refinement box.
+        refine_box: ``(lo, hi)`` corners of a region meshed with ``h_fine`` (size grows linearly
+            to ``h`` over a distance of the box's largest side).
+    Returns ``(mesh, cell_tags, facet_tags)`` with facet tags :data:`BLOCK_TAGS`.
+    """
+    lower = np.asarray(lower, float)
+    upper = np.asarray(upper, float)
+    if lower.shape != (dim,) or upper.shape != (dim,) or np.any(upper <= lower) or h <= 0:
+        raise ValueError("block needs lower < upper (length dim) and h > 0")
+    gmsh = _gmsh()
+    gmsh.model.add("block")
+    if comm.rank == 0:
+        occ = gmsh.model.occ
+        if dim == 3:
+            occ.addBox(*lower, *(upper - lower))
+        else:
+            occ.addRectangle(lower[0], lower[1], 0.0, *(upper - lower))
+        occ.synchronize()
+        ents = gmsh.model.getEntities(dim)
+        gmsh.model.addPhysicalGroup(dim, [e[1] for e in ents], 1)
+        names = ["xmin", "xmax", "ymin", "ymax", "zmin", "zmax"]
+        eps = 1e-9 * np.max(upper - lower)
+        for d_, tag in gmsh.model.getEntities(dim - 1):
+            c = np.array(occ.getCenterOfMass(d_, tag))[:dim]
+            for k in range(dim):
+                if abs(c[k] - lower[k]) < eps:
+                    gmsh.model.addPhysicalGroup(dim - 1, [tag], BLOCK_TAGS[names[2 * k]])
+                elif abs(c[k] - upper[k]) < eps:
+                    gmsh.model.addPhysicalGroup(dim - 1, [tag], BLOCK_TAGS[names[2 * k + 1]])
+        if refine_box is not None:
+            lo, hi = (np.asarray(b, float) for b in refine_box)
+            f = gmsh.model.mesh.field
+            bx = f.add("Box")
+            f.setNumber(bx, "VIn", h_fine)
+            f.setNumber(bx, "VOut", h)
+            for k, c in enumerate("XYZ"[:dim]):
+                f.setNumber(bx, f"{c}Min", lo[k])
+                f.setNumber(bx, f"{c}Max", hi[k])
+            if dim == 2:
+                f.setNumber(bx, "ZMin", -1.0)
+                f.setNumber(bx, "ZMax", 1.0)
+            f.setNumber(bx, "Thickness", float(np.max(hi - lo)) * 3.0)
+            f.setAsBackgroundMesh(bx)
+            gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+            gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+            gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+        else:
+            gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
+        gmsh.model.mesh.generate(dim)
+    return _finish(gmsh, comm, dim)

@@ -1,0 +1,813 @@
+"""Nagata patches: edge coefficients, patch evaluation and point projection (THEORY §7).
+
+A Nagata patch interpolates the three vertices ``x00, x10, x11`` of a triangle (counter-clockwise
+about the outward normal) and their nodal normals with the quadratic surface
+
+    x(η, ζ) = a00 + a10 η + a01 ζ + a11 η ζ + a20 η² + a02 ζ²,   0 ≤ ζ ≤ η ≤ 1,
+
+built from the edge curvature coefficients ``c1 = c(x00, x10)``, ``c2 = c(x10, x11)``,
+``c3 = c(x00, x11)`` (§7.1–7.2). A patch is stored as its (6, 3) monomial coefficients
+``A = [a00, a10, a01, a11, a20, a02]`` (see :func:`patch_monomials`).
+
+Kernels: the per-point work (:func:`project_patch_nb`, :func:`patch_gap_nb`) is compiled with
+``numba.njit(cache=True)``. Each kernel has a plain numpy/Python twin (suffix ``_ref``) — a
+*reference implementation, for testing only* — that the tests compare against.
+
+Barycentric link: λ0 = 1 − η, λ1 = η − ζ, λ2 = ζ; edge 0 is ζ = 0 (x00 → x10, coefficient c1),
+edge 1 is η = 1 (x10 → x11, c2), edge 2 is ζ = η (x00 → x11, c3).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Optional, Tuple
+
+import numba
+import numpy as np
+
+from fxcontact.tools.normals import CREASE, LOCAL_EDGES, FacetVertexNormals
+
+__all__ = [
+    "PARALLEL_TOL",
+    "edge_coefficients",
+    "crease_edge_coefficients",
+    "patch_edge_coefficients",
+    "patch_monomials",
+    "patch_points",
+    "patch_derivatives",
+    "patch_normals",
+    "domain_samples",
+    "project_patch",
+    "project_patch_nb",
+    "project_patch_ref",
+    "patch_gap",
+    "patch_gap_nb",
+    "patch_gap_ref",
+    "STATUS_CONVERGED",
+    "STATUS_FAILED",
+]
+
+logger = logging.getLogger(__name__)
+
+#: Angle below which two normals are treated as parallel (or opposite): c = 0 (§7.1).
+PARALLEL_TOL = math.radians(0.1)
+
+STATUS_FAILED = 0
+STATUS_CONVERGED = 1
+
+_EPS = float(np.finfo(np.float64).eps)
+_GT = 64.0 * _EPS  # rounding-level gradient tolerance factor
+_STEP_TOL = 1e-13  # |Δξ| convergence
+_LOOSE = 1e-10  # final acceptance: projected gradient ≤ 1e-10 |X_ξ|²
+_TOLA = 1e-13  # active-constraint tolerance in parameter space
+_S2 = 1.0 / math.sqrt(2.0)
+
+
+# ------------------------------------------------------------------------------------------
+# Edge coefficients (§7.1, §8.3)
+# ------------------------------------------------------------------------------------------
+
+
+def edge_coefficients(x0, x1, n0, n1, kappa: float = 1.0,
+                      parallel_tol: float = PARALLEL_TOL) -> Tuple[np.ndarray, np.ndarray]:
+    """Nagata curvature coefficients of edges ``x0 → x1`` with unit end normals (normal rule).
+
+    ``c = (d·Δv)/(1 − Δc) v + (d·v)/Δc Δv`` with ``d = x1 − x0``, ``v = (n0 + n1)/2``,
+    ``Δv = (n0 − n1)/2``, ``Δc = n0·Δv`` (boxed formula of §7.1). Degenerate rules: if
+    ``|n0·n1| > cos(parallel_tol)`` (parallel or opposite normals) or ``|c| > κ|d|`` (more than a
+    90° turn over the edge for κ = 1: inflection / inconsistent normals), ``c = 0``.
+
+    Args:
+        x0, x1: (E, 3) end points.
+        n0, n1: (E, 3) unit normals at the end points.
+        kappa: bound κ of |c|/|d|.
+        parallel_tol: angle [rad] below which normals count as parallel.
+
+    Returns:
+        ``(c, flag)``: (E, 3) coefficients and (E,) int flags (0 = regular, 1 = parallel or
+        opposite normals, 2 = |c| > κ|d|), both set to a straight edge (c = 0).
+    """
+    x0, x1, n0, n1 = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in (x0, x1, n0, n1))
+    d = x1 - x0
+    v = 0.5 * (n0 + n1)
+    dv = 0.5 * (n0 - n1)
+    cos01 = np.einsum("ij,ij->i", n0, n1)
+    dc = 0.5 * (1.0 - cos01)
+    par = np.abs(cos01) > math.cos(parallel_tol)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = (np.einsum("ij,ij->i", d, dv) / (1.0 - dc))[:, None] * v + (
+            np.einsum("ij,ij->i", d, v) / dc)[:, None] * dv
+    c[par] = 0.0
+    big = ~par & (np.linalg.norm(c, axis=1) > kappa * np.linalg.norm(d, axis=1))
+    c[big] = 0.0
+    flag = np.zeros(d.shape[0], dtype=np.int64)
+    flag[par] = 1
+    flag[big] = 2
+    return c, flag
+
+
+def crease_edge_coefficients(x0, x1, t0, t1, kappa: float = 1.0) -> Tuple[np.ndarray, np.ndarray]:
+    """Edge coefficients of crease edges by the tangent rule (THEORY §8.3).
+
+    Solves ``min_c |(I − t0 t0ᵀ)(d − c)|² + |(I − t1 t1ᵀ)(d + c)|²``, i.e.
+    ``(2I − t0 t0ᵀ − t1 t1ᵀ) c = (t1 t1ᵀ − t0 t0ᵀ) d`` (minimum-norm solution, c = 0 for a
+    straight crease). The signs of the unit tangents do not matter. ``|c| > κ|d|`` gives c = 0.
+
+    Returns:
+        ``(c, flag)`` as :func:`edge_coefficients` (flag 2 = |c| > κ|d|).
+    """
+    x0, x1, t0, t1 = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in (x0, x1, t0, t1))
+    d = x1 - x0
+    P0 = t0[:, :, None] * t0[:, None, :]
+    P1 = t1[:, :, None] * t1[:, None, :]
+    Mat = 2.0 * np.eye(3) - P0 - P1
+    rhs = np.einsum("eij,ej->ei", P1 - P0, d)
+    w, Q = np.linalg.eigh(Mat)
+    inv = np.where(w > 1e-10, 1.0 / np.where(w > 1e-10, w, 1.0), 0.0)
+    c = np.einsum("eij,ej,ekj,ek->ei", Q, inv, Q, rhs)
+    big = np.linalg.norm(c, axis=1) > kappa * np.linalg.norm(d, axis=1)
+    c[big] = 0.0
+    return c, np.where(big, 2, 0).astype(np.int64)
+
+
+def patch_edge_coefficients(vertices: np.ndarray, triangles: np.ndarray,
+                            fvn: FacetVertexNormals, kappa: float = 1.0) -> np.ndarray:
+    """Coefficients ``(c1, c2, c3)`` of every triangle, (M, 3, 3), built once per tool.
+
+    Non-crease edges use the normal rule with the per-(facet, vertex) normals, crease edges the
+    tangent rule with the crease tangents ``e3`` (class-2 ends) or the edge direction (corner
+    ends). Each edge is evaluated in a canonical direction (lower vertex index first) so that
+    the two facets sharing it obtain bit-identical coefficients: the patched surface is
+    watertight.
+    """
+    V = np.asarray(vertices, dtype=np.float64)
+    T = np.asarray(triangles, dtype=np.int64)
+    M = T.shape[0]
+    C = np.zeros((M, 3, 3))
+    nflag = np.zeros(3, dtype=np.int64)
+    for k in range(3):
+        la, lb = LOCAL_EDGES[k]
+        ia, ib = T[:, la], T[:, lb]
+        na, nb = fvn.normals[:, la], fvn.normals[:, lb]
+        swap = ia > ib
+        i0 = np.where(swap, ib, ia)
+        i1 = np.where(swap, ia, ib)
+        n0 = np.where(swap[:, None], nb, na)
+        n1 = np.where(swap[:, None], na, nb)
+        c, flag = edge_coefficients(V[i0], V[i1], n0, n1, kappa)
+        cr = fvn.crease[:, k]
+        if np.any(cr):
+            x0, x1 = V[i0[cr]], V[i1[cr]]
+            dhat = x1 - x0
+            dhat /= np.linalg.norm(dhat, axis=1, keepdims=True)
+            t0 = np.where((fvn.vertex_class[i0[cr]] == CREASE)[:, None],
+                          fvn.crease_tangent[i0[cr]], dhat)
+            t1 = np.where((fvn.vertex_class[i1[cr]] == CREASE)[:, None],
+                          fvn.crease_tangent[i1[cr]], dhat)
+            c[cr], flag[cr] = crease_edge_coefficients(x0, x1, t0, t1, kappa)
+        C[:, k] = c
+        nflag += np.bincount(flag, minlength=3)[:3]
+    if nflag[2]:
+        logger.info("Nagata: %d edge (facet side) coefficients exceeded kappa|d| and were set "
+                    "to zero (straight edges)", nflag[2])
+    return C
+
+
+def patch_monomials(vertices: np.ndarray, triangles: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Monomial coefficients (M, 6, 3) ``[a00, a10, a01, a11, a20, a02]`` of the patches (§7.2)."""
+    V = np.asarray(vertices, dtype=np.float64)
+    T = np.asarray(triangles, dtype=np.int64)
+    x00, x10, x11 = V[T[:, 0]], V[T[:, 1]], V[T[:, 2]]
+    c1, c2, c3 = C[:, 0], C[:, 1], C[:, 2]
+    return np.ascontiguousarray(np.stack(
+        [x00, x10 - x00 - c1, x11 - x10 + c1 - c3, c3 - c1 - c2, c1, c2], axis=1))
+
+
+# ------------------------------------------------------------------------------------------
+# Vectorised evaluation (numpy)
+# ------------------------------------------------------------------------------------------
+
+
+def _bcast(A, eta, zeta):
+    A = np.asarray(A, dtype=np.float64)
+    e = np.asarray(eta, dtype=np.float64)[..., None]
+    z = np.asarray(zeta, dtype=np.float64)[..., None]
+    return A, e, z
+
+
+def patch_points(A: np.ndarray, eta, zeta) -> np.ndarray:
+    """Points x(η, ζ) of patch(es) ``A`` ((6, 3) or (K, 6, 3), broadcast against η, ζ)."""
+    A, e, z = _bcast(A, eta, zeta)
+    return (A[..., 0, :] + A[..., 1, :] * e + A[..., 2, :] * z + A[..., 3, :] * e * z
+            + A[..., 4, :] * e * e + A[..., 5, :] * z * z)
+
+
+def patch_derivatives(A: np.ndarray, eta, zeta) -> Tuple[np.ndarray, np.ndarray]:
+    """Tangents ``x_η, x_ζ`` (§7.3)."""
+    A, e, z = _bcast(A, eta, zeta)
+    xe = A[..., 1, :] + A[..., 3, :] * z + 2.0 * A[..., 4, :] * e
+    xz = A[..., 2, :] + A[..., 3, :] * e + 2.0 * A[..., 5, :] * z
+    return xe, xz
+
+
+def patch_normals(A: np.ndarray, eta, zeta) -> np.ndarray:
+    """Unit normals ``x_η × x_ζ / |x_η × x_ζ|`` (outward for counter-clockwise vertices)."""
+    xe, xz = patch_derivatives(A, eta, zeta)
+    m = np.cross(xe, xz)
+    return m / np.linalg.norm(m, axis=-1, keepdims=True)
+
+
+def domain_samples(n: int = 20) -> Tuple[np.ndarray, np.ndarray]:
+    """Regular samples of the parameter triangle 0 ≤ ζ ≤ η ≤ 1 ((n+1)(n+2)/2 points;
+    n = 20 gives the 231 samples per patch of THEORY §7.7)."""
+    i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+    keep = j <= i
+    return (i[keep] / n).astype(np.float64), (j[keep] / n).astype(np.float64)
+
+
+# ------------------------------------------------------------------------------------------
+# numba kernels
+# ------------------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def _pt(a, e, z):
+    x0 = a[0, 0] + a[1, 0] * e + a[2, 0] * z + a[3, 0] * e * z + a[4, 0] * e * e + a[5, 0] * z * z
+    x1 = a[0, 1] + a[1, 1] * e + a[2, 1] * z + a[3, 1] * e * z + a[4, 1] * e * e + a[5, 1] * z * z
+    x2 = a[0, 2] + a[1, 2] * e + a[2, 2] * z + a[3, 2] * e * z + a[4, 2] * e * e + a[5, 2] * z * z
+    return x0, x1, x2
+
+
+@numba.njit(cache=True)
+def _xe(a, e, z, k):
+    return a[1, k] + a[3, k] * z + 2.0 * a[4, k] * e
+
+
+@numba.njit(cache=True)
+def _xz(a, e, z, k):
+    return a[2, k] + a[3, k] * e + 2.0 * a[5, k] * z
+
+
+@numba.njit(cache=True)
+def proj_domain(e, z):
+    """Euclidean projection of (η, ζ) on the parameter triangle 0 ≤ ζ ≤ η ≤ 1 (exact values
+    on the boundary)."""
+    if z >= 0.0 and z <= e and e <= 1.0:
+        return e, z
+    # edge 0: ζ = 0
+    e0 = min(max(e, 0.0), 1.0)
+    d0 = (e - e0) ** 2 + z * z
+    # edge 1: η = 1
+    z1 = min(max(z, 0.0), 1.0)
+    d1 = (e - 1.0) ** 2 + (z - z1) ** 2
+    # edge 2: ζ = η
+    s = min(max(0.5 * (e + z), 0.0), 1.0)
+    d2 = (e - s) ** 2 + (z - s) ** 2
+    if d0 <= d1 and d0 <= d2:
+        return e0, 0.0
+    if d1 <= d2:
+        return 1.0, z1
+    return s, s
+
+
+@numba.njit(cache=True)
+def proj_grad_norm(e, z, g0, g1):
+    """Norm of the projection of −g on the tangent cone of the domain at (η, ζ) (KKT test)."""
+    v0, v1 = -g0, -g1
+    a0 = z <= _TOLA
+    a1 = e >= 1.0 - _TOLA
+    a2 = (e - z) <= _TOLA
+    nact = int(a0) + int(a1) + int(a2)
+    if nact == 0:
+        return math.sqrt(v0 * v0 + v1 * v1)
+    if nact == 1:
+        if a0:
+            n0, n1 = 0.0, -1.0
+        elif a1:
+            n0, n1 = 1.0, 0.0
+        else:
+            n0, n1 = -_S2, _S2
+        s = v0 * n0 + v1 * n1
+        if s > 0.0:
+            v0 -= s * n0
+            v1 -= s * n1
+        return math.sqrt(v0 * v0 + v1 * v1)
+    # domain vertex: two active constraints (outward normals na, nb; boundary rays ta, tb)
+    if a0 and a2:  # (0, 0)
+        na0, na1, nb0, nb1 = 0.0, -1.0, -_S2, _S2
+        ta0, ta1, tb0, tb1 = 1.0, 0.0, _S2, _S2
+    elif a0 and a1:  # (1, 0)
+        na0, na1, nb0, nb1 = 0.0, -1.0, 1.0, 0.0
+        ta0, ta1, tb0, tb1 = -1.0, 0.0, 0.0, 1.0
+    else:  # (1, 1)
+        na0, na1, nb0, nb1 = 1.0, 0.0, -_S2, _S2
+        ta0, ta1, tb0, tb1 = 0.0, -1.0, -_S2, -_S2
+    if v0 * na0 + v1 * na1 <= 0.0 and v0 * nb0 + v1 * nb1 <= 0.0:
+        return math.sqrt(v0 * v0 + v1 * v1)
+    return max(0.0, v0 * ta0 + v1 * ta1, v0 * tb0 + v1 * tb1)
+
+
+@numba.njit(cache=True)
+def _edge_param(k, e, z):
+    if k == 1:
+        return z
+    return e
+
+
+@numba.njit(cache=True)
+def _edge_point(k, s):
+    if k == 0:
+        return s, 0.0
+    if k == 1:
+        return 1.0, s
+    return s, s
+
+
+@numba.njit(cache=True)
+def _edge_tangent(a, k, s, out):
+    e, z = _edge_point(k, s)
+    for i in range(3):
+        if k == 0:
+            out[i] = _xe(a, e, z, i)
+        elif k == 1:
+            out[i] = _xz(a, e, z, i)
+        else:
+            out[i] = _xe(a, e, z, i) + _xz(a, e, z, i)
+
+
+@numba.njit(cache=True)
+def _edge_newton(a, p, k, s, f, it, max_iter, max_halvings, scale):
+    """1D safeguarded Newton along domain edge ``k`` from parameter ``s``; returns (s, f, it)."""
+    xs = np.empty(3)
+    if k == 0:
+        c0, c1, c2 = 2.0 * a[4, 0], 2.0 * a[4, 1], 2.0 * a[4, 2]
+    elif k == 1:
+        c0, c1, c2 = 2.0 * a[5, 0], 2.0 * a[5, 1], 2.0 * a[5, 2]
+    else:
+        c0 = 2.0 * (a[4, 0] + a[3, 0] + a[5, 0])
+        c1 = 2.0 * (a[4, 1] + a[3, 1] + a[5, 1])
+        c2 = 2.0 * (a[4, 2] + a[3, 2] + a[5, 2])
+    while it < max_iter:
+        it += 1
+        e, z = _edge_point(k, s)
+        x0, x1, x2 = _pt(a, e, z)
+        r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
+        _edge_tangent(a, k, s, xs)
+        g = xs[0] * r0 + xs[1] * r1 + xs[2] * r2
+        xx = xs[0] * xs[0] + xs[1] * xs[1] + xs[2] * xs[2]
+        rn = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+        gt = _GT * math.sqrt(xx) * (rn + scale)
+        if abs(g) <= gt or (s <= 0.0 and g >= 0.0) or (s >= 1.0 and g <= 0.0):
+            break
+        h = xx + c0 * r0 + c1 * r1 + c2 * r2
+        ds = -g / h if h > 0.0 else -g / xx
+        ftol = 8.0 * _EPS * (f + rn * scale)
+        alpha = 1.0
+        ok = False
+        sn = s
+        fn = f
+        for m in range(max_halvings + 1):
+            sn = min(max(s + alpha * ds, 0.0), 1.0)
+            en, zn = _edge_point(k, sn)
+            y0, y1, y2 = _pt(a, en, zn)
+            fn = 0.5 * ((y0 - p[0]) ** 2 + (y1 - p[1]) ** 2 + (y2 - p[2]) ** 2)
+            if fn < f or (m == 0 and fn <= f + ftol):
+                ok = True
+                break
+            alpha *= 0.5
+        if not ok:
+            break
+        step = abs(sn - s)
+        s = sn
+        f = fn
+        if step < _STEP_TOL:
+            break
+    return s, f, it
+
+
+@numba.njit(cache=True)
+def _grad_at(a, p, e, z):
+    """(g0, g1, |x_η|² + |x_ζ|², gtol) at (η, ζ)."""
+    x0, x1, x2 = _pt(a, e, z)
+    r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
+    g0 = _xe(a, e, z, 0) * r0 + _xe(a, e, z, 1) * r1 + _xe(a, e, z, 2) * r2
+    g1 = _xz(a, e, z, 0) * r0 + _xz(a, e, z, 1) * r1 + _xz(a, e, z, 2) * r2
+    xee = _xe(a, e, z, 0) ** 2 + _xe(a, e, z, 1) ** 2 + _xe(a, e, z, 2) ** 2
+    xzz = _xz(a, e, z, 0) ** 2 + _xz(a, e, z, 1) ** 2 + _xz(a, e, z, 2) ** 2
+    rn = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+    scale = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) + math.sqrt(p[0] ** 2 + p[1] ** 2 + p[2] ** 2)
+    gtol = _GT * (math.sqrt(xee) + math.sqrt(xzz)) * (rn + scale)
+    return g0, g1, xee + xzz, gtol
+
+
+@numba.njit(cache=True)
+def project_patch_nb(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard=True):
+    """Closest point of ``p`` on the Nagata patch ``a`` (6, 3) (THEORY §7.4), numba kernel.
+
+    Newton on f(ξ) = ½|x(ξ) − p|² from (η0, ζ0) (projected on the domain). With ``safeguard``:
+    Gauss–Newton matrix where the Hessian is not SPD, step halving (sub-incrementation, at most
+    ``max_halvings``) until f decreases, projection of the iterates on 0 ≤ ζ ≤ η ≤ 1 and a final
+    1D Newton along the domain edge the iterate ends on. Without ``safeguard``: plain Newton
+    (full steps, exact Hessian) with the projection on the domain only — for comparison.
+    Converged when the projected gradient vanishes (rounding level, or ≤ 1e-10 |X_ξ|² at exit)
+    or |Δξ| < 1e-13, within ``max_iter`` iterations in total.
+
+    Returns:
+        ``(eta, zeta, status, iterations)``, status 1 = converged, 0 = failed.
+    """
+    e, z = proj_domain(eta0, zeta0)
+    x0, x1, x2 = _pt(a, e, z)
+    r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
+    f = 0.5 * (r0 * r0 + r1 * r1 + r2 * r2)
+    pn = math.sqrt(p[0] ** 2 + p[1] ** 2 + p[2] ** 2)
+    it = 0
+    while True:
+        stalled = False
+        done = False
+        # ---- 2D phase
+        while it < max_iter:
+            it += 1
+            x0, x1, x2 = _pt(a, e, z)
+            r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
+            xe0, xe1, xe2 = _xe(a, e, z, 0), _xe(a, e, z, 1), _xe(a, e, z, 2)
+            xz0, xz1, xz2 = _xz(a, e, z, 0), _xz(a, e, z, 1), _xz(a, e, z, 2)
+            g0 = xe0 * r0 + xe1 * r1 + xe2 * r2
+            g1 = xz0 * r0 + xz1 * r1 + xz2 * r2
+            rn = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+            scale = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) + pn
+            gnx = math.sqrt(xe0 * xe0 + xe1 * xe1 + xe2 * xe2) + math.sqrt(
+                xz0 * xz0 + xz1 * xz1 + xz2 * xz2)
+            gtol = _GT * gnx * (rn + scale)
+            if proj_grad_norm(e, z, g0, g1) <= gtol:
+                done = True
+                break
+            G00 = xe0 * xe0 + xe1 * xe1 + xe2 * xe2
+            G01 = xe0 * xz0 + xe1 * xz1 + xe2 * xz2
+            G11 = xz0 * xz0 + xz1 * xz1 + xz2 * xz2
+            H00 = G00 + 2.0 * (a[4, 0] * r0 + a[4, 1] * r1 + a[4, 2] * r2)
+            H01 = G01 + a[3, 0] * r0 + a[3, 1] * r1 + a[3, 2] * r2
+            H11 = G11 + 2.0 * (a[5, 0] * r0 + a[5, 1] * r1 + a[5, 2] * r2)
+            det = H00 * H11 - H01 * H01
+            if safeguard and not (H00 > 0.0 and det > 1e-14 * H00 * H11):
+                H00, H01, H11 = G00, G01, G11
+                det = H00 * H11 - H01 * H01
+            if det == 0.0:
+                stalled = True
+                break
+            de = -(H11 * g0 - H01 * g1) / det
+            dz = -(H00 * g1 - H01 * g0) / det
+            if not safeguard:
+                en, zn = proj_domain(e + de, z + dz)
+                step = math.sqrt((en - e) ** 2 + (zn - z) ** 2)
+                e, z = en, zn
+                if step < _STEP_TOL:
+                    break
+                continue
+            ftol = 8.0 * _EPS * (f + rn * scale)
+            alpha = 1.0
+            ok = False
+            en, zn, fn = e, z, f
+            for m in range(max_halvings + 1):
+                en, zn = proj_domain(e + alpha * de, z + alpha * dz)
+                y0, y1, y2 = _pt(a, en, zn)
+                fn = 0.5 * ((y0 - p[0]) ** 2 + (y1 - p[1]) ** 2 + (y2 - p[2]) ** 2)
+                if fn < f or (m == 0 and fn <= f + ftol):
+                    ok = True
+                    break
+                alpha *= 0.5
+            if not ok:
+                stalled = True
+                break
+            step = math.sqrt((en - e) ** 2 + (zn - z) ** 2)
+            e, z, f = en, zn, fn
+            if step < _STEP_TOL:
+                break
+        if done or not safeguard:
+            break
+        # ---- edge phase (the iterate ended on the domain boundary)
+        a0 = z <= _TOLA
+        a1 = e >= 1.0 - _TOLA
+        a2 = (e - z) <= _TOLA
+        if not (a0 or a1 or a2) or it >= max_iter:
+            break
+        best_f = np.inf
+        be, bz = e, z
+        for k in range(3):
+            if (k == 0 and a0) or (k == 1 and a1) or (k == 2 and a2):
+                s0 = _edge_param(k, e, z)
+                s, fk, it = _edge_newton(a, p, k, s0, f, it, max_iter, max_halvings, pn)
+                if fk < best_f:
+                    best_f = fk
+                    be, bz = _edge_point(k, s)
+        moved = (be != e) or (bz != z)
+        e, z = be, bz
+        x0, x1, x2 = _pt(a, e, z)
+        f = 0.5 * ((x0 - p[0]) ** 2 + (x1 - p[1]) ** 2 + (x2 - p[2]) ** 2)
+        g0, g1, _, gtol = _grad_at(a, p, e, z)
+        if proj_grad_norm(e, z, g0, g1) <= gtol:
+            break
+        if it >= max_iter or (stalled and not moved):
+            break
+    g0, g1, xx, gtol = _grad_at(a, p, e, z)
+    pg = proj_grad_norm(e, z, g0, g1)
+    status = STATUS_CONVERGED if (it > 0 and pg <= max(gtol, _LOOSE * xx)) else STATUS_FAILED
+    return e, z, status, it
+
+
+@numba.njit(cache=True)
+def patch_gap_nb(a, p, e, z, want_hessian, normal, hessian):
+    """Signed distance ``(p − x*)·n*`` to patch ``a`` at an *interior* foot point (η, ζ), with
+    ``normal = n* = ∇d`` and, if ``want_hessian``, ``hessian = ∇²d = N_ξ H⁻¹ X_ξᵀ`` (§7.5)
+    written into the output arrays (3,) and (3, 3). Returns ``d``."""
+    x0, x1, x2 = _pt(a, e, z)
+    r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
+    xe = np.empty(3)
+    xz = np.empty(3)
+    for i in range(3):
+        xe[i] = _xe(a, e, z, i)
+        xz[i] = _xz(a, e, z, i)
+    m0 = xe[1] * xz[2] - xe[2] * xz[1]
+    m1 = xe[2] * xz[0] - xe[0] * xz[2]
+    m2 = xe[0] * xz[1] - xe[1] * xz[0]
+    mn = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+    normal[0], normal[1], normal[2] = m0 / mn, m1 / mn, m2 / mn
+    d = -(r0 * normal[0] + r1 * normal[1] + r2 * normal[2])
+    if not want_hessian:
+        return d
+    # second derivatives
+    xee = np.empty(3)
+    xez = np.empty(3)
+    xzz = np.empty(3)
+    for i in range(3):
+        xee[i] = 2.0 * a[4, i]
+        xez[i] = a[3, i]
+        xzz[i] = 2.0 * a[5, i]
+    # m_,η = x_ηη × x_ζ + x_η × x_ηζ ;  m_,ζ = x_ηζ × x_ζ + x_η × x_ζζ
+    me = np.empty(3)
+    mz = np.empty(3)
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        me[i] = (xee[j] * xz[k] - xee[k] * xz[j]) + (xe[j] * xez[k] - xe[k] * xez[j])
+        mz[i] = (xez[j] * xz[k] - xez[k] * xz[j]) + (xe[j] * xzz[k] - xe[k] * xzz[j])
+    ne = np.empty(3)
+    nz = np.empty(3)
+    dme = normal[0] * me[0] + normal[1] * me[1] + normal[2] * me[2]
+    dmz = normal[0] * mz[0] + normal[1] * mz[1] + normal[2] * mz[2]
+    for i in range(3):
+        ne[i] = (me[i] - dme * normal[i]) / mn
+        nz[i] = (mz[i] - dmz * normal[i]) / mn
+    H00 = xe[0] * xe[0] + xe[1] * xe[1] + xe[2] * xe[2] + xee[0] * r0 + xee[1] * r1 + xee[2] * r2
+    H01 = xe[0] * xz[0] + xe[1] * xz[1] + xe[2] * xz[2] + xez[0] * r0 + xez[1] * r1 + xez[2] * r2
+    H11 = xz[0] * xz[0] + xz[1] * xz[1] + xz[2] * xz[2] + xzz[0] * r0 + xzz[1] * r1 + xzz[2] * r2
+    det = H00 * H11 - H01 * H01
+    i00, i01, i11 = H11 / det, -H01 / det, H00 / det
+    # B = H⁻¹ X_ξᵀ (2 x 3), hessian = N_ξ B, symmetrised
+    for i in range(3):
+        b0i = i00 * xe[i] + i01 * xz[i]
+        b1i = i01 * xe[i] + i11 * xz[i]
+        for j in range(3):
+            hessian[j, i] = ne[j] * b0i + nz[j] * b1i
+    for i in range(3):
+        for j in range(i + 1, 3):
+            s = 0.5 * (hessian[i, j] + hessian[j, i])
+            hessian[i, j] = s
+            hessian[j, i] = s
+    return d
+
+
+# ------------------------------------------------------------------------------------------
+# Reference twins (plain numpy / Python) — reference implementation, for testing only
+# ------------------------------------------------------------------------------------------
+
+
+def _proj_domain_ref(e: float, z: float) -> Tuple[float, float]:
+    """Reference implementation, for testing only (see :func:`proj_domain`)."""
+    if 0.0 <= z <= e <= 1.0:
+        return e, z
+    cands = [(min(max(e, 0.0), 1.0), 0.0), (1.0, min(max(z, 0.0), 1.0))]
+    s = min(max(0.5 * (e + z), 0.0), 1.0)
+    cands.append((s, s))
+    d = [(e - ce) ** 2 + (z - cz) ** 2 for ce, cz in cands]
+    return cands[int(np.argmin(d))]
+
+
+def _proj_grad_norm_ref(e: float, z: float, g: np.ndarray) -> float:
+    """Reference implementation, for testing only (see :func:`proj_grad_norm`)."""
+    v = -np.asarray(g, dtype=np.float64)
+    act = [z <= _TOLA, e >= 1.0 - _TOLA, (e - z) <= _TOLA]
+    nus = [np.array([0.0, -1.0]), np.array([1.0, 0.0]), np.array([-_S2, _S2])]
+    idx = [i for i in range(3) if act[i]]
+    if not idx:
+        return float(np.linalg.norm(v))
+    if len(idx) == 1:
+        nu = nus[idx[0]]
+        s = v @ nu
+        return float(np.linalg.norm(v - s * nu if s > 0 else v))
+    rays = {(0, 2): ([1.0, 0.0], [_S2, _S2]), (0, 1): ([-1.0, 0.0], [0.0, 1.0]),
+            (1, 2): ([0.0, -1.0], [-_S2, -_S2])}[tuple(idx[:2])]
+    if all(v @ nus[i] <= 0.0 for i in idx[:2]):
+        return float(np.linalg.norm(v))
+    return max(0.0, *(float(v @ np.array(t)) for t in rays))
+
+
+class _RefPatch:
+    """Patch evaluation helpers for the reference twins (reference implementation, testing only)."""
+
+    def __init__(self, a):
+        self.a = np.asarray(a, dtype=np.float64)
+
+    def x(self, e, z):
+        a = self.a
+        return a[0] + a[1] * e + a[2] * z + a[3] * e * z + a[4] * e * e + a[5] * z * z
+
+    def xe(self, e, z):
+        return self.a[1] + self.a[3] * z + 2.0 * self.a[4] * e
+
+    def xz(self, e, z):
+        return self.a[2] + self.a[3] * e + 2.0 * self.a[5] * z
+
+    def edge(self, k, s):
+        return [(s, 0.0), (1.0, s), (s, s)][k]
+
+    def edge_tangent(self, k, s):
+        e, z = self.edge(k, s)
+        return [self.xe(e, z), self.xz(e, z), self.xe(e, z) + self.xz(e, z)][k]
+
+    def edge_second(self, k):
+        a = self.a
+        return [2.0 * a[4], 2.0 * a[5], 2.0 * (a[4] + a[3] + a[5])][k]
+
+    def grad(self, p, e, z):
+        x = self.x(e, z)
+        r = x - p
+        X = np.stack([self.xe(e, z), self.xz(e, z)], axis=1)
+        g = X.T @ r
+        scale = np.linalg.norm(x) + np.linalg.norm(p)
+        gtol = _GT * (np.linalg.norm(X[:, 0]) + np.linalg.norm(X[:, 1])) * (
+            np.linalg.norm(r) + scale)
+        return g, float(np.sum(X * X)), gtol
+
+
+def _edge_newton_ref(P: _RefPatch, p, k, s, f, it, max_iter, max_halvings, scale):
+    """Reference implementation, for testing only (see ``_edge_newton``)."""
+    xss = P.edge_second(k)
+    while it < max_iter:
+        it += 1
+        r = P.x(*P.edge(k, s)) - p
+        xs = P.edge_tangent(k, s)
+        g = xs @ r
+        xx = xs @ xs
+        rn = np.linalg.norm(r)
+        if abs(g) <= _GT * np.sqrt(xx) * (rn + scale) or (s <= 0 and g >= 0) or (s >= 1 and g <= 0):
+            break
+        h = xx + xss @ r
+        ds = -g / h if h > 0 else -g / xx
+        ftol = 8.0 * _EPS * (f + rn * scale)
+        alpha, ok = 1.0, False
+        for m in range(max_halvings + 1):
+            sn = min(max(s + alpha * ds, 0.0), 1.0)
+            fn = 0.5 * np.sum((P.x(*P.edge(k, sn)) - p) ** 2)
+            if fn < f or (m == 0 and fn <= f + ftol):
+                ok = True
+                break
+            alpha *= 0.5
+        if not ok:
+            break
+        step = abs(sn - s)
+        s, f = sn, fn
+        if step < _STEP_TOL:
+            break
+    return s, f, it
+
+
+def project_patch_ref(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard=True):
+    """Reference implementation, for testing only: numpy twin of :func:`project_patch_nb`."""
+    P = _RefPatch(a)
+    p = np.asarray(p, dtype=np.float64)
+    e, z = _proj_domain_ref(float(eta0), float(zeta0))
+    f = 0.5 * np.sum((P.x(e, z) - p) ** 2)
+    pn = np.linalg.norm(p)
+    it = 0
+    while True:
+        stalled = done = False
+        while it < max_iter:
+            it += 1
+            x = P.x(e, z)
+            r = x - p
+            X = np.stack([P.xe(e, z), P.xz(e, z)], axis=1)  # (3, 2)
+            g = X.T @ r
+            rn = np.linalg.norm(r)
+            scale = np.linalg.norm(x) + pn
+            gtol = _GT * (np.linalg.norm(X[:, 0]) + np.linalg.norm(X[:, 1])) * (rn + scale)
+            if _proj_grad_norm_ref(e, z, g) <= gtol:
+                done = True
+                break
+            G = X.T @ X
+            a = P.a
+            H = G + np.array([[2 * a[4] @ r, a[3] @ r], [a[3] @ r, 2 * a[5] @ r]])
+            det = np.linalg.det(H)
+            if safeguard and not (H[0, 0] > 0 and det > 1e-14 * H[0, 0] * H[1, 1]):
+                H = G
+                det = np.linalg.det(H)
+            if det == 0.0:
+                stalled = True
+                break
+            d = -np.linalg.solve(H, g)
+            if not safeguard:
+                en, zn = _proj_domain_ref(e + d[0], z + d[1])
+                step = np.hypot(en - e, zn - z)
+                e, z = en, zn
+                if step < _STEP_TOL:
+                    break
+                continue
+            ftol = 8.0 * _EPS * (f + rn * scale)
+            alpha, ok = 1.0, False
+            for m in range(max_halvings + 1):
+                en, zn = _proj_domain_ref(e + alpha * d[0], z + alpha * d[1])
+                fn = 0.5 * np.sum((P.x(en, zn) - p) ** 2)
+                if fn < f or (m == 0 and fn <= f + ftol):
+                    ok = True
+                    break
+                alpha *= 0.5
+            if not ok:
+                stalled = True
+                break
+            step = np.hypot(en - e, zn - z)
+            e, z, f = en, zn, fn
+            if step < _STEP_TOL:
+                break
+        if done or not safeguard:
+            break
+        act = [z <= _TOLA, e >= 1.0 - _TOLA, (e - z) <= _TOLA]
+        if not any(act) or it >= max_iter:
+            break
+        best = (np.inf, e, z)
+        for k in range(3):
+            if act[k]:
+                s0 = z if k == 1 else e
+                s, fk, it = _edge_newton_ref(P, p, k, s0, f, it, max_iter, max_halvings, pn)
+                if fk < best[0]:
+                    best = (fk, *P.edge(k, s))
+        moved = (best[1], best[2]) != (e, z)
+        e, z = best[1], best[2]
+        f = 0.5 * np.sum((P.x(e, z) - p) ** 2)
+        g, _, gtol = P.grad(p, e, z)
+        if _proj_grad_norm_ref(e, z, g) <= gtol:
+            break
+        if it >= max_iter or (stalled and not moved):
+            break
+    g, xx, gtol = P.grad(p, e, z)
+    ok = it > 0 and _proj_grad_norm_ref(e, z, g) <= max(gtol, _LOOSE * xx)
+    return e, z, STATUS_CONVERGED if ok else STATUS_FAILED, it
+
+
+def patch_gap_ref(a, p, eta, zeta, want_hessian=True):
+    """Reference implementation, for testing only: numpy twin of :func:`patch_gap_nb`.
+
+    Returns ``(d, normal, hessian)`` (hessian ``None`` if not wanted)."""
+    P = _RefPatch(a)
+    p = np.asarray(p, dtype=np.float64)
+    x = P.x(eta, zeta)
+    X = np.stack([P.xe(eta, zeta), P.xz(eta, zeta)], axis=1)
+    m = np.cross(X[:, 0], X[:, 1])
+    n = m / np.linalg.norm(m)
+    d = float((p - x) @ n)
+    if not want_hessian:
+        return d, n, None
+    a = P.a
+    xee, xez, xzz = 2 * a[4], a[3], 2 * a[5]
+    me = np.cross(xee, X[:, 1]) + np.cross(X[:, 0], xez)
+    mz = np.cross(xez, X[:, 1]) + np.cross(X[:, 0], xzz)
+    Pn = np.eye(3) - np.outer(n, n)
+    N = np.stack([Pn @ me, Pn @ mz], axis=1) / np.linalg.norm(m)
+    r = x - p
+    H = X.T @ X + np.array([[xee @ r, xez @ r], [xez @ r, xzz @ r]])
+    hess = N @ np.linalg.solve(H, X.T)
+    return d, n, 0.5 * (hess + hess.T)
+
+
+# ------------------------------------------------------------------------------------------
+# Convenience wrappers
+# ------------------------------------------------------------------------------------------
+
+
+def project_patch(a, p, xi0: Optional[Tuple[float, float]] = None, max_iter: int = 30,
+                  max_halvings: int = 12, safeguard: bool = True):
+    """Project one point on one patch (numba kernel). ``xi0`` defaults to the centroid
+    (η, ζ) = (2/3, 1/3). Returns ``(eta, zeta, status, iterations)``."""
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    e0, z0 = (2.0 / 3.0, 1.0 / 3.0) if xi0 is None else xi0
+    return project_patch_nb(a, p, float(e0), float(z0), int(max_iter), int(max_halvings),
+                            bool(safeguard))
+
+
+def patch_gap(a, p, eta: float, zeta: float, want_hessian: bool = True):
+    """Signed distance, normal and Hessian at an interior foot point (numba kernel)."""
+    n = np.empty(3)
+    h = np.zeros((3, 3))
+    d = patch_gap_nb(np.ascontiguousarray(a, dtype=np.float64),
+                     np.ascontiguousarray(p, dtype=np.float64), float(eta), float(zeta),
+                     bool(want_hessian), n, h)
+    return d, n, (h if want_hessian else None)
