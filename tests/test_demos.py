@@ -1,0 +1,61 @@
+"""Demos run at small size (serial and on 2 ranks) and give physically sensible results."""
+
+import importlib.util
+import os
+import tempfile
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+DEMOS = os.path.join(os.path.dirname(HERE), "demos")
+
+
+def load_demo(name):
+    spec = importlib.util.spec_from_file_location(name, os.path.join(DEMOS, f"{name}.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture
+def outdir():
+    comm = MPI.COMM_WORLD
+    d = tempfile.mkdtemp(prefix="fxc-demo-") if comm.rank == 0 else None
+    return comm.bcast(d, root=0)
+
+
+def test_upsetting_small(outdir):
+    demo = load_demo("demo_upsetting")
+    res = demo.run(h=4.0, n_steps=4, reduction=0.2, output_dir=outdir, progress=False)
+    comm = MPI.COMM_WORLD
+    H = 15.0 * (1 - 0.2)
+    assert abs(res["height"] - H) < 1e-9
+    homog = 10.0 * np.sqrt(15.0 / H)
+    # barrelling: sticking end faces stay at R, the middle bulges beyond the homogeneous radius
+    assert abs(res["radius_end"] - 10.0) < 1e-9
+    assert res["radius_mid"] > homog
+    hist = res["history"]
+    assert len(hist) == 4
+    V0 = np.pi * 100.0 * 15.0 / 4.0
+    assert abs(hist[-1]["volume"] / hist[0]["volume"] - 1.0) < 2e-2  # faceted lateral surface
+    assert res["die_force"] < 0.0
+    if comm.rank == 0:
+        assert os.path.exists(res["vtk"])
+        assert os.path.getsize(os.path.join(outdir, "upsetting_history.csv")) > 0
+        assert res["png"] is not None and os.path.getsize(res["png"]) > 10_000
+
+
+def test_upsetting_sliding_is_homogeneous(outdir):
+    demo = load_demo("demo_upsetting")
+    res = demo.run(h=5.0, n_steps=2, reduction=0.1, dies="sliding", output_dir=None,
+                   progress=False)
+    H = 15.0 * 0.9
+    # sliding dies: (nearly) uniform radial expansion — the bulge is < 1 % of the expansion
+    # (sticking dies give a bulge of the order of the expansion itself)
+    expansion = res["radius_end"] - 10.0
+    assert expansion > 0.04 * 10.0
+    assert abs(res["radius_mid"] - res["radius_end"]) < 1e-2 * expansion
+    with pytest.raises(ValueError, match="dies"):
+        demo.run(dies="glued", output_dir=None)
