@@ -216,6 +216,7 @@ class Simulation:
         self._cellvol_form = compat.form(q0 * sp.dx)
         self._volume_form = compat.form(dolfinx.fem.Constant(self.mesh, 1.0) * sp.dx)
         self._div_form = compat.form(ufl.div(v) * sp.dx)
+        self._mean_rate_form = compat.form(epsd * sp.dx)
         self._built = True
         if self.output_dir is not None:
             from fxcontact.io import HistoryWriter, SeriesWriter
@@ -267,6 +268,12 @@ class Simulation:
     def volume(self) -> float:
         self._build()
         return self.comm.allreduce(dolfinx.fem.assemble_scalar(self._volume_form), op=MPI.SUM)
+
+    def mean_strain_rate(self) -> float:
+        """Volume average of the (un-regularised) equivalent strain rate of the current w."""
+        self._build()
+        num = self.comm.allreduce(dolfinx.fem.assemble_scalar(self._mean_rate_form), op=MPI.SUM)
+        return num / self.volume()
 
     def divergence_integral(self) -> float:
         """∫ div v dx of the current solution (discrete incompressibility check)."""

@@ -110,6 +110,14 @@ class ContactBoundary:
         """Re-assemble S_n on the current mesh geometry."""
         self.areas = self._assemble_areas()
 
+    def q1_dofs(self, Q1) -> np.ndarray:
+        """Dofs of the contact vertices in a scalar P1 space ``Q1`` of the same mesh."""
+        c2v = compat.cell_vertices(self.space.mesh)
+        d = compat.dofmap_array(Q1)
+        v2q = np.empty(self.space.vertex_dofs.shape[0], dtype=np.int32)
+        v2q[c2v.ravel()] = d[:, : c2v.shape[1]].ravel()
+        return v2q[self.vertices]
+
     def total_area(self) -> float:
         return self.comm.allreduce(float(np.sum(self.areas)), op=MPI.SUM)
 
