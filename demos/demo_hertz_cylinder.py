@@ -1,0 +1,206 @@
+# ---
+# jupyter:
+#   jupytext:
+#     text_representation:
+#       extension: .py
+#       format_name: percent
+# ---
+
+# %% [markdown]
+# # Hertz line contact: a rigid cylinder pressed on an elastic block (plane strain)
+#
+# A rigid cylinder of radius R is pressed on the top face of a linear elastic block
+# (E, ν, plane strain) by displacement control: the tool starts touching the block at x = 0 and
+# moves down with a constant velocity, so that after ``n_steps`` increments it has indented the
+# block by ``indentation``. Frictionless nodal penalty contact (THEORY §2), small strain
+# (THEORY §1.4). Half model: symmetry ``u_x = 0`` on x = 0, frictionless roller ``u_y = 0`` on
+# the bottom face.
+#
+# **Comparison with Hertz (THEORY §11.2).** In 2D the indentation of a half-space under a line
+# load is not defined (it depends logarithmically on the block size), so the load ``P`` per
+# unit length is taken from the FEM (twice the force on the tool of the half model) and the
+# Hertz half-width and peak pressure are computed *for that load*:
+#
+# $$a = \sqrt{4PR/(\pi E^*)},\qquad p_0 = 2P/(\pi a),\qquad p(x) = p_0\sqrt{1-x^2/a^2},
+# \qquad E^* = E/(1-\nu^2).$$
+#
+# **FEM contact half-width.** The nodal pressure ``p_n = ρ[h_n]₊`` is known at the contact
+# nodes only. ``contact_half_width`` is the length of the active part of the top face,
+# ``Σ_{p_n>0} S_n`` (S_n: lumped nodal length). On a uniform mesh this is the midpoint between
+# the last active and the first inactive node, so its error is at most h/2 (THEORY §11.2);
+# the bracketing nodes are returned too (``contact_half_width_bounds``).
+#
+# The mesh is graded (gmsh box field) from ``h_fine`` in a square of side ``refine`` under the
+# tool to ``h`` far away; the block is large compared with ``a`` (THEORY §11.2: ≥ 10–20 a).
+#
+# Run: ``python demos/demo_hertz_cylinder.py`` (serial) or ``mpirun -n 2 python demos/...``.
+# ``--size`` sets ``h_fine`` (the one knob); outputs go to ``results/hertz_cylinder``: the VTK
+# series, the CSV history, the pressure profile (CSV) and a PNG of p(x) against Hertz.
+
+# %%
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+
+import numpy as np
+from mpi4py import MPI
+
+from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.nodal import NodalContact, penalty_from_beta
+from fxcontact.materials import LinearElastic
+from fxcontact.meshing import BLOCK_TAGS, block
+from fxcontact.simulation import Simulation
+from fxcontact.spaces import MixedSpace
+from fxcontact.tools.analytic import Cylinder
+
+
+# %% [markdown]
+# ## Hertz formulas (line contact, rigid cylinder on an elastic half-space)
+
+# %%
+def hertz_line(P: float, R: float, E_star: float):
+    """Half-width ``a`` and peak pressure ``p0`` for a load ``P`` per unit length."""
+    a = math.sqrt(4.0 * P * R / (math.pi * E_star))
+    return a, 2.0 * P / (math.pi * a)
+
+
+def gather_profile(contact: NodalContact, x: np.ndarray, comm) -> tuple:
+    """Contact-node abscissae, pressures and lumped lengths of all ranks, sorted by x."""
+    b = contact.boundary
+    loc = np.c_[x[b.vertices, 0], contact.pressures(), b.areas]
+    allv = np.concatenate(comm.allgather(loc))
+    allv = allv[np.argsort(allv[:, 0])]
+    return allv[:, 0], allv[:, 1], allv[:, 2]
+
+
+# %%
+def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0145, h_fine=0.008, h=1.0, width=10.0,
+        height=10.0, refine=0.4, scheme="implicit", penalty=None, beta=1e4, n_steps=4,
+        output_dir="results/hertz_cylinder", picture=True, progress=True,
+        comm=MPI.COMM_WORLD) -> dict:
+    """Press the cylinder into the block by ``indentation`` in ``n_steps`` increments.
+
+    Args:
+        radius: cylinder radius R [mm]; E [MPa], nu: block material (plane strain).
+        indentation: final tool displacement [mm] from first touch (x = 0, y = 0).
+        h_fine: element size in the refined square ``[0, refine] × [-refine, 0]`` under the
+            tool; h: element size far away [mm].
+        width, height: size of the half block ``[0, width] × [-height, 0]`` [mm].
+        scheme: contact scheme (see :data:`fxcontact.contact.nodal.SCHEMES`).
+        penalty: ρ, or None to use ``beta`` (ρ = β dt E*/h_fine, THEORY §2.5).
+        n_steps: number of increments.
+    Returns:
+        dict with ``force`` (P per unit length, full contact), ``contact_half_width`` (FEM,
+        Σ S_n over active nodes), ``contact_half_width_bounds`` (last active / first inactive
+        node), ``p_max``, ``hertz_half_width`` and ``hertz_p_max`` for the FEM load, the nodal
+        profile ``x``, ``p``, the bottom reaction (equilibrium check), mesh size, dofs, run time
+        and the history.
+    """
+    t_start = time.perf_counter()
+    if not (0 < indentation < 0.5 * radius):
+        raise ValueError("indentation must be in (0, R/2)")
+    msh, _, ft = block(comm, (0.0, -height), (width, 0.0), h,
+                       refine_box=((0.0, -refine), (refine, 0.0)), h_fine=h_fine, dim=2)
+    space = MixedSpace(msh)
+    mat = LinearElastic(E, nu)
+    sim = Simulation(space, mat, output_dir=output_dir, name="hertz_cylinder",
+                     progress=progress)
+    sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["xmin"]), 0.0, 0)   # symmetry
+    bottom = sim.facets(ft, BLOCK_TAGS["ymin"])
+    sim.add_velocity_bc(bottom, 0.0, 1)                                # frictionless roller
+    sim.add_reaction("bottom", bottom)
+    t_end = 1.0
+    speed = indentation / t_end
+    tool = Cylinder(point=(0.0, radius, 0.0), axis=(0.0, 0.0, 1.0), radius=radius,
+                    velocity=(0.0, -speed, 0.0), name="cylinder")
+    dt = t_end / n_steps
+    if penalty is None:
+        # ρ = β dt E*/h_e given explicitly: NodalContact(beta=...) leaves ρ unset until the
+        # first increment, and writing the initial output fields then fails (see the report)
+        penalty = penalty_from_beta(mat, beta, h_fine, dt=dt)
+    boundary = ContactBoundary(space, ft, BLOCK_TAGS["ymax"])
+    contact = sim.add_contributor(NodalContact(boundary, tool, scheme=scheme, penalty=penalty,
+                                               element_size=h_fine))
+    sim.run(t_end, dt)
+    last = sim.history[-1]
+    P = 2.0 * last["cylinder_force_y"]            # half model → full contact
+    E_star = mat.plane_strain_modulus
+    a_h, p0_h = hertz_line(P, radius, E_star)
+    xs, ps, Ss = gather_profile(contact, sim.vertex_positions(), comm)
+    active = ps > 0
+    a_fem = float(np.sum(Ss[active]))
+    i_last = int(np.flatnonzero(active)[-1]) if np.any(active) else -1
+    bounds = (float(xs[i_last]) if i_last >= 0 else 0.0,
+              float(xs[i_last + 1]) if i_last + 1 < len(xs) else float("nan"))
+    n_cells = comm.allreduce(msh.topology.index_map(2).size_local, op=MPI.SUM)
+    out = {"force": P, "contact_half_width": a_fem, "contact_half_width_bounds": bounds,
+           "p_max": float(np.max(ps)), "hertz_half_width": a_h, "hertz_p_max": p0_h,
+           "E_star": E_star, "x": xs, "p": ps, "nodal_length": Ss,
+           "bottom_reaction": 2.0 * last["bottom_y"], "indentation": indentation, "radius": radius,
+           "penetration": last["contact_penetration_true"],
+           "nodes_on_half_width": int(np.sum(active)), "h_fine": h_fine, "cells": n_cells,
+           "dofs": space.global_dofs(), "history": sim.history, "png": None,
+           "wall_time": time.perf_counter() - t_start}
+    if output_dir is not None and comm.rank == 0:
+        np.savetxt(os.path.join(output_dir, "profile.csv"), np.c_[xs, ps, Ss], delimiter=",",
+                   header="x,p,S", comments="")
+        if picture:
+            out["png"] = plot_profile(out, os.path.join(output_dir, "hertz_cylinder.png"))
+    return out
+
+
+# %% [markdown]
+# ## Plot: FEM nodal pressures against the Hertz profile for the FEM load
+
+# %%
+def plot_profile(res: dict, path: str) -> str:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    a, p0 = res["hertz_half_width"], res["hertz_p_max"]
+    xx = np.linspace(0.0, a, 400)
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.plot(xx / a, np.sqrt(1.0 - (xx / a) ** 2), "k-", label="Hertz, $p_0\\sqrt{1-x^2/a^2}$")
+    sel = res["x"] < 2.0 * a
+    ax.plot(res["x"][sel] / a, res["p"][sel] / p0, "o", ms=4, label="FEM nodal $p_n$")
+    ax.axvline(res["contact_half_width"] / a, color="C1", ls="--", lw=1,
+               label="FEM half-width $\\sum S_n$")
+    ax.set_xlabel("$x/a$")
+    ax.set_ylabel("$p/p_0$")
+    ax.set_xlim(0, 1.5)
+    ax.set_title(f"Hertz line contact: P = {res['force']:.1f} N/mm, a = {a:.4f} mm, "
+                 f"$p_0$ = {p0:.0f} MPa")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+# %% [markdown]
+# ## Script
+
+# %%
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description="Hertz line contact (plane strain)")
+    ap.add_argument("--size", type=float, default=0.008, help="fine element size h_fine [mm]")
+    ap.add_argument("--scheme", default="implicit")
+    ap.add_argument("--output", default="results/hertz_cylinder")
+    args = ap.parse_args()
+    res = run(h_fine=args.size, scheme=args.scheme, output_dir=args.output)
+    if MPI.COMM_WORLD.rank == 0:
+        a, p0 = res["hertz_half_width"], res["hertz_p_max"]
+        lo, hi = res["contact_half_width_bounds"]
+        print(f"mesh: {res['cells']} triangles, {res['dofs']} dofs, h_fine = {res['h_fine']} mm, "
+              f"{res['nodes_on_half_width']} active nodes; {res['wall_time']:.1f} s")
+        print(f"load P = {res['force']:.2f} N/mm (bottom reaction {res['bottom_reaction']:.2f})")
+        print(f"{'':22s}{'FEM':>12s}{'Hertz':>12s}{'error':>10s}")
+        print(f"{'half-width a [mm]':22s}{res['contact_half_width']:12.5f}{a:12.5f}"
+              f"{res['contact_half_width'] / a - 1:10.2%}   (nodes {lo:.5f}..{hi:.5f})")
+        print(f"{'p_max [MPa]':22s}{res['p_max']:12.1f}{p0:12.1f}{res['p_max'] / p0 - 1:10.2%}")
+        print(f"a/R = {a / res['radius']:.3f}; outputs: {res['png']}")
