@@ -95,6 +95,9 @@ class NodalContact:
             (0 disables).
         max_initial_penetration: burial limit at the start of an increment (default half the
             local element size); deeper nodes raise an error.
+        gap_stiffness: alternative to ``penalty``/``beta``: a stiffness k [stress/length] on the
+            end-of-increment gap, ρ = k·dt at each increment, so that the penalty penetration
+            p/k does not depend on the time step.
         name: label used in history columns.
         backend: "numba" or "numpy" (reference twin of the kernel, for testing).
     """
@@ -103,7 +106,8 @@ class NodalContact:
                  penalty: Optional[float] = None, beta: Optional[float] = None,
                  element_size: Optional[float] = None, strain_rate: Optional[float] = None,
                  sticky_gap: float = 0.0, max_initial_penetration: Optional[float] = None,
-                 name: str = "contact", backend: str = "numba"):
+                 gap_stiffness: Optional[float] = None, name: str = "contact",
+                 backend: str = "numba"):
         if scheme not in SCHEMES:
             raise ValueError(f"unknown contact scheme {scheme!r}; choose one of {SCHEMES}")
         tools = [tools] if isinstance(tools, Tool) else list(tools)
@@ -111,8 +115,14 @@ class NodalContact:
             raise ValueError("tools must be a Tool or a non-empty sequence of Tools")
         if scheme == "implicit-exact" and not all(t.has_hessian for t in tools):
             raise ValueError("implicit-exact needs tools that provide the gap Hessian")
-        if penalty is None and beta is None:
+        if gap_stiffness is not None:
+            if penalty is not None or beta is not None:
+                raise ValueError("give only one of penalty, beta and gap_stiffness")
+            if not (math.isfinite(gap_stiffness) and gap_stiffness > 0):
+                raise ValueError(f"gap_stiffness must be finite and > 0, got {gap_stiffness!r}")
+        elif penalty is None and beta is None:
             beta = DEFAULT_BETA
+        self.gap_stiffness = gap_stiffness
         if penalty is not None and not (math.isfinite(penalty) and penalty > 0):
             raise ValueError(f"penalty must be finite and > 0, got {penalty!r}")
         if beta is not None and not (math.isfinite(beta) and beta > 0):
@@ -157,15 +167,25 @@ class NodalContact:
 
     # ------------------------------------------------------------------ set-up per increment
     def _resolve_penalty(self, sim, dt):
+        if self.gap_stiffness is not None:
+            return self.gap_stiffness * dt
         if self._penalty is not None:
             return self._penalty
         if isinstance(sim.material, NortonHoff):
             if self.strain_rate is None:
                 # representative strain rate: mean of the first increment's initial guess
                 rate = sim.mean_strain_rate()
+                if not rate > 1e-12:
+                    # rigid initial guess: tool speed over the body's size
+                    speed = max(float(np.max(np.linalg.norm(
+                        tool.velocity(_pad3(self.x_t), self.t), axis=1), initial=0.0))
+                        for tool in self.tools)
+                    speed = self.boundary.comm.allreduce(speed, op=MPI.MAX)
+                    size = sim.volume() ** (1.0 / self.gdim)
+                    rate = speed / size
                 if not rate > 0:
                     raise ValueError("cannot estimate a representative strain rate for the "
-                                     "penalty (the initial velocity is rigid): give "
+                                     "penalty (rigid initial velocity and static tools): give "
                                      "strain_rate= or penalty=")
                 self.strain_rate = rate
                 log.info("%s: representative strain rate %.4g 1/s", self.name, rate)
@@ -208,8 +228,8 @@ class NodalContact:
         self.kin = sim.kinematics
         if not sim.material.small_strain:
             b.update_areas()
-        self.rho = self._resolve_penalty(sim, dt)
         self.x_t = np.ascontiguousarray(x_t_all[b.vertices])
+        self.rho = self._resolve_penalty(sim, dt)
         self._ever_active[:] = False
         self._status_prev = None
         # burial check at the start of the increment (collective)

@@ -392,8 +392,9 @@ def closest_point_triangle(p, a, b, c):
 
 
 @numba.njit(cache=True)
-def _min_facet_distance(P, nbrs, V, T):
-    """min over the facets ``nbrs[i]`` of the exact distance of ``P[i]`` (candidate radius)."""
+def _upper_bound(P, nbrs, V, T, infl):
+    """min over the facets ``nbrs[i]`` of (exact flat distance + ``infl``): an upper bound of
+    the distance of ``P[i]`` to the surface (flat: infl = 0; Nagata: infl = max|c|/3)."""
     n, k = nbrs.shape
     out = np.empty(n)
     for i in range(n):
@@ -402,11 +403,46 @@ def _min_facet_distance(P, nbrs, V, T):
             f = nbrs[i, j]
             q0, q1, q2, _, _, _, _ = closest_point_triangle_nb(
                 P[i, 0], P[i, 1], P[i, 2], V[T[f, 0]], V[T[f, 1]], V[T[f, 2]])
-            d2 = (P[i, 0] - q0) ** 2 + (P[i, 1] - q1) ** 2 + (P[i, 2] - q2) ** 2
-            if d2 < best:
-                best = d2
-        out[i] = math.sqrt(best)
+            d = math.sqrt((P[i, 0] - q0) ** 2 + (P[i, 1] - q1) ** 2 + (P[i, 2] - q2) ** 2)
+            best = min(best, d + infl[f])
+        out[i] = best
     return out
+
+
+def _ball_query(tree: cKDTree, y: np.ndarray, r: np.ndarray, k0: int,
+                first: Optional[Tuple[np.ndarray, np.ndarray]] = None):
+    """All tree points within ``r[i]`` of ``y[i]``, as (rows, values) arrays.
+
+    Uses k-nearest queries (bounded by max r) with a growing ``k`` (×4) for the rows that are
+    not complete yet, which avoids Python lists of neighbours. ``first`` may hold the
+    result (dd, ii) of an unbounded k-query on the same tree (reused for the first round)."""
+    ntree = tree.n
+    rows_out, vals_out = [], []
+    pending = np.arange(y.shape[0])
+    k = min(k0, ntree)
+    if first is not None:
+        dd, ii = first
+        k = dd.shape[1]
+        within = dd <= r[:, None]
+        done = (k >= ntree) | ~within[:, -1]
+        sub = within[done]
+        rows_out.append(np.repeat(pending[done], sub.sum(axis=1)))
+        vals_out.append(ii[done][sub])
+        pending = pending[~done]
+        k = min(4 * k, ntree)
+    while pending.size:
+        rp = r[pending]
+        dd, ii = tree.query(y[pending], k=k, distance_upper_bound=float(rp.max()) * (1 + 1e-12))
+        dd = dd.reshape(pending.size, k)
+        ii = ii.reshape(pending.size, k)
+        within = dd <= rp[:, None]
+        done = np.full(pending.size, k >= ntree) | ~within[:, -1]
+        sub = within[done]
+        rows_out.append(np.repeat(pending[done], sub.sum(axis=1)))
+        vals_out.append(ii[done][sub])
+        pending = pending[~done]
+        k = min(4 * k, ntree)
+    return rows_out, vals_out
 
 
 @numba.njit(cache=True)
@@ -898,7 +934,8 @@ class FacetedTool(Tool):
         self._vpn = self._vertex_sum(ang, np.repeat(self._fn[:, None, :], 3, axis=1))
         centroids = V[T].mean(axis=1)
         self._tree = cKDTree(centroids)
-        self._rb = float(np.max(np.linalg.norm(V[T] - centroids[:, None, :], axis=2)))
+        self._rf = np.max(np.linalg.norm(V[T] - centroids[:, None, :], axis=2), axis=1)
+        self._rb = float(np.max(self._rf))
         self._tie_scale = float(np.max(np.abs(V)) + np.linalg.norm(V.max(0) - V.min(0)))
         self._k = max(1, min(int(n_neighbors), T.shape[0]))
         self.fvn: Optional[FacetVertexNormals] = None
@@ -925,7 +962,8 @@ class FacetedTool(Tool):
             self._A = patch_monomials(V, T, self._C)
             self._infl = np.zeros(T.shape[0])
             self._npn = self._vpn
-        self._reach = self._rb + 2.0 * float(self._infl.max())
+        self._zero_infl = np.zeros(T.shape[0])
+        self._classes = self._size_classes(centroids)
         logger.info("%s: %d vertices, %d triangles, %s surface, mode %s, max|c|/3 = %.3g",
                     name, V.shape[0], T.shape[0], "closed" if self.closed else "open", mode,
                     float(self._infl.max()))
@@ -939,6 +977,24 @@ class FacetedTool(Tool):
         out = np.stack([np.bincount(idx, weights=contrib[:, j], minlength=self._V.shape[0])
                         for j in range(3)], axis=1)
         return np.ascontiguousarray(out)
+
+    def _size_classes(self, centroids: np.ndarray):
+        """Group the facets by size (radius about the centroid, classes a factor 4 apart) with
+        one k-d tree per class, so that a few large facets do not inflate the search radius
+        of the others. Returns [(tree, facet ids or None, max radius, max inflation)]."""
+        rf = self._rf
+        lvl = np.floor(np.log(rf / rf.min()) / np.log(4.0)).astype(np.int64)
+        levels = np.unique(lvl)
+        if levels.size == 1:
+            return [(self._tree, None, self._rb, float(self._infl.max()))]
+        out = []
+        for L in levels:
+            ids = np.flatnonzero(lvl == L)
+            out.append((cKDTree(centroids[ids]), ids, float(rf[ids].max()),
+                        float(self._infl[ids].max())))
+        logger.debug("%s: %d facet size classes (%s facets)", self.name, len(out),
+                     [len(c[1]) for c in out])
+        return out
 
     def _patch_corner_angles(self) -> np.ndarray:
         A = self._A
@@ -1010,32 +1066,26 @@ class FacetedTool(Tool):
         y = np.ascontiguousarray(y, dtype=np.float64)
         n = y.shape[0]
         K = self._k
+        infl = self._zero_infl if flat else self._infl
         dd, ii = self._tree.query(y, k=K)
         dd = dd.reshape(n, K)
         ii = np.ascontiguousarray(ii.reshape(n, K), dtype=np.int64)
-        u = _min_facet_distance(y, ii, self._V, self._T)
-        reach = self._rb if flat else self._reach
-        r = u + reach + (1e-12 * self._tie_scale + 1e-10 * u)
-        if K == self._T.shape[0]:
-            complete = np.ones(n, dtype=bool)
-        else:
-            complete = dd[:, -1] > r
-        mask = (dd <= r[:, None]) & complete[:, None]
-        counts = mask.sum(axis=1)
-        vals = ii[mask]
-        inc = np.flatnonzero(~complete)
-        if inc.size:
-            lists = self._tree.query_ball_point(y[inc], r[inc], return_sorted=False)
-            lens = np.fromiter((len(x) for x in lists), dtype=np.int64, count=inc.size)
-            counts[inc] = lens
-            extra = np.fromiter((j for x in lists for j in x), dtype=np.int64,
-                                count=int(lens.sum()))
-            rows = np.concatenate([np.repeat(np.flatnonzero(complete), counts[complete]),
-                                   np.repeat(inc, lens)])
+        ub = _upper_bound(y, ii, self._V, self._T, infl)
+        tol = 1e-12 * self._tie_scale + 1e-10 * ub
+        rows, vals = [], []
+        for tree, ids, rc, dc in self._classes:
+            r = ub + rc + (0.0 if flat else dc) + tol
+            first = (dd, ii) if tree is self._tree else None
+            rr, vv = _ball_query(tree, y, r, 4 * K, first)
+            rows += rr
+            vals += [ids[v] if ids is not None else v for v in vv]
+        rows = np.concatenate(rows)
+        vals = np.concatenate(vals)
+        if rows.size > 1 and np.any(rows[1:] < rows[:-1]):
             order = np.argsort(rows, kind="stable")
-            vals = np.concatenate([vals, extra])[order]
+            rows, vals = rows[order], vals[order]
         ptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(counts, out=ptr[1:])
+        np.cumsum(np.bincount(rows, minlength=n), out=ptr[1:])
         return ptr, np.ascontiguousarray(vals, dtype=np.int64)
 
     # -- projection ----------------------------------------------------------------------

@@ -1,0 +1,295 @@
+"""Nodal penalty contact: scheme derivatives (FD), kernel twin, penalty consistency against
+boundary conditions, explicit vs implicit on a curved tool, Newton convergence, bad input, MPI."""
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+import dolfinx
+
+from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.nodal import NodalContact
+from fxcontact.contact.penalty import penalty_kernel, penalty_kernel_numpy
+from fxcontact.kinematics import CartesianUpdate, CylindricalUpdate
+from fxcontact.materials import NortonHoff
+from fxcontact.meshing import BILLET_TAGS, BLOCK_TAGS, block, cylinder_billet
+from fxcontact.simulation import Simulation
+from fxcontact.spaces import MixedSpace
+from fxcontact.tools.analytic import Cone, Cylinder, Plane, Sphere
+
+from helpers import gather_by_position
+
+
+# ----------------------------------------------------------------------------- unit level
+class _FakeBoundary:
+    """Duck-typed ContactBoundary holding plain arrays (no dolfinx)."""
+
+    def __init__(self, n, d=3, seed=0):
+        rng = np.random.default_rng(seed)
+        self.comm = MPI.COMM_SELF
+        self.gdim = d
+        self.areas = 0.5 + rng.random(n)
+        self.vertices = np.arange(n)
+        self.dofs = np.arange(n * d).reshape(n, d)
+
+    def __len__(self):
+        return len(self.areas)
+
+    def velocities(self, w):
+        return w.reshape(-1, self.gdim)
+
+    def update_areas(self):
+        pass
+
+
+class _FakeSim:
+    def __init__(self, kin, w_prev):
+        self.kinematics = kin
+        self.material = NortonHoff(1.0, 0.5)
+        self.w_prev = type("F", (), {"x": type("X", (), {"array": w_prev})()})()
+
+
+def _energy(c, v):
+    h = c._constraint(v.reshape(-1, 3), False)[0]
+    return 0.5 * c.rho * np.sum(c.boundary.areas * np.maximum(h, 0.0) ** 2)
+
+
+TOOLS = {
+    "plane": lambda: Plane((0, 0, 1.0), (0.2, -0.1, -1.0), velocity=(0.1, 0, -0.3)),
+    "sphere": lambda: Sphere((0.2, 0.1, 3.0), 2.0, velocity=(0, 0, -0.2)),
+    "cylinder": lambda: Cylinder((0, 0, 3.0), (1, 0.2, 0), 2.0, velocity=(0, 0.1, -0.2),
+                                 angular_velocity=0.7),
+    "bore": lambda: Cylinder((0, 0, -2.0), (0, 1, 0.1), 3.05, inside=True),
+    "cone": lambda: Cone((0, 0, 4.0), (0, 0.1, 1.0), 0.6, velocity=(0, 0, -0.5)),
+}
+
+
+@pytest.mark.parametrize("scheme", ["explicit", "quasi-implicit", "implicit", "implicit-exact"])
+@pytest.mark.parametrize("tool", list(TOOLS))
+@pytest.mark.parametrize("kin", ["cartesian", "cylindrical"])
+def test_scheme_residual_and_jacobian_fd(scheme, tool, kin):
+    """r = ∇Φ for every scheme (FD); K = ∇r for all but the Gauss–Newton 'implicit'."""
+    rng = np.random.default_rng(3)
+    n = 12
+    t0, dt = 0.3, 0.1
+    tl = TOOLS[tool]()
+    # points near the tool surface, half of them slightly inside
+    y = rng.uniform(-1.0, 1.0, (n, 3)) + np.array([1.5, 0.3, 0.9])
+    pr = tl.project(y, t0)
+    s = np.linspace(-0.15, 0.15, n)
+    x = pr.point + s[:, None] * pr.normal
+    v = rng.normal(scale=0.5, size=(n, 3))
+    b = _FakeBoundary(n)
+    kinematics = CartesianUpdate() if kin == "cartesian" else \
+        CylindricalUpdate(center=(0.0, 0.0, 0.0), axis=(0.0, 0.3, 1.0))
+    c = NodalContact(b, tl, scheme=scheme, penalty=7.0,
+                     max_initial_penetration=10.0)
+    sim = _FakeSim(kinematics, (v + 0.2 * rng.normal(size=v.shape)).ravel())
+    c.begin_increment(sim, t0, dt, x)
+    terms = c.evaluate(v.ravel(), True)
+    assert np.any(c._h > 0) and np.any(c._h <= 0)  # both active and inactive nodes
+    r, K = terms.residual, terms.jacobian
+    eps = 1e-6
+    g_fd = np.zeros_like(v)
+    K_fd = np.zeros((n, 3, 3))
+    for a in range(3):
+        dv = np.zeros_like(v)
+        dv[:, a] = eps
+        # Φ is a sum of nodal terms: one FD per component for all nodes at once
+        for i in range(n):
+            e = np.zeros_like(v)
+            e[i, a] = eps
+            g_fd[i, a] = (_energy(c, v + e) - _energy(c, v - e)) / (2 * eps)
+        rp = c.evaluate((v + dv).ravel(), False).residual
+        rm = c.evaluate((v - dv).ravel(), False).residual
+        K_fd[:, :, a] = (rp - rm) / (2 * eps)
+    assert np.linalg.norm(r - g_fd) <= 1e-6 * np.linalg.norm(r)
+    if scheme == "implicit":
+        # Gauss–Newton: exact up to the curvature term, which is present on curved tools
+        return
+    # nodes near h = 0 make the FD non-smooth: compare only nodes away from the kink
+    c.evaluate(v.ravel(), False)
+    far = np.abs(c._h) > 1e-3
+    assert np.linalg.norm((K - K_fd)[far]) <= 1e-6 * np.linalg.norm(K[far])
+
+
+def test_penalty_kernel_twin():
+    rng = np.random.default_rng(0)
+    n = 50
+    S, h = rng.random(n), rng.normal(size=n)
+    g = rng.normal(size=(n, 3))
+    Hh = rng.normal(size=(n, 3, 3))
+    act = (h > 0) | (rng.random(n) > 0.5)
+    for H in (Hh, np.zeros((0, 3, 3))):
+        r1, K1 = penalty_kernel(S, 3.0, h, g, H, act, True)
+        r2, K2 = penalty_kernel_numpy(S, 3.0, h, g, H, act, True)
+        assert np.allclose(r1, r2, rtol=1e-14, atol=1e-14)
+        assert np.allclose(K1, K2, rtol=1e-14, atol=1e-14)
+
+
+def test_bad_contact_input():
+    b = _FakeBoundary(3)
+    tool = Plane((0, 0, 0), (0, 0, 1))
+    with pytest.raises(ValueError, match="scheme"):
+        NodalContact(b, tool, scheme="semi-implicit", penalty=1.0)
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="penalty"):
+            NodalContact(b, tool, penalty=bad)
+    with pytest.raises(ValueError, match="tools"):
+        NodalContact(b, [], penalty=1.0)
+    with pytest.raises(ValueError, match="only one"):
+        NodalContact(b, tool, penalty=1.0, gap_stiffness=2.0)
+    # a node buried deeper than the limit: clear error naming the tool and the depth
+    c = NodalContact(b, Plane((0, 0, 0), (0, 0, 1), name="die"), penalty=1.0,
+                     max_initial_penetration=0.1)
+    x = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -0.5], [1.0, 0.0, 0.05]])
+    with pytest.raises(ValueError, match="buried in tool 'die'.*0.5"):
+        c.begin_increment(_FakeSim(CartesianUpdate(), np.zeros(9)), 0.0, 0.1, x)
+
+
+def test_node_on_tool_axis_is_a_clear_error():
+    """A contact node on a roll's axis is deep inside the roll: error, never NaN."""
+    from fxcontact.petsc import ContributorError
+    b = _FakeBoundary(2)
+    roll = Cylinder((0, 0, 0), (0, 1, 0), 1.0, name="roll")
+    c = NodalContact(b, roll, scheme="implicit", penalty=1.0, max_initial_penetration=10.0)
+    x = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 3.0]])
+    c.begin_increment(_FakeSim(CartesianUpdate(), np.zeros(6)), 0.0, 0.1, x)
+    with pytest.raises(ContributorError, match="axis"):
+        c.evaluate(np.zeros(6), True)
+    # away from contact a node on an axis is harmless (bore axis in free space)
+    bore = Cylinder((0, 0, 0), (0, 1, 0), 5.0, inside=True)
+    c2 = NodalContact(b, bore, scheme="implicit", penalty=1.0)
+    c2.begin_increment(_FakeSim(CartesianUpdate(), np.zeros(6)), 0.0, 0.1, x)
+    t = c2.evaluate(np.zeros(6), True)
+    assert np.all(np.isfinite(t.residual)) and np.all(np.isfinite(t.jacobian))
+
+
+# ----------------------------------------------------------------------------- FE level
+def _upsetting(comm, contact, penalty=None, scheme="implicit", n_inc=3, h=4.0):
+    R, H, V = 10.0, 15.0, 5.0
+    msh, _, ft = cylinder_billet(comm, R, H, h)
+    sp = MixedSpace(msh)
+    sim = Simulation(sp, NortonHoff(50.0, 0.15, regularization=1e-4), progress=False)
+    f = {k: sim.facets(ft, v) for k, v in BILLET_TAGS.items()}
+    sim.add_velocity_bc(f["symmetry_x"], 0.0, 0)
+    sim.add_velocity_bc(f["symmetry_y"], 0.0, 1)
+    sim.add_velocity_bc(f["bottom"], 0.0, 2)
+    c = None
+    if contact:
+        die = Plane((0, 0, H), (0, 0, -1), velocity=(0, 0, -V), name="die")
+        c = sim.add_contributor(NodalContact(ContactBoundary(sp, ft, BILLET_TAGS["top"]), die,
+                                             scheme=scheme, penalty=penalty))
+    else:
+        sim.add_velocity_bc(f["top"], -V, 2)
+        sim.add_reaction("die", f["top"])
+    sim.run(0.2 * n_inc, 0.2)
+    return sim, c
+
+
+def _vertex_velocities(sim):
+    sp = sim.space
+    own = sp.vertex_owned
+    x0 = sim._x_ref[sp.vertex_geometry][own]  # initial positions: a key independent of the run
+    return gather_by_position(sim.comm, x0, sim.w.x.array[sp.vertex_dofs[own]])
+
+
+def test_plane_dies_reproduce_sliding_bc_and_penalty_consistency():
+    comm = MPI.COMM_WORLD
+    ref, _ = _upsetting(comm, False)
+    _, vr = _vertex_velocities(ref)
+    errs = []
+    sims = []
+    for pen in (None, "x10"):
+        if pen is None:
+            s, c = _upsetting(comm, True)
+            rho = c.rho
+        else:
+            s, c = _upsetting(comm, True, penalty=10 * rho)
+        x, v = _vertex_velocities(s)
+        errs.append(np.max(np.abs(v - vr)) / np.max(np.abs(vr)))
+        sims.append((s, c))
+    assert errs[0] < 1e-4, errs
+    assert 7.0 < errs[0] / errs[1] < 13.0, errs  # ~10x smaller with a 10x penalty
+    # the die force equals the reaction of the BC problem, and it acts on the die (+z)
+    s, c = sims[1]
+    Fz = s.history[-1]["die_force_z"]
+    assert Fz > 0
+    assert abs(Fz + ref.history[-1]["die_z"]) < 1e-3 * abs(Fz)
+    assert s.history[-1]["contact_nodes"] > 0
+
+
+def _strip_under_arc(comm, scheme, dt, t_end=3.2, R=200.0, k=2e6):
+    """A Norton–Hoff strip dragged (bottom velocity 1) under a concave arc: the inside of a
+    large bore whose highest point is above the strip's rear end and which passes through the
+    strip's top front corner, so the strip is progressively thinned as it advances."""
+    msh, _, ft = block(comm, [-8.0, -2.0], [0.0, 0.0], 0.25, dim=2)
+    sp = MixedSpace(msh)
+    sim = Simulation(sp, NortonHoff(10.0, 0.3, regularization=1e-4), progress=False)
+    sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["ymin"]), np.array([1.0, 0.0]))
+    arc = Cylinder((-8.0, -np.sqrt(R**2 - 64.0), 0.0), (0, 0, 1), R, inside=True, name="arc")
+    c = sim.add_contributor(NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["ymax"]), arc,
+                                         scheme=scheme, gap_stiffness=k))
+    sim.run(t_end, dt)
+    pen = max(r["contact_penetration_true"] for r in sim.history)
+    return sim, pen
+
+
+def test_explicit_error_grows_with_dt_squared_implicit_does_not():
+    comm = MPI.COMM_WORLD
+    pens = {}
+    for scheme in ("explicit", "implicit"):
+        for dt in (0.1, 0.4):
+            _, pens[(scheme, dt)] = _strip_under_arc(comm, scheme, dt)
+    if comm.rank == 0:
+        print("\nmax true penetration:", {f"{k[0]} dt={k[1]}": f"{v:.3e}" for k, v in
+                                          pens.items()})
+    ratio_exp = pens[("explicit", 0.4)] / pens[("explicit", 0.1)]
+    ratio_imp = pens[("implicit", 0.4)] / pens[("implicit", 0.1)]
+    assert ratio_exp >= 8.0, pens
+    assert abs(ratio_imp - 1.0) <= 0.2, pens
+    assert pens[("implicit", 0.4)] < 0.2 * pens[("explicit", 0.4)]
+
+
+def test_implicit_exact_converges_quadratically():
+    comm = MPI.COMM_WORLD
+    its = {}
+    norms = {}
+    for scheme in ("implicit", "implicit-exact"):
+        msh, _, ft = block(comm, [-4.0, -2.0], [4.0, 0.0], 0.5, dim=2)
+        sp = MixedSpace(msh)
+        sim = Simulation(sp, NortonHoff(10.0, 0.3, regularization=1e-4), progress=False,
+                         solver_options=None)
+        sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["ymin"]), np.array([0.0, 0.0]))
+        roll = Cylinder((0.0, 3.0 - 0.05, 0.0), (0, 0, 1), 3.0, velocity=(0.0, -0.5, 0.0),
+                        name="roll")
+        sim.add_contributor(NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["ymax"]), roll,
+                                         scheme=scheme, penalty=1e3))
+        sim.step(0.1)
+        res = sim.step(0.1)
+        its[scheme] = res.info.iterations
+        norms[scheme] = res.info.residual_norms
+    assert its["implicit-exact"] <= its["implicit"], its
+    r = np.array(norms["implicit-exact"])
+    r = r[r > 1e-11 * r[0]]
+    # quadratic: the last reductions accelerate (log ratio of successive contractions ≥ 1.5)
+    if len(r) >= 4:
+        q = np.log(r[-1] / r[-2]) / np.log(r[-2] / r[-3])
+        assert q > 1.5, r
+
+
+def test_contact_parallel_matches_serial():
+    comm = MPI.COMM_WORLD
+    out = []
+    for c in (comm, MPI.COMM_SELF):
+        s, con = _upsetting(c, True, n_inc=2)
+        sp = s.space
+        own = sp.vertex_owned
+        x, v = gather_by_position(c, s._x_ref[sp.vertex_geometry][own],
+                                  s.w.x.array[sp.vertex_dofs[own]])
+        out.append((x, v, s.history[-1]))
+    (x1, v1, h1), (x2, v2, h2) = out
+    assert np.allclose(x1, x2, atol=1e-12)
+    assert np.max(np.abs(v1 - v2)) <= 1e-8 * np.max(np.abs(v2))
+    for k in ("die_force_z", "contact_area", "contact_nodes", "contact_penetration_true"):
+        assert abs(h1[k] - h2[k]) <= 1e-8 * max(abs(h2[k]), 1e-30), k
