@@ -34,6 +34,7 @@ __all__ = [
     "NVVResult",
     "FacetVertexNormals",
     "edge_topology",
+    "unique_rows",
     "facet_normals",
     "corner_angles",
     "vertex_normals",
@@ -94,13 +95,35 @@ class EdgeTopology:
         return bool(self.count.size) and bool(np.all(self.count == 2))
 
 
+def unique_rows(a: np.ndarray, return_inverse: bool = False, return_counts: bool = False):
+    """``np.unique(a, axis=0, ...)`` for small non-negative integer rows, much faster: rows are
+    encoded as single int64 keys when the range allows it (falls back to ``np.unique``)."""
+    a = np.asarray(a, dtype=np.int64)
+    base = int(a.max()) + 1 if a.size else 1
+    if a.size and a.min() >= 0 and base ** a.shape[1] < 2 ** 62:
+        key = np.zeros(a.shape[0], dtype=np.int64)
+        for j in range(a.shape[1]):
+            key = key * base + a[:, j]
+        _, idx, inv, cnt = np.unique(key, return_index=True, return_inverse=True,
+                                     return_counts=True)
+        out = [a[idx]]
+    else:
+        u, inv, cnt = np.unique(a, axis=0, return_inverse=True, return_counts=True)
+        out = [u]
+    if return_inverse:
+        out.append(inv.reshape(-1))
+    if return_counts:
+        out.append(cnt)
+    return out[0] if len(out) == 1 else tuple(out)
+
+
 def edge_topology(triangles: np.ndarray) -> EdgeTopology:
     """Build the undirected edge topology of a triangle mesh (see :class:`EdgeTopology`)."""
     T = np.asarray(triangles, dtype=np.int64)
     M = T.shape[0]
     half = T[:, LOCAL_EDGES]  # (M, 3, 2)
     key = np.sort(half, axis=2).reshape(-1, 2)
-    edges, inv, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    edges, inv, count = unique_rows(key, return_inverse=True, return_counts=True)
     inv = inv.reshape(-1)
     tri_edge = inv.reshape(M, 3)
     neighbor = np.full((M, 3), -1, dtype=np.int64)
@@ -253,7 +276,7 @@ def normal_vector_voting(vertices: np.ndarray, triangles: np.ndarray,
     fid = np.repeat(np.arange(T.shape[0]), 3)
 
     # local length scale σ = mean incident edge length / 3
-    topo_edges = np.unique(np.sort(T[:, LOCAL_EDGES], axis=2).reshape(-1, 2), axis=0)
+    topo_edges = unique_rows(np.sort(T[:, LOCAL_EDGES], axis=2).reshape(-1, 2))
     elen = np.linalg.norm(V[topo_edges[:, 1]] - V[topo_edges[:, 0]], axis=1)
     lsum = np.bincount(topo_edges.reshape(-1), weights=np.repeat(elen, 2), minlength=N)
     lcnt = np.bincount(topo_edges.reshape(-1), minlength=N)
