@@ -630,7 +630,20 @@ def _patch_normal_at(a, e, z):
     m1 = _xe(a, e, z, 2) * _xz(a, e, z, 0) - _xe(a, e, z, 0) * _xz(a, e, z, 2)
     m2 = _xe(a, e, z, 0) * _xz(a, e, z, 1) - _xe(a, e, z, 1) * _xz(a, e, z, 0)
     mn = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+    if mn == 0.0:
+        return 0.0, 0.0, 0.0
     return m0 / mn, m1 / mn, m2 / mn
+
+
+@numba.njit(cache=True)
+def _regular_at(a, e, z):
+    """True if ``|x_η × x_ζ| > 1e-8 |x_η||x_ζ|`` at (η, ζ) (non-degenerate parametrisation)."""
+    m0 = _xe(a, e, z, 1) * _xz(a, e, z, 2) - _xe(a, e, z, 2) * _xz(a, e, z, 1)
+    m1 = _xe(a, e, z, 2) * _xz(a, e, z, 0) - _xe(a, e, z, 0) * _xz(a, e, z, 2)
+    m2 = _xe(a, e, z, 0) * _xz(a, e, z, 1) - _xe(a, e, z, 1) * _xz(a, e, z, 0)
+    ne = _xe(a, e, z, 0) ** 2 + _xe(a, e, z, 1) ** 2 + _xe(a, e, z, 2) ** 2
+    nz = _xz(a, e, z, 0) ** 2 + _xz(a, e, z, 1) ** 2 + _xz(a, e, z, 2) ** 2
+    return m0 * m0 + m1 * m1 + m2 * m2 > 1e-16 * ne * nz
 
 
 @numba.njit(cache=True)
@@ -682,7 +695,7 @@ def _nagata_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen,
             scale = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) + math.sqrt(
                 p[0] ** 2 + p[1] ** 2 + p[2] ** 2)
             gt = max(_GT * 2.0 * math.sqrt(xx) * (dj + scale), _LOOSE * xx)
-            stat = math.sqrt(g0 * g0 + g1 * g1) <= gt
+            stat = math.sqrt(g0 * g0 + g1 * g1) <= gt and _regular_at(a, e, z)
             better = False
             if bj < 0 or dj < bd - tol:
                 better = True
@@ -758,6 +771,8 @@ def _nagata_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen,
                 pn0 += m0
                 pn1 += m1
                 pn2 += m2
+        if pn0 == 0.0 and pn1 == 0.0 and pn2 == 0.0:
+            pn0, pn1, pn2 = fn[f, 0], fn[f, 1], fn[f, 2]
         u0, u1, u2 = p[0] - x0, p[1] - x1, p[2] - x2
         u = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
         sd = u0 * pn0 + u1 * pn1 + u2 * pn2
@@ -885,7 +900,9 @@ def nagata_project_ref(tool: "FacetedTool", P: np.ndarray, ptr: np.ndarray, idx:
             xx = np.sum(X * X)
             scale = np.linalg.norm(x) + np.linalg.norm(p)
             gt = max(_GT * 2.0 * np.sqrt(xx) * (dj + scale), _LOOSE * xx)
-            stat = np.linalg.norm(X.T @ (x - p)) <= gt
+            m = np.cross(X[:, 0], X[:, 1])
+            regular = m @ m > 1e-16 * (X[:, 0] @ X[:, 0]) * (X[:, 1] @ X[:, 1])
+            stat = np.linalg.norm(X.T @ (x - p)) <= gt and regular
             key = 2 * int(st == 1) + int(stat)
             if best is None or dj < best[1] - tol or (
                     dj <= best[1] + tol and (key > best[2] or (key == best[2] and dj < best[1]))):
@@ -922,6 +939,8 @@ def nagata_project_ref(tool: "FacetedTool", P: np.ndarray, ptr: np.ndarray, idx:
                 sg = s if same else 1.0 - s
                 eg, zg = [(sg, 0.0), (1.0, sg), (sg, sg)][kg]
                 pn = pn + patch_normals(A[g], eg, zg)
+        if not np.any(pn):
+            pn = tool._fn[f]
         w = p - point[i]
         u = np.linalg.norm(w)
         sgn = -1.0 if w @ pn < 0 else 1.0
@@ -1051,6 +1070,8 @@ class FacetedTool(Tool):
             xi = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
             corner_n = np.stack([patch_normals(self._A, xi[k, 0], xi[k, 1]) for k in range(3)],
                                 axis=1)
+            degenerate = np.linalg.norm(corner_n, axis=2) == 0.0  # collapsed corner tangents
+            corner_n[degenerate] = np.repeat(self._fn[:, None, :], 3, axis=1)[degenerate]
             self._npn = self._vertex_sum(self._patch_corner_angles(), corner_n)
         else:
             self._C = np.zeros((T.shape[0], 3, 3))

@@ -212,10 +212,14 @@ def patch_derivatives(A: np.ndarray, eta, zeta) -> Tuple[np.ndarray, np.ndarray]
 
 
 def patch_normals(A: np.ndarray, eta, zeta) -> np.ndarray:
-    """Unit normals ``x_η × x_ζ / |x_η × x_ζ|`` (outward for counter-clockwise vertices)."""
+    """Unit normals ``x_η × x_ζ / |x_η × x_ζ|`` (outward for counter-clockwise vertices); zero
+    where the parametrisation is degenerate (``|x_η × x_ζ| ≤ 1e-12 |x_η||x_ζ|``)."""
     xe, xz = patch_derivatives(A, eta, zeta)
     m = np.cross(xe, xz)
-    return m / np.linalg.norm(m, axis=-1, keepdims=True)
+    mn = np.linalg.norm(m, axis=-1, keepdims=True)
+    ok = mn > 1e-12 * np.linalg.norm(xe, axis=-1, keepdims=True) * np.linalg.norm(
+        xz, axis=-1, keepdims=True)
+    return np.where(ok, m / np.where(ok, mn, 1.0), 0.0)
 
 
 def domain_samples(n: int = 20) -> Tuple[np.ndarray, np.ndarray]:

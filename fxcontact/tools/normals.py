@@ -394,6 +394,39 @@ def vertex_sides(triangles: np.ndarray, crease: np.ndarray,
     return labels.reshape(M, 3)
 
 
+def _refine_crease_tangents(V: np.ndarray, cedges: np.ndarray, vclass: np.ndarray,
+                            e3: np.ndarray) -> np.ndarray:
+    """Crease tangents from the crease polyline **[design choice]**.
+
+    A class-2 vertex ``i`` with exactly two crease edges ``(a, i)``, ``(i, b)`` gets the tangent
+    ``(x_b − x_a)``-like estimate ``unit(d̂_ib − d̂_ia)`` (``d̂`` unit edge directions from ``i``),
+    which is exact for a uniformly sampled circle, whereas the NVV ``e3`` is biased by an
+    asymmetric 1-ring (e.g. 1 facet on one side, 2 on the other). Other vertices keep ``e3``.
+    """
+    if cedges.size == 0:
+        return e3
+    N = V.shape[0]
+    ends = cedges.reshape(-1)
+    other = cedges[:, ::-1].reshape(-1)
+    cnt = np.bincount(ends, minlength=N)
+    ok = (cnt == 2) & (vclass == CREASE)
+    sel = ok[ends]
+    ends, other = ends[sel], other[sel]
+    order = np.argsort(ends, kind="stable")
+    ends, other = ends[order], other[order]
+    vi = ends[0::2]
+    da = _unit(V[other[0::2]] - V[vi])
+    db = _unit(V[other[1::2]] - V[vi])
+    t = db - da
+    good = np.linalg.norm(t, axis=1) > 1e-8
+    t = _unit(t)
+    # keep the orientation of e3 (irrelevant for the tangent rule, tidy for users)
+    t *= np.where(np.einsum("ij,ij->i", t, e3[vi]) < 0.0, -1.0, 1.0)[:, None]
+    out = e3.copy()
+    out[vi[good]] = t[good]
+    return out
+
+
 @dataclass(frozen=True)
 class FacetVertexNormals:
     """Per-(facet, vertex) normals and crease data used to build the Nagata patches.
@@ -470,8 +503,9 @@ def facet_vertex_normals(vertices: np.ndarray, triangles: np.ndarray, method="nv
     vclass = nvv.vertex_class
     if crease_angle is None or np.all(vclass == SURFACE):
         return FacetVertexNormals(nvv.normal[T], no_crease, vclass, zeros3, none_edges, "nvv")
-    e3 = np.where((vclass == CREASE)[:, None], nvv.e3, 0.0)
     crease = crease_edges(V, T, vclass, nvv.e3, crease_angle, topology=topo)
+    e3 = np.where((vclass == CREASE)[:, None], nvv.e3, 0.0)
+    e3 = _refine_crease_tangents(V, topo.edges[crease], vclass, e3)
     sides = vertex_sides(T, crease, topology=topo)
     nf, _ = facet_normals(V, T)
     ang = corner_angles(V, T)
@@ -480,7 +514,7 @@ def facet_vertex_normals(vertices: np.ndarray, triangles: np.ndarray, method="nv
     side_sum = _scatter_vectors(lab, (ang[:, :, None] * nf[:, None, :]).reshape(-1, 3), nlab)
     sn = side_sum[sides]  # (M, 3, 3)
     vc = vclass[T]  # (M, 3)
-    t3 = nvv.e3[T]
+    t3 = e3[T]
     proj = sn - np.einsum("fai,fai->fa", sn, t3)[:, :, None] * t3
     use_proj = (vc == CREASE) & (np.linalg.norm(proj, axis=-1) > 1e-8 * np.linalg.norm(sn, axis=-1))
     sn = np.where(use_proj[:, :, None], proj, sn)
