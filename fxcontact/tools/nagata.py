@@ -341,8 +341,10 @@ def _edge_tangent(a, k, s, out):
 
 
 @numba.njit(cache=True)
-def _edge_newton(a, p, k, s, f, it, max_iter, max_halvings, scale):
-    """1D safeguarded Newton along domain edge ``k`` from parameter ``s``; returns (s, f, it)."""
+def _edge_step(a, p, k, s, f, max_halvings, scale):
+    """One safeguarded 1D Newton step along domain edge ``k`` from parameter ``s``.
+
+    Returns ``(s_new, f_new, accepted)``."""
     xs = np.empty(3)
     if k == 0:
         c0, c1, c2 = 2.0 * a[4, 0], 2.0 * a[4, 1], 2.0 * a[4, 2]
@@ -352,42 +354,52 @@ def _edge_newton(a, p, k, s, f, it, max_iter, max_halvings, scale):
         c0 = 2.0 * (a[4, 0] + a[3, 0] + a[5, 0])
         c1 = 2.0 * (a[4, 1] + a[3, 1] + a[5, 1])
         c2 = 2.0 * (a[4, 2] + a[3, 2] + a[5, 2])
-    while it < max_iter:
-        it += 1
-        e, z = _edge_point(k, s)
-        x0, x1, x2 = _pt(a, e, z)
-        r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
-        _edge_tangent(a, k, s, xs)
-        g = xs[0] * r0 + xs[1] * r1 + xs[2] * r2
-        xx = xs[0] * xs[0] + xs[1] * xs[1] + xs[2] * xs[2]
-        rn = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
-        gt = _GT * math.sqrt(xx) * (rn + scale)
-        if abs(g) <= gt or (s <= 0.0 and g >= 0.0) or (s >= 1.0 and g <= 0.0):
-            break
-        h = xx + c0 * r0 + c1 * r1 + c2 * r2
-        ds = -g / h if h > 0.0 else -g / xx
-        ftol = 8.0 * _EPS * (f + rn * scale)
-        alpha = 1.0
-        ok = False
-        sn = s
-        fn = f
-        for m in range(max_halvings + 1):
-            sn = min(max(s + alpha * ds, 0.0), 1.0)
-            en, zn = _edge_point(k, sn)
-            y0, y1, y2 = _pt(a, en, zn)
-            fn = 0.5 * ((y0 - p[0]) ** 2 + (y1 - p[1]) ** 2 + (y2 - p[2]) ** 2)
-            if fn < f or (m == 0 and fn <= f + ftol):
-                ok = True
-                break
-            alpha *= 0.5
-        if not ok:
-            break
-        step = abs(sn - s)
-        s = sn
-        f = fn
-        if step < _STEP_TOL:
-            break
-    return s, f, it
+    e, z = _edge_point(k, s)
+    x0, x1, x2 = _pt(a, e, z)
+    r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
+    _edge_tangent(a, k, s, xs)
+    g = xs[0] * r0 + xs[1] * r1 + xs[2] * r2
+    xx = xs[0] * xs[0] + xs[1] * xs[1] + xs[2] * xs[2]
+    h = xx + c0 * r0 + c1 * r1 + c2 * r2
+    if h > 0.0:
+        ds = -g / h
+    else:  # locally concave along the edge: try the edge end first, then halve
+        ds = -s if g > 0.0 else 1.0 - s
+    rn = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+    ftol = 8.0 * _EPS * (f + rn * scale)
+    alpha = 1.0
+    for m in range(max_halvings + 1):
+        sn = min(max(s + alpha * ds, 0.0), 1.0)
+        en, zn = _edge_point(k, sn)
+        y0, y1, y2 = _pt(a, en, zn)
+        fn = 0.5 * ((y0 - p[0]) ** 2 + (y1 - p[1]) ** 2 + (y2 - p[2]) ** 2)
+        if fn < f or (m == 0 and fn <= f + ftol):
+            return sn, fn, True
+        alpha *= 0.5
+    return s, f, False
+
+
+@numba.njit(cache=True)
+def _binding_edge(e, z, g0, g1):
+    """Active-set choice at (η, ζ): -1 if no active constraint is binding (free 2D step), else
+    the domain edge to slide along (0: ζ = 0, 1: η = 1, 2: ζ = η). A constraint is binding when
+    the steepest-descent direction −g points out of the domain through it; at a domain vertex
+    with both constraints binding, the edge whose ray carries the largest descent is chosen."""
+    v0, v1 = -g0, -g1
+    b0 = z <= _TOLA and -v1 > 0.0
+    b1 = e >= 1.0 - _TOLA and v0 > 0.0
+    b2 = (e - z) <= _TOLA and (-v0 + v1) > 0.0
+    nb = int(b0) + int(b1) + int(b2)
+    if nb == 0:
+        return -1
+    if nb == 1:
+        return 0 if b0 else (1 if b1 else 2)
+    if b0 and b2:  # vertex (0, 0): rays (1, 0) on edge 0, (1, 1)/√2 on edge 2
+        return 0 if v0 >= _S2 * (v0 + v1) else 2
+    if b0 and b1:  # vertex (1, 0): rays (−1, 0) on edge 0, (0, 1) on edge 1
+        return 0 if -v0 >= v1 else 1
+    # vertex (1, 1): rays (0, −1) on edge 1, (−1, −1)/√2 on edge 2
+    return 1 if -v1 >= -_S2 * (v0 + v1) else 2
 
 
 @numba.njit(cache=True)
@@ -409,65 +421,75 @@ def _grad_at(a, p, e, z):
 def project_patch_nb(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard=True):
     """Closest point of ``p`` on the Nagata patch ``a`` (6, 3) (THEORY §7.4), numba kernel.
 
-    Newton on f(ξ) = ½|x(ξ) − p|² from (η0, ζ0) (projected on the domain). With ``safeguard``:
-    Gauss–Newton matrix where the Hessian is not SPD, step halving (sub-incrementation, at most
-    ``max_halvings``) until f decreases, projection of the iterates on 0 ≤ ζ ≤ η ≤ 1 and a final
-    1D Newton along the domain edge the iterate ends on. Without ``safeguard``: plain Newton
-    (full steps, exact Hessian) with the projection on the domain only — for comparison.
-    Converged when the projected gradient vanishes (rounding level, or ≤ 1e-10 |X_ξ|² at exit)
-    or |Δξ| < 1e-13, within ``max_iter`` iterations in total.
+    Minimises f(ξ) = ½|x(ξ) − p|² over 0 ≤ ζ ≤ η ≤ 1 from (η0, ζ0) (projected on the domain).
+    With ``safeguard`` (the default), each iteration is an active-set Newton step:
+
+    * no binding constraint — 2D Newton step, with the Gauss–Newton matrix ``X_ξᵀX_ξ`` where the
+      Hessian is not SPD, step halving (sub-incrementation, at most ``max_halvings``) until f
+      decreases, and projection of the trial points on the domain;
+    * on a domain edge (or vertex) where −∇f points outward — 1D Newton step along that edge,
+      with the same halving (the final edge Newton of §7.4, which avoids the stalling of
+      clamped 2D steps).
+
+    Without ``safeguard``: plain Newton (full steps with the exact Hessian, only projected on the
+    domain) — kept for comparison. Converged when the projected gradient vanishes (rounding
+    level) or |Δξ| < 1e-13, within ``max_iter`` iterations, and the final projected gradient is
+    ≤ 1e-10 |X_ξ|².
 
     Returns:
         ``(eta, zeta, status, iterations)``, status 1 = converged, 0 = failed.
     """
     e, z = proj_domain(eta0, zeta0)
     x0, x1, x2 = _pt(a, e, z)
-    r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
-    f = 0.5 * (r0 * r0 + r1 * r1 + r2 * r2)
+    f = 0.5 * ((x0 - p[0]) ** 2 + (x1 - p[1]) ** 2 + (x2 - p[2]) ** 2)
     pn = math.sqrt(p[0] ** 2 + p[1] ** 2 + p[2] ** 2)
     it = 0
-    while True:
-        stalled = False
-        done = False
-        # ---- 2D phase
-        while it < max_iter:
-            it += 1
-            x0, x1, x2 = _pt(a, e, z)
-            r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
-            xe0, xe1, xe2 = _xe(a, e, z, 0), _xe(a, e, z, 1), _xe(a, e, z, 2)
-            xz0, xz1, xz2 = _xz(a, e, z, 0), _xz(a, e, z, 1), _xz(a, e, z, 2)
-            g0 = xe0 * r0 + xe1 * r1 + xe2 * r2
-            g1 = xz0 * r0 + xz1 * r1 + xz2 * r2
-            rn = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
-            scale = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) + pn
-            gnx = math.sqrt(xe0 * xe0 + xe1 * xe1 + xe2 * xe2) + math.sqrt(
-                xz0 * xz0 + xz1 * xz1 + xz2 * xz2)
-            gtol = _GT * gnx * (rn + scale)
-            if proj_grad_norm(e, z, g0, g1) <= gtol:
-                done = True
-                break
-            G00 = xe0 * xe0 + xe1 * xe1 + xe2 * xe2
-            G01 = xe0 * xz0 + xe1 * xz1 + xe2 * xz2
-            G11 = xz0 * xz0 + xz1 * xz1 + xz2 * xz2
-            H00 = G00 + 2.0 * (a[4, 0] * r0 + a[4, 1] * r1 + a[4, 2] * r2)
-            H01 = G01 + a[3, 0] * r0 + a[3, 1] * r1 + a[3, 2] * r2
-            H11 = G11 + 2.0 * (a[5, 0] * r0 + a[5, 1] * r1 + a[5, 2] * r2)
+    while it < max_iter:
+        it += 1
+        x0, x1, x2 = _pt(a, e, z)
+        r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
+        xe0, xe1, xe2 = _xe(a, e, z, 0), _xe(a, e, z, 1), _xe(a, e, z, 2)
+        xz0, xz1, xz2 = _xz(a, e, z, 0), _xz(a, e, z, 1), _xz(a, e, z, 2)
+        g0 = xe0 * r0 + xe1 * r1 + xe2 * r2
+        g1 = xz0 * r0 + xz1 * r1 + xz2 * r2
+        rn = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+        scale = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) + pn
+        gnx = math.sqrt(xe0 * xe0 + xe1 * xe1 + xe2 * xe2) + math.sqrt(
+            xz0 * xz0 + xz1 * xz1 + xz2 * xz2)
+        if proj_grad_norm(e, z, g0, g1) <= _GT * gnx * (rn + scale):
+            break
+        G00 = xe0 * xe0 + xe1 * xe1 + xe2 * xe2
+        G01 = xe0 * xz0 + xe1 * xz1 + xe2 * xz2
+        G11 = xz0 * xz0 + xz1 * xz1 + xz2 * xz2
+        H00 = G00 + 2.0 * (a[4, 0] * r0 + a[4, 1] * r1 + a[4, 2] * r2)
+        H01 = G01 + a[3, 0] * r0 + a[3, 1] * r1 + a[3, 2] * r2
+        H11 = G11 + 2.0 * (a[5, 0] * r0 + a[5, 1] * r1 + a[5, 2] * r2)
+        if not safeguard:
             det = H00 * H11 - H01 * H01
-            if safeguard and not (H00 > 0.0 and det > 1e-14 * H00 * H11):
+            if det == 0.0:
+                break
+            en, zn = proj_domain(e - (H11 * g0 - H01 * g1) / det, z - (H00 * g1 - H01 * g0) / det)
+            step = math.sqrt((en - e) ** 2 + (zn - z) ** 2)
+            e, z = en, zn
+            if step < _STEP_TOL:
+                break
+            continue
+        k = _binding_edge(e, z, g0, g1)
+        if k >= 0:
+            s0 = _edge_param(k, e, z)
+            s, fn, ok = _edge_step(a, p, k, s0, f, max_halvings, scale)
+            if not ok:
+                break
+            en, zn = _edge_point(k, s)
+        else:
+            det = H00 * H11 - H01 * H01
+            if not (H00 > 0.0 and det > 1e-14 * H00 * H11):
                 H00, H01, H11 = G00, G01, G11
                 det = H00 * H11 - H01 * H01
-            if det == 0.0:
-                stalled = True
+            if det <= 0.0:
                 break
             de = -(H11 * g0 - H01 * g1) / det
             dz = -(H00 * g1 - H01 * g0) / det
-            if not safeguard:
-                en, zn = proj_domain(e + de, z + dz)
-                step = math.sqrt((en - e) ** 2 + (zn - z) ** 2)
-                e, z = en, zn
-                if step < _STEP_TOL:
-                    break
-                continue
             ftol = 8.0 * _EPS * (f + rn * scale)
             alpha = 1.0
             ok = False
@@ -481,37 +503,10 @@ def project_patch_nb(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard=
                     break
                 alpha *= 0.5
             if not ok:
-                stalled = True
                 break
-            step = math.sqrt((en - e) ** 2 + (zn - z) ** 2)
-            e, z, f = en, zn, fn
-            if step < _STEP_TOL:
-                break
-        if done or not safeguard:
-            break
-        # ---- edge phase (the iterate ended on the domain boundary)
-        a0 = z <= _TOLA
-        a1 = e >= 1.0 - _TOLA
-        a2 = (e - z) <= _TOLA
-        if not (a0 or a1 or a2) or it >= max_iter:
-            break
-        best_f = np.inf
-        be, bz = e, z
-        for k in range(3):
-            if (k == 0 and a0) or (k == 1 and a1) or (k == 2 and a2):
-                s0 = _edge_param(k, e, z)
-                s, fk, it = _edge_newton(a, p, k, s0, f, it, max_iter, max_halvings, pn)
-                if fk < best_f:
-                    best_f = fk
-                    be, bz = _edge_point(k, s)
-        moved = (be != e) or (bz != z)
-        e, z = be, bz
-        x0, x1, x2 = _pt(a, e, z)
-        f = 0.5 * ((x0 - p[0]) ** 2 + (x1 - p[1]) ** 2 + (x2 - p[2]) ** 2)
-        g0, g1, _, gtol = _grad_at(a, p, e, z)
-        if proj_grad_norm(e, z, g0, g1) <= gtol:
-            break
-        if it >= max_iter or (stalled and not moved):
+        step = math.sqrt((en - e) ** 2 + (zn - z) ** 2)
+        e, z, f = en, zn, fn
+        if step < _STEP_TOL:
             break
     g0, g1, xx, gtol = _grad_at(a, p, e, z)
     pg = proj_grad_norm(e, z, g0, g1)
@@ -653,36 +648,40 @@ class _RefPatch:
         return g, float(np.sum(X * X)), gtol
 
 
-def _edge_newton_ref(P: _RefPatch, p, k, s, f, it, max_iter, max_halvings, scale):
-    """Reference implementation, for testing only (see ``_edge_newton``)."""
-    xss = P.edge_second(k)
-    while it < max_iter:
-        it += 1
-        r = P.x(*P.edge(k, s)) - p
-        xs = P.edge_tangent(k, s)
-        g = xs @ r
-        xx = xs @ xs
-        rn = np.linalg.norm(r)
-        if abs(g) <= _GT * np.sqrt(xx) * (rn + scale) or (s <= 0 and g >= 0) or (s >= 1 and g <= 0):
-            break
-        h = xx + xss @ r
-        ds = -g / h if h > 0 else -g / xx
-        ftol = 8.0 * _EPS * (f + rn * scale)
-        alpha, ok = 1.0, False
-        for m in range(max_halvings + 1):
-            sn = min(max(s + alpha * ds, 0.0), 1.0)
-            fn = 0.5 * np.sum((P.x(*P.edge(k, sn)) - p) ** 2)
-            if fn < f or (m == 0 and fn <= f + ftol):
-                ok = True
-                break
-            alpha *= 0.5
-        if not ok:
-            break
-        step = abs(sn - s)
-        s, f = sn, fn
-        if step < _STEP_TOL:
-            break
-    return s, f, it
+def _edge_step_ref(P: _RefPatch, p, k, s, f, max_halvings, scale):
+    """Reference implementation, for testing only (see ``_edge_step``)."""
+    r = P.x(*P.edge(k, s)) - p
+    xs = P.edge_tangent(k, s)
+    g = xs @ r
+    xx = xs @ xs
+    h = xx + P.edge_second(k) @ r
+    ds = -g / h if h > 0 else (-s if g > 0 else 1.0 - s)
+    ftol = 8.0 * _EPS * (f + np.linalg.norm(r) * scale)
+    alpha = 1.0
+    for m in range(max_halvings + 1):
+        sn = min(max(s + alpha * ds, 0.0), 1.0)
+        fn = 0.5 * np.sum((P.x(*P.edge(k, sn)) - p) ** 2)
+        if fn < f or (m == 0 and fn <= f + ftol):
+            return sn, fn, True
+        alpha *= 0.5
+    return s, f, False
+
+
+def _binding_edge_ref(e, z, g):
+    """Reference implementation, for testing only (see ``_binding_edge``)."""
+    v = -np.asarray(g, dtype=np.float64)
+    nus = [np.array([0.0, -1.0]), np.array([1.0, 0.0]), np.array([-1.0, 1.0])]
+    act = [z <= _TOLA, e >= 1.0 - _TOLA, (e - z) <= _TOLA]
+    b = [act[i] and v @ nus[i] > 0.0 for i in range(3)]
+    if sum(b) == 0:
+        return -1
+    if sum(b) == 1:
+        return b.index(True)
+    rays = {(0, 2): ((1.0, 0.0), (_S2, _S2)), (0, 1): ((-1.0, 0.0), (0.0, 1.0)),
+            (1, 2): ((0.0, -1.0), (-_S2, -_S2))}
+    pair = tuple(i for i in range(3) if b[i])
+    ta, tb = rays[pair]
+    return pair[0] if v @ np.array(ta) >= v @ np.array(tb) else pair[1]
 
 
 def project_patch_ref(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard=True):
@@ -693,38 +692,43 @@ def project_patch_ref(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard
     f = 0.5 * np.sum((P.x(e, z) - p) ** 2)
     pn = np.linalg.norm(p)
     it = 0
-    while True:
-        stalled = done = False
-        while it < max_iter:
-            it += 1
-            x = P.x(e, z)
-            r = x - p
-            X = np.stack([P.xe(e, z), P.xz(e, z)], axis=1)  # (3, 2)
-            g = X.T @ r
-            rn = np.linalg.norm(r)
-            scale = np.linalg.norm(x) + pn
-            gtol = _GT * (np.linalg.norm(X[:, 0]) + np.linalg.norm(X[:, 1])) * (rn + scale)
-            if _proj_grad_norm_ref(e, z, g) <= gtol:
-                done = True
-                break
-            G = X.T @ X
-            a = P.a
-            H = G + np.array([[2 * a[4] @ r, a[3] @ r], [a[3] @ r, 2 * a[5] @ r]])
-            det = np.linalg.det(H)
-            if safeguard and not (H[0, 0] > 0 and det > 1e-14 * H[0, 0] * H[1, 1]):
-                H = G
-                det = np.linalg.det(H)
-            if det == 0.0:
-                stalled = True
+    while it < max_iter:
+        it += 1
+        x = P.x(e, z)
+        r = x - p
+        X = np.stack([P.xe(e, z), P.xz(e, z)], axis=1)  # (3, 2)
+        g = X.T @ r
+        rn = np.linalg.norm(r)
+        scale = np.linalg.norm(x) + pn
+        gtol = _GT * (np.linalg.norm(X[:, 0]) + np.linalg.norm(X[:, 1])) * (rn + scale)
+        if _proj_grad_norm_ref(e, z, g) <= gtol:
+            break
+        G = X.T @ X
+        A = P.a
+        H = G + np.array([[2 * A[4] @ r, A[3] @ r], [A[3] @ r, 2 * A[5] @ r]])
+        if not safeguard:
+            if np.linalg.det(H) == 0.0:
                 break
             d = -np.linalg.solve(H, g)
-            if not safeguard:
-                en, zn = _proj_domain_ref(e + d[0], z + d[1])
-                step = np.hypot(en - e, zn - z)
-                e, z = en, zn
-                if step < _STEP_TOL:
-                    break
-                continue
+            en, zn = _proj_domain_ref(e + d[0], z + d[1])
+            step = np.hypot(en - e, zn - z)
+            e, z = en, zn
+            if step < _STEP_TOL:
+                break
+            continue
+        k = _binding_edge_ref(e, z, g)
+        if k >= 0:
+            s, fn, ok = _edge_step_ref(P, p, k, z if k == 1 else e, f, max_halvings, scale)
+            if not ok:
+                break
+            en, zn = P.edge(k, s)
+        else:
+            det = np.linalg.det(H)
+            if not (H[0, 0] > 0 and det > 1e-14 * H[0, 0] * H[1, 1]):
+                H = G
+            if np.linalg.det(H) <= 0.0:
+                break
+            d = -np.linalg.solve(H, g)
             ftol = 8.0 * _EPS * (f + rn * scale)
             alpha, ok = 1.0, False
             for m in range(max_halvings + 1):
@@ -735,31 +739,10 @@ def project_patch_ref(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard
                     break
                 alpha *= 0.5
             if not ok:
-                stalled = True
                 break
-            step = np.hypot(en - e, zn - z)
-            e, z, f = en, zn, fn
-            if step < _STEP_TOL:
-                break
-        if done or not safeguard:
-            break
-        act = [z <= _TOLA, e >= 1.0 - _TOLA, (e - z) <= _TOLA]
-        if not any(act) or it >= max_iter:
-            break
-        best = (np.inf, e, z)
-        for k in range(3):
-            if act[k]:
-                s0 = z if k == 1 else e
-                s, fk, it = _edge_newton_ref(P, p, k, s0, f, it, max_iter, max_halvings, pn)
-                if fk < best[0]:
-                    best = (fk, *P.edge(k, s))
-        moved = (best[1], best[2]) != (e, z)
-        e, z = best[1], best[2]
-        f = 0.5 * np.sum((P.x(e, z) - p) ** 2)
-        g, _, gtol = P.grad(p, e, z)
-        if _proj_grad_norm_ref(e, z, g) <= gtol:
-            break
-        if it >= max_iter or (stalled and not moved):
+        step = np.hypot(en - e, zn - z)
+        e, z, f = en, zn, fn
+        if step < _STEP_TOL:
             break
     g, xx, gtol = P.grad(p, e, z)
     ok = it > 0 and _proj_grad_norm_ref(e, z, g) <= max(gtol, _LOOSE * xx)
