@@ -25,10 +25,13 @@
 # \qquad E^* = E/(1-\nu^2).$$
 #
 # **FEM contact half-width.** The nodal pressure ``p_n = ρ[h_n]₊`` is known at the contact
-# nodes only. ``contact_half_width`` is the length of the active part of the top face,
-# ``Σ_{p_n>0} S_n`` (S_n: lumped nodal length). On a uniform mesh this is the midpoint between
-# the last active and the first inactive node, so its error is at most h/2 (THEORY §11.2);
-# the bracketing nodes are returned too (``contact_half_width_bounds``).
+# nodes only; the edge of the contact lies between the last active node ``x_k`` and the first
+# inactive one (``contact_half_width_bounds``). Near the edge of a smooth frictionless contact
+# the pressure behaves like ``sqrt(a - x)``, so ``p²`` is linear in x: ``contact_half_width``
+# is where the straight line through ``(x_{k-1}, p²_{k-1})`` and ``(x_k, p²_k)`` vanishes,
+# clipped to the bracketing interval. ``contact_half_width_area`` is the simpler
+# ``Σ_{p_n>0} S_n`` (S_n: lumped nodal length), the midpoint of the bracket on a uniform mesh
+# (error ≤ h/2, THEORY §11.2).
 #
 # The mesh is graded (gmsh box field) from ``h_fine`` in a square of side ``refine`` under the
 # tool to ``h`` far away; the block is large compared with ``a`` (THEORY §11.2: ≥ 10–20 a).
@@ -76,6 +79,23 @@ def gather_profile(contact: NodalContact, x: np.ndarray, comm) -> tuple:
     return allv[:, 0], allv[:, 1], allv[:, 2]
 
 
+def contact_edge(xs: np.ndarray, ps: np.ndarray) -> tuple:
+    """Edge of the contact from sorted nodal (x, p): p² extrapolated linearly to zero from the
+    last two active nodes, clipped to [last active, first inactive]. Returns (a, bounds)."""
+    act = np.flatnonzero(ps > 0)
+    if len(act) == 0:
+        return 0.0, (0.0, float(xs[0]))
+    k = act[-1]
+    hi = float(xs[k + 1]) if k + 1 < len(xs) else float("inf")
+    bounds = (float(xs[k]), hi)
+    if k == 0 or ps[k - 1] <= ps[k] or not np.isfinite(hi):
+        # too few active nodes (or a non-decreasing edge): midpoint of the bracket
+        return (0.5 * (bounds[0] + hi) if np.isfinite(hi) else bounds[0]), bounds
+    x1, x2, q1, q2 = xs[k - 1], xs[k], ps[k - 1] ** 2, ps[k] ** 2
+    a = x2 + q2 * (x2 - x1) / (q1 - q2)
+    return float(min(max(a, bounds[0]), hi)), bounds
+
+
 # %%
 def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0145, h_fine=0.008, h=1.0, width=10.0,
         height=10.0, refine=0.4, scheme="implicit", penalty=None, beta=1e4, n_steps=4,
@@ -94,8 +114,8 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0145, h_fine=0.008, h=1.0, widt
         n_steps: number of increments.
     Returns:
         dict with ``force`` (P per unit length, full contact), ``contact_half_width`` (FEM,
-        Σ S_n over active nodes), ``contact_half_width_bounds`` (last active / first inactive
-        node), ``p_max``, ``hertz_half_width`` and ``hertz_p_max`` for the FEM load, the nodal
+        p² extrapolated to zero), ``contact_half_width_bounds`` (last active / first inactive
+        node), ``contact_half_width_area`` (Σ S_n over the active nodes), ``p_max``, ``hertz_half_width`` and ``hertz_p_max`` for the FEM load, the nodal
         profile ``x``, ``p``, the bottom reaction (equilibrium check), mesh size, dofs, run time
         and the history.
     """
@@ -130,18 +150,16 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0145, h_fine=0.008, h=1.0, widt
     E_star = mat.plane_strain_modulus
     a_h, p0_h = hertz_line(P, radius, E_star)
     xs, ps, Ss = gather_profile(contact, sim.vertex_positions(), comm)
-    active = ps > 0
-    a_fem = float(np.sum(Ss[active]))
-    i_last = int(np.flatnonzero(active)[-1]) if np.any(active) else -1
-    bounds = (float(xs[i_last]) if i_last >= 0 else 0.0,
-              float(xs[i_last + 1]) if i_last + 1 < len(xs) else float("nan"))
+    a_area = float(np.sum(Ss[ps > 0]))
+    a_fem, bounds = contact_edge(xs, ps)
     n_cells = comm.allreduce(msh.topology.index_map(2).size_local, op=MPI.SUM)
     out = {"force": P, "contact_half_width": a_fem, "contact_half_width_bounds": bounds,
+           "contact_half_width_area": a_area,
            "p_max": float(np.max(ps)), "hertz_half_width": a_h, "hertz_p_max": p0_h,
            "E_star": E_star, "x": xs, "p": ps, "nodal_length": Ss,
            "bottom_reaction": 2.0 * last["bottom_y"], "indentation": indentation, "radius": radius,
            "penetration": last["contact_penetration_true"],
-           "nodes_on_half_width": int(np.sum(active)), "h_fine": h_fine, "cells": n_cells,
+           "nodes_on_half_width": int(np.sum(ps > 0)), "h_fine": h_fine, "cells": n_cells,
            "dofs": space.global_dofs(), "history": sim.history, "png": None,
            "wall_time": time.perf_counter() - t_start}
     if output_dir is not None and comm.rank == 0:
@@ -168,7 +186,7 @@ def plot_profile(res: dict, path: str) -> str:
     sel = res["x"] < 2.0 * a
     ax.plot(res["x"][sel] / a, res["p"][sel] / p0, "o", ms=4, label="FEM nodal $p_n$")
     ax.axvline(res["contact_half_width"] / a, color="C1", ls="--", lw=1,
-               label="FEM half-width $\\sum S_n$")
+               label="FEM half-width ($p^2$ extrapolated)")
     ax.set_xlabel("$x/a$")
     ax.set_ylabel("$p/p_0$")
     ax.set_xlim(0, 1.5)
@@ -201,6 +219,8 @@ if __name__ == "__main__":
         print(f"load P = {res['force']:.2f} N/mm (bottom reaction {res['bottom_reaction']:.2f})")
         print(f"{'':22s}{'FEM':>12s}{'Hertz':>12s}{'error':>10s}")
         print(f"{'half-width a [mm]':22s}{res['contact_half_width']:12.5f}{a:12.5f}"
-              f"{res['contact_half_width'] / a - 1:10.2%}   (nodes {lo:.5f}..{hi:.5f})")
+              f"{res['contact_half_width'] / a - 1:10.2%}")
+        print(f"  (active edge between nodes {lo:.5f} and {hi:.5f}; Σ S_n = "
+              f"{res['contact_half_width_area']:.5f})")
         print(f"{'p_max [MPa]':22s}{res['p_max']:12.1f}{p0:12.1f}{res['p_max'] / p0 - 1:10.2%}")
         print(f"a/R = {a / res['radius']:.3f}; outputs: {res['png']}")
