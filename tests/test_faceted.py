@@ -149,6 +149,13 @@ def test_bad_inputs_raise_with_indices(sphere80, caplog):
         FacetedTool(V, Tb)
     with pytest.raises(ValueError, match=r"normals point into the tool.*flip=True"):
         FacetedTool(V, T[:, [0, 2, 1]])
+    # a closed inverted component next to an open one is still detected
+    plate_V = np.array([[3.0, 0, 0], [4, 0, 0], [4, 1, 0], [3, 1, 0]])
+    Vb = np.vstack([V, plate_V])
+    Tb = np.vstack([T[:, [0, 2, 1]], [[42, 43, 44], [42, 44, 45]]])
+    with pytest.raises(ValueError, match=r"closed component .*triangles \[0, 1, 2"):
+        FacetedTool(Vb, Tb)
+    assert not FacetedTool(Vb, np.vstack([T, [[42, 43, 44], [42, 44, 45]]]), mode="flat").closed
     with pytest.raises(ValueError, match="shape"):
         FacetedTool(V[:, :2], T)
     with pytest.raises(ValueError, match="shape"):

@@ -146,8 +146,9 @@ def check_surface(vertices, triangles, flip: bool = False) -> CheckedSurface:
     range (triangle indices); degenerate triangles (repeated vertex or zero area, i.e.
     ``2A ≤ 1e-12 ℓ_max²``); duplicate triangles (same vertex set); non-manifold edges (shared by
     more than two triangles); inconsistent orientation (an interior edge traversed twice in the
-    same direction); for closed surfaces, facet normals pointing into the tool (negative signed
-    volume of a closed connected component). Unused vertices are dropped with a warning.
+    same direction); facet normals pointing into the tool (negative signed volume of a closed
+    connected component; components with boundary edges are open surfaces and are not checked).
+    Unused vertices are dropped with a warning.
 
     Args:
         vertices: (N, 3) coordinates.
@@ -234,21 +235,24 @@ def check_surface(vertices, triangles, flip: bool = False) -> CheckedSurface:
         V = V[vmap]
         topo = edge_topology(T)
     closed = topo.is_closed
-    if closed:
-        nb = topo.neighbor
-        f, k = np.nonzero(nb >= 0)
-        graph = coo_matrix((np.ones(f.size), (f, nb[f, k])), shape=(M, M))
-        ncomp, lab = connected_components(graph, directed=False)
-        P = V[T]
-        vol6 = np.einsum("ij,ij->i", P[:, 0], np.cross(P[:, 1], P[:, 2]))
-        vols = np.bincount(lab, weights=vol6, minlength=ncomp) / 6.0
-        neg = np.flatnonzero(vols < 0.0)
-        if neg.size:
-            tris = np.flatnonzero(lab == neg[0])
-            raise ValueError(
-                f"facet normals point into the tool: closed component {int(neg[0])} (triangles "
-                f"{_first(tris)}...) has signed volume {vols[neg[0]]:.6g} < 0; orient the "
-                f"triangles counter-clockwise about the outward normal or pass flip=True")
+    # signed volume of every closed connected component (components with boundary edges are
+    # open surfaces: no inside, no volume check)
+    nb = topo.neighbor
+    f, k = np.nonzero(nb >= 0)
+    graph = coo_matrix((np.ones(f.size), (f, nb[f, k])), shape=(M, M))
+    ncomp, lab = connected_components(graph, directed=False)
+    open_comp = np.zeros(ncomp, dtype=bool)
+    open_comp[lab[np.nonzero(nb < 0)[0]]] = True
+    P = V[T]
+    vol6 = np.einsum("ij,ij->i", P[:, 0], np.cross(P[:, 1], P[:, 2]))
+    vols = np.bincount(lab, weights=vol6, minlength=ncomp) / 6.0
+    neg = np.flatnonzero((vols < 0.0) & ~open_comp)
+    if neg.size:
+        tris = np.flatnonzero(lab == neg[0])
+        raise ValueError(
+            f"facet normals point into the tool: closed component {int(neg[0])} (triangles "
+            f"{_first(tris)}...) has signed volume {vols[neg[0]]:.6g} < 0; orient the "
+            f"triangles counter-clockwise about the outward normal or pass flip=True")
     return CheckedSurface(V, T, closed, vmap, topo)
 
 
@@ -1000,9 +1004,13 @@ class FacetedTool(Tool):
         closed: whether the surface is closed.
         has_hessian: True in both modes (zero in flat mode).
 
-    The projection's ``feature`` is the index of the chosen facet/patch (in the triangle array
-    after removal of unused vertices, triangle order is unchanged), ``flag`` is 1 for a
-    flat fall-back. See the module docstring for the candidate search and sign conventions.
+    Projection fields: ``gap``/``normal``/``hessian`` as in :class:`~fxcontact.tools.base.
+    Projection`; ``point`` is the closest patch point (Nagata) or the foot ``p − gap n`` on the
+    chosen facet plane (flat); ``feature`` is the index of the chosen facet/patch (triangle order
+    is that of the input); ``flag`` is 1 for a flat fall-back. For a projection on a patch
+    edge or vertex (sharp creases, open boundaries) the normal is ``(p − x*)/d`` and the Hessian
+    the distance-to-curve / distance-to-point one. See the module docstring for the candidate
+    search and the sign conventions.
     """
 
     has_hessian = True
