@@ -336,6 +336,8 @@ class NodalContact:
     # ------------------------------------------------------------------ diagnostics / output
     def pressures(self) -> np.ndarray:
         """(N,) nodal contact pressures ρ[h]₊ of the last evaluation."""
+        if self.rho is None:  # before the first increment resolves ρ from β
+            return np.zeros_like(self._h)
         return self.rho * np.maximum(self._h, 0.0)
 
     def end_increment(self, sim, dt: float):
