@@ -74,33 +74,49 @@ def _random_patch_points(A, rng, n, offset):
 # ------------------------------------------------------------------------------------------
 
 
-def test_edge_coefficient_tangency_span_symmetry():
-    rng = np.random.default_rng(0)
-    x0 = rng.normal(size=(200, 3))
-    x1 = x0 + rng.normal(size=(200, 3))
-    d = x1 - x0
-    # normals roughly orthogonal to the chord, tilted by up to ~30° (convex or concave arcs),
-    # plus an out-of-plane twist
-    base = np.cross(d, rng.normal(size=(200, 3)))
+def _random_edges(rng, n, twist):
+    x0 = rng.normal(size=(n, 3))
+    d = rng.normal(size=(n, 3))
+    base = np.cross(d, rng.normal(size=(n, 3)))
     base /= np.linalg.norm(base, axis=1, keepdims=True)
     dh = d / np.linalg.norm(d, axis=1, keepdims=True)
     tw = np.cross(base, dh)
-    sgn = rng.choice([-1.0, 1.0], size=(200, 1))
-    n0 = base - sgn * rng.uniform(0.05, 0.5, (200, 1)) * dh + rng.uniform(-.1, .1, (200, 1)) * tw
-    n1 = base + sgn * rng.uniform(0.05, 0.5, (200, 1)) * dh + rng.uniform(-.1, .1, (200, 1)) * tw
+    sgn = rng.choice([-1.0, 1.0], size=(n, 1))
+    # normals tilted by up to ~30° against the chord, opposite ways (convex or concave arcs)
+    n0 = base - sgn * rng.uniform(0.05, 0.5, (n, 1)) * dh + twist * rng.uniform(-1, 1, (n, 1)) * tw
+    n1 = base + sgn * rng.uniform(0.05, 0.5, (n, 1)) * dh + twist * rng.uniform(-1, 1, (n, 1)) * tw
     n0 /= np.linalg.norm(n0, axis=1, keepdims=True)
     n1 /= np.linalg.norm(n1, axis=1, keepdims=True)
+    return x0, x0 + d, n0, n1
+
+
+def test_edge_coefficient_tangency_span_symmetry():
+    rng = np.random.default_rng(0)
+    # planar data (n0, n1, d coplanar): exact tangency and c in span(n0, n1) (THEORY §7.1)
+    x0, x1, n0, n1 = _random_edges(rng, 200, 0.0)
+    d = x1 - x0
     c, flag = edge_coefficients(x0, x1, n0, n1)
     ok = flag == 0
     assert ok.sum() > 190
     np.testing.assert_allclose(np.einsum("ij,ij->i", n0, d - c)[ok], 0.0, atol=1e-12)
     np.testing.assert_allclose(np.einsum("ij,ij->i", n1, d + c)[ok], 0.0, atol=1e-12)
-    # c lies in span(n0, n1)
-    m = np.cross(n0, n1)
-    np.testing.assert_allclose(np.einsum("ij,ij->i", m, c)[ok], 0.0, atol=1e-12)
-    # symmetric under edge reversal
+    np.testing.assert_allclose(np.einsum("ij,ij->i", np.cross(n0, n1), c)[ok], 0.0, atol=1e-12)
     c_rev, _ = edge_coefficients(x1, x0, n1, n0)
     np.testing.assert_allclose(c_rev, c, atol=1e-12)
+    # twisted data: symmetric, in the normal plane of the edge, tangency up to |d·v|
+    x0, x1, n0, n1 = _random_edges(rng, 200, 0.1)
+    d = x1 - x0
+    c, flag = edge_coefficients(x0, x1, n0, n1)
+    c_rev, _ = edge_coefficients(x1, x0, n1, n0)
+    np.testing.assert_allclose(c_rev, c, atol=1e-12)
+    ok = flag == 0
+    assert ok.sum() > 150
+    v = 0.5 * (n0 + n1)
+    w = np.cross(d, v)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", w, c)[ok], 0.0, atol=1e-12)
+    dv = np.abs(np.einsum("ij,ij->i", d, v))
+    assert np.all(np.abs(np.einsum("ij,ij->i", n0, d - c))[ok] <= dv[ok] + 1e-12)
+    assert np.all(np.abs(np.einsum("ij,ij->i", n1, d + c))[ok] <= dv[ok] + 1e-12)
 
 
 @pytest.mark.parametrize("phi_deg, curve_err, chord_err",
@@ -141,7 +157,22 @@ def test_edge_coefficient_degenerate_cases():
     c, flag = edge_coefficients(x0, x1, n0, n1)
     assert flag[0] == 2 and np.all(c == 0)
     c, flag = edge_coefficients(x0, x1, n0, n1, kappa=1e6)
+    assert flag[0] == 3 and np.all(c == 0)  # caught by the inflection rule
+    c, flag = edge_coefficients(x0, x1, n0, n1, kappa=1e6, inflection=False)
     assert flag[0] == 0 and np.linalg.norm(c) > 1.0
+    # near-parallel normals twisting about the chord (a cylinder generator with noisy normals,
+    # as on unstructured gmsh meshes): no sideways bulge; same-sign tilts -> inflection, c = 0
+    x1 = np.array([0.0, 0.0, 1.6])
+    n0 = np.array([1.0, 0.0, 9e-4])
+    n1 = np.array([math.cos(0.003), math.sin(0.003), 3e-4])
+    n0, n1 = n0 / np.linalg.norm(n0), n1 / np.linalg.norm(n1)
+    c, flag = edge_coefficients(x0, x1, n0, n1)
+    assert flag[0] == 3 and np.all(c == 0)
+    c, flag = edge_coefficients(x0, x1, n0, n1, inflection=False)
+    assert flag[0] == 0 and np.hypot(c[0, 0], c[0, 1]) < 1e-3  # the raw formula: 0.6 sideways
+    n1[2] = -n1[2]
+    c, flag = edge_coefficients(x0, x1, n0, n1)
+    assert flag[0] == 0 and np.hypot(c[0, 0], c[0, 1]) < 1e-3
 
 
 def test_crease_tangent_rule():

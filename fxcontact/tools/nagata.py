@@ -38,6 +38,8 @@ __all__ = [
     "patch_derivatives",
     "patch_normals",
     "domain_samples",
+    "proj_domain",
+    "proj_grad_norm",
     "project_patch",
     "project_patch_nb",
     "project_patch_ref",
@@ -69,14 +71,23 @@ _S2 = 1.0 / math.sqrt(2.0)
 # ------------------------------------------------------------------------------------------
 
 
-def edge_coefficients(x0, x1, n0, n1, kappa: float = 1.0,
-                      parallel_tol: float = PARALLEL_TOL) -> Tuple[np.ndarray, np.ndarray]:
+def edge_coefficients(x0, x1, n0, n1, kappa: float = 1.0, parallel_tol: float = PARALLEL_TOL,
+                      inflection: bool = True) -> Tuple[np.ndarray, np.ndarray]:
     """Nagata curvature coefficients of edges ``x0 → x1`` with unit end normals (normal rule).
 
     ``c = (d·Δv)/(1 − Δc) v + (d·v)/Δc Δv`` with ``d = x1 − x0``, ``v = (n0 + n1)/2``,
     ``Δv = (n0 − n1)/2``, ``Δc = n0·Δv`` (boxed formula of §7.1). Degenerate rules: if
     ``|n0·n1| > cos(parallel_tol)`` (parallel or opposite normals) or ``|c| > κ|d|`` (more than a
-    90° turn over the edge for κ = 1: inflection / inconsistent normals), ``c = 0``.
+    90° turn over the edge for κ = 1: inconsistent normals), ``c = 0``.
+
+    Two further safeguards **[design choice]**, both inactive for exact normals of spheres and
+    cylinders: (i) the component of ``c`` along ``ŵ = d̂ × n̂`` (``n̂`` the mean normal made
+    orthogonal to the chord) is removed, so the edge bends only in its normal plane — with
+    near-parallel normals twisting about the chord, the formula amplifies normal-estimation
+    noise ``d·v`` by ``~2/φ`` into a sideways bulge of the edge (up to ``|c| ≈ 0.7|d|`` seen on
+    unstructured gmsh meshes); the tangency conditions then hold up to ``|d·v|``; (ii) if the
+    chord tilts the same way against both normals, ``(n0·d)(n1·d) > 0`` (an S-shaped edge or
+    inflection, not representable by a quadratic), ``c = 0`` (``inflection=True``).
 
     Args:
         x0, x1: (E, 3) end points.
@@ -86,7 +97,7 @@ def edge_coefficients(x0, x1, n0, n1, kappa: float = 1.0,
 
     Returns:
         ``(c, flag)``: (E, 3) coefficients and (E,) int flags (0 = regular, 1 = parallel or
-        opposite normals, 2 = |c| > κ|d|), both set to a straight edge (c = 0).
+        opposite normals, 2 = |c| > κ|d|, 3 = inflection), all but 0 giving a straight edge.
     """
     x0, x1, n0, n1 = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in (x0, x1, n0, n1))
     d = x1 - x0
@@ -99,11 +110,26 @@ def edge_coefficients(x0, x1, n0, n1, kappa: float = 1.0,
         c = (np.einsum("ij,ij->i", d, dv) / (1.0 - dc))[:, None] * v + (
             np.einsum("ij,ij->i", d, v) / dc)[:, None] * dv
     c[par] = 0.0
-    big = ~par & (np.linalg.norm(c, axis=1) > kappa * np.linalg.norm(d, axis=1))
+    dn = np.linalg.norm(d, axis=1)
+    # keep c in the normal plane of the edge, span(d, n̄): drop the sideways component along
+    # ŵ = d̂ × n̂ (zero for exact normals with d·v = 0, e.g. spheres and cylinders; otherwise an
+    # amplification 2(d·v)/φ of normal noise when the normals twist about the chord)
+    dh = d / np.where(dn > 0.0, dn, 1.0)[:, None]
+    nb = v - np.einsum("ij,ij->i", v, dh)[:, None] * dh
+    nbn = np.linalg.norm(nb, axis=1)
+    w = np.cross(dh, nb / np.where(nbn > 0.0, nbn, 1.0)[:, None])
+    c -= np.where((nbn > 0.0)[:, None], np.einsum("ij,ij->i", c, w)[:, None] * w, 0.0)
+    big = ~par & (np.linalg.norm(c, axis=1) > kappa * dn)
     c[big] = 0.0
     flag = np.zeros(d.shape[0], dtype=np.int64)
     flag[par] = 1
     flag[big] = 2
+    if inflection:
+        # the chord tilts the same way against both end normals: both end tangents on the same
+        # side of the chord (S-shape / twisted near-parallel normals), not a quadratic arc
+        infl = ~par & ~big & (np.einsum("ij,ij->i", n0, d) * np.einsum("ij,ij->i", n1, d) > 0.0)
+        c[infl] = 0.0
+        flag[infl] = 3
     return c, flag
 
 
@@ -145,7 +171,7 @@ def patch_edge_coefficients(vertices: np.ndarray, triangles: np.ndarray,
     T = np.asarray(triangles, dtype=np.int64)
     M = T.shape[0]
     C = np.zeros((M, 3, 3))
-    nflag = np.zeros(3, dtype=np.int64)
+    nflag = np.zeros(4, dtype=np.int64)
     for k in range(3):
         la, lb = LOCAL_EDGES[k]
         ia, ib = T[:, la], T[:, lb]
@@ -167,10 +193,10 @@ def patch_edge_coefficients(vertices: np.ndarray, triangles: np.ndarray,
                           fvn.crease_tangent[i1[cr]], dhat)
             c[cr], flag[cr] = crease_edge_coefficients(x0, x1, t0, t1, kappa)
         C[:, k] = c
-        nflag += np.bincount(flag, minlength=3)[:3]
-    if nflag[2]:
-        logger.info("Nagata: %d edge (facet side) coefficients exceeded kappa|d| and were set "
-                    "to zero (straight edges)", nflag[2])
+        nflag += np.bincount(flag, minlength=4)[:4]
+    if nflag[2] or nflag[3]:
+        logger.info("Nagata: straight edges (c = 0) for %d (facet, edge) pairs with |c| > "
+                    "kappa|d| and %d with inflected (S-shaped) normal data", nflag[2], nflag[3])
     return C
 
 
