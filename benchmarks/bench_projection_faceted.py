@@ -63,7 +63,7 @@ def main(argv=None):
     ap.add_argument("--points", type=int, default=10_000, help="query points per projection")
     ap.add_argument("--twin-points", type=int, default=200,
                     help="points projected with the numpy reference twin")
-    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
     rng = np.random.default_rng(args.seed)

@@ -498,6 +498,14 @@ def test_gmsh_builders_and_main(tmp_path):
     assert np.all(on_lateral | on_caps)
     n_around = np.sum(on_lateral & np.isclose(V[:, 2], 5.0))
     assert 16 <= n_around <= 22  # ~2π·5/1.7 ≈ 18 facets per turn (thesis coarse tool)
+    # the thesis's coarse tool, smoothed: about an order of magnitude closer than the facets
+    smooth = FacetedTool(V, T)
+    rims = np.isclose(np.abs(V[:, 2]), 5.0) & on_lateral
+    assert np.all(smooth.vertex_class[rims] == 2) and np.all(smooth.vertex_class[~rims] == 1)
+    sdf = lambda X: capped_cylinder_sdf(X, 5.0, 10.0)  # noqa: E731
+    err_flat = np.max(np.abs(sdf(flat_samples(smooth))))
+    err_nag = np.max(np.abs(sdf(patch_samples(smooth))))
+    assert err_nag * 8 < err_flat
     Vs, Ts = tm.sphere_surface(radius=2.0, facet_size=0.8)
     assert FacetedTool(Vs, Ts, mode="flat").closed
     np.testing.assert_allclose(np.linalg.norm(Vs, axis=1), 2.0, atol=1e-9)
