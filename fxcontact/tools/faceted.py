@@ -59,20 +59,19 @@ from scipy.spatial import cKDTree
 
 from fxcontact.tools.base import Projection, RigidMotion, Tool, as_points
 from fxcontact.tools.nagata import (
-    _pt,
-    _xe,
-    _xz,
-    _EPS,
     _GT,
     _LOOSE,
     _RefPatch,
     _TOLA,
+    _pt,
+    _xe,
+    _xz,
     patch_edge_coefficients,
     patch_gap_nb,
     patch_gap_ref,
     patch_monomials,
-    patch_normals,
     patch_derivatives,
+    patch_normals,
     project_patch_nb,
     project_patch_ref,
 )
@@ -95,6 +94,8 @@ __all__ = [
     "closest_point_triangle",
     "closest_point_triangle_nb",
     "closest_point_triangle_ref",
+    "flat_project_ref",
+    "nagata_project_ref",
     "FLAG_OK",
     "FLAG_FALLBACK",
     "REGION_FACE",
@@ -652,8 +653,8 @@ def _regular_at(a, e, z):
 
 @numba.njit(cache=True)
 def _nagata_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, depth, V,
-                   T, fn, epn, vpn, A, infl, nbr, nbr_edge, npn, tie_scale, max_iter, max_halvings, want_h,
-                   gap, normal, point, hess, feature, flag, sdist_flat):
+                   T, fn, epn, vpn, A, infl, nbr, nbr_edge, npn, tie_scale, max_iter,
+                   max_halvings, want_h, gap, normal, point, hess, feature, flag, sdist_flat):
     n = P.shape[0]
     M = T.shape[0]
     stack = np.empty(2 * depth + 8, dtype=np.int64)
@@ -1213,9 +1214,9 @@ class FacetedTool(Tool):
             return Projection(gap, normal, point, hess, feature, flag)
         hess = np.zeros((n, 3, 3)) if hessian else np.zeros((1, 3, 3))
         _nagata_kernel(y, *self._bvh(), self._depth, self._V, self._T, self._fn, self._epn,
-                       self._vpn, self._A, self._infl, self._nbr, self._nbr_edge, self._npn, self._tie_scale,
-                       self.max_iter, self.max_halvings, bool(hessian), gap, normal, point, hess,
-                       feature, flag, sdist)
+                       self._vpn, self._A, self._infl, self._nbr, self._nbr_edge, self._npn,
+                       self._tie_scale, self.max_iter, self.max_halvings, bool(hessian), gap,
+                       normal, point, hess, feature, flag, sdist)
         nfb = int(np.count_nonzero(flag))
         self.last_fallbacks = nfb
         self.total_fallbacks += nfb

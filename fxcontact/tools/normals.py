@@ -436,7 +436,9 @@ class FacetVertexNormals:
         crease: (M, 3) True where the local edge (:data:`LOCAL_EDGES`) is a crease edge; its
             Nagata coefficient then uses the tangent rule (§8.3) instead of the normal rule.
         vertex_class: (N,) 1 = surface, 2 = crease, 3 = corner (all 1 without NVV).
-        crease_tangent: (N, 3) unit crease tangent ``e3`` of class-2 vertices (zero elsewhere).
+        crease_tangent: (N, 3) unit crease tangent of class-2 vertices (zero elsewhere): the
+            NVV ``e3``, replaced by the crease-polyline estimate where the vertex has exactly two
+            crease edges (see ``_refine_crease_tangents``).
         crease_edges: (E, 2) vertex pairs of the crease edges.
         method: how the normals were obtained.
     """
