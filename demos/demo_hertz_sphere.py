@@ -53,7 +53,7 @@ from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact, penalty_from_beta
 from fxcontact.materials import LinearElastic
 from fxcontact import compat
-from fxcontact.meshing import BLOCK_TAGS
+from fxcontact.meshing import BLOCK_TAGS, gmsh_session
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Sphere
@@ -75,43 +75,40 @@ from fxcontact.tools.analytic import Sphere
 def graded_block(comm, width: float, height: float, h_fine: float, refine: float,
                  growth: float, h: float):
     """Quarter block ``[0, width]² × [-height, 0]`` with facet tags :data:`BLOCK_TAGS`."""
-    from fxcontact.meshing import _gmsh
     if not (0 < h_fine <= h and refine > 0 and growth > 0):
         raise ValueError("need 0 < h_fine <= h, refine > 0 and growth > 0")
-    gmsh = _gmsh()
-    gmsh.model.add("hertz_block")
-    if comm.rank == 0:
-        occ = gmsh.model.occ
-        occ.addBox(0.0, 0.0, -height, width, width, height)
-        occ.synchronize()
-        gmsh.model.addPhysicalGroup(3, [e[1] for e in gmsh.model.getEntities(3)], 1)
-        lower, upper = np.array([0.0, 0.0, -height]), np.array([width, width, 0.0])
-        names = ["xmin", "xmax", "ymin", "ymax", "zmin", "zmax"]
-        eps = 1e-9 * max(width, height)
-        for d_, tag in gmsh.model.getEntities(2):
-            c = np.array(occ.getCenterOfMass(d_, tag))
-            for k in range(3):
-                for j, ref in enumerate((lower[k], upper[k])):
-                    if abs(c[k] - ref) < eps:
-                        gmsh.model.addPhysicalGroup(2, [tag], BLOCK_TAGS[names[2 * k + j]])
-        origin = [t for _, t in gmsh.model.getEntities(0)
-                  if np.allclose(gmsh.model.getValue(0, t, []), 0.0)]
-        f = gmsh.model.mesh.field
-        dist = f.add("Distance")
-        f.setNumbers(dist, "PointsList", origin)
-        thr = f.add("Threshold")
-        f.setNumber(thr, "InField", dist)
-        f.setNumber(thr, "SizeMin", h_fine)
-        f.setNumber(thr, "SizeMax", h)
-        f.setNumber(thr, "DistMin", refine)
-        f.setNumber(thr, "DistMax", refine + (h - h_fine) / growth)
-        f.setAsBackgroundMesh(thr)
-        for k in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints",
-                  "Mesh.MeshSizeFromCurvature"):
-            gmsh.option.setNumber(k, 0)
-        gmsh.model.mesh.generate(3)
-    msh, ct, ft = compat.model_to_mesh(gmsh.model, comm, 0, gdim=3)
-    gmsh.model.remove()
+    with gmsh_session("hertz_block") as gmsh:
+        if comm.rank == 0:
+            occ = gmsh.model.occ
+            occ.addBox(0.0, 0.0, -height, width, width, height)
+            occ.synchronize()
+            gmsh.model.addPhysicalGroup(3, [e[1] for e in gmsh.model.getEntities(3)], 1)
+            lower, upper = np.array([0.0, 0.0, -height]), np.array([width, width, 0.0])
+            names = ["xmin", "xmax", "ymin", "ymax", "zmin", "zmax"]
+            eps = 1e-9 * max(width, height)
+            for d_, tag in gmsh.model.getEntities(2):
+                c = np.array(occ.getCenterOfMass(d_, tag))
+                for k in range(3):
+                    for j, ref in enumerate((lower[k], upper[k])):
+                        if abs(c[k] - ref) < eps:
+                            gmsh.model.addPhysicalGroup(2, [tag], BLOCK_TAGS[names[2 * k + j]])
+            origin = [t for _, t in gmsh.model.getEntities(0)
+                      if np.allclose(gmsh.model.getValue(0, t, []), 0.0)]
+            f = gmsh.model.mesh.field
+            dist = f.add("Distance")
+            f.setNumbers(dist, "PointsList", origin)
+            thr = f.add("Threshold")
+            f.setNumber(thr, "InField", dist)
+            f.setNumber(thr, "SizeMin", h_fine)
+            f.setNumber(thr, "SizeMax", h)
+            f.setNumber(thr, "DistMin", refine)
+            f.setNumber(thr, "DistMax", refine + (h - h_fine) / growth)
+            f.setAsBackgroundMesh(thr)
+            for k in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints",
+                      "Mesh.MeshSizeFromCurvature"):
+                gmsh.option.setNumber(k, 0)
+            gmsh.model.mesh.generate(3)
+        msh, ct, ft = compat.model_to_mesh(gmsh.model, comm, 0, gdim=3)
     return msh, ct, ft
 
 

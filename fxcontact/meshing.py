@@ -1,11 +1,12 @@
 """gmsh builders for workpieces. Each builder creates a gmsh model on rank 0 and distributes it.
 
-The facet tags use the names documented by each builder. gmsh is initialised if needed and the
-model is removed afterwards.
+The facet tags use the names documented by each builder. Every builder runs in
+:func:`gmsh_session`, so gmsh options never leak from one builder to another.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from typing import Dict, Tuple
 
@@ -14,7 +15,8 @@ from mpi4py import MPI
 
 from fxcontact import compat
 
-__all__ = ["cylinder_billet", "block", "BILLET_TAGS", "BLOCK_TAGS"]
+__all__ = ["cylinder_billet", "block", "gmsh_session", "BILLET_TAGS", "BLOCK_TAGS",
+           "GMSH_MESH_DEFAULTS"]
 
 log = logging.getLogger(__name__)
 
@@ -25,24 +27,59 @@ BILLET_TAGS: Dict[str, int] = {"bottom": 1, "top": 2, "lateral": 3, "symmetry_x"
 BLOCK_TAGS: Dict[str, int] = {"xmin": 1, "xmax": 2, "ymin": 3, "ymax": 4, "zmin": 5, "zmax": 6}
 
 
-_GMSH_READY = False
+#: gmsh options a builder may change, with gmsh's defaults; they are reset on entry to
+#: :func:`gmsh_session` and restored on exit when gmsh was already initialised by the caller.
+GMSH_MESH_DEFAULTS: Dict[str, float] = {
+    "Mesh.MeshSizeMin": 0.0, "Mesh.MeshSizeMax": 1e22, "Mesh.MeshSizeFactor": 1.0,
+    "Mesh.MeshSizeFromPoints": 1.0, "Mesh.MeshSizeFromCurvature": 0.0,
+    "Mesh.MeshSizeExtendFromBoundary": 1.0, "Mesh.MeshSizeFromParametricPoints": 0.0,
+    "Mesh.Algorithm": 6.0, "Mesh.Algorithm3D": 1.0, "Mesh.ElementOrder": 1.0,
+    "Mesh.Optimize": 1.0, "Mesh.OptimizeNetgen": 0.0, "Mesh.RecombineAll": 0.0,
+    "Mesh.MinimumCirclePoints": 7.0, "General.Terminal": 1.0,
+}
 
 
-def _gmsh():
-    """Import and initialise gmsh once (gmsh 4.8 has no ``isInitialized``)."""
-    global _GMSH_READY
+def _gmsh_initialized(gmsh) -> bool:
+    try:
+        return gmsh.option.getString("General.Version") != ""
+    except Exception:  # raised after a gmsh.finalize()
+        return False
+
+
+@contextlib.contextmanager
+def gmsh_session(name: str):
+    """A fresh gmsh model with default meshing options, isolated from other gmsh users.
+
+    If gmsh is not initialised it is initialised here and finalised on exit, so nothing
+    (mesh-size options, fields) leaks from one builder to the next. If the caller already
+    initialised gmsh, the options of :data:`GMSH_MESH_DEFAULTS` are reset to gmsh's defaults
+    for the block and restored afterwards, and only the model created here is removed.
+    """
     import gmsh
-    if not _GMSH_READY:
-        gmsh.initialize(readConfigFiles=False)
-        _GMSH_READY = True
+
+    owned = not _gmsh_initialized(gmsh)
+    saved = None
+    if owned:
+        gmsh.initialize([], readConfigFiles=False)
+    else:
+        saved = {k: gmsh.option.getNumber(k) for k in GMSH_MESH_DEFAULTS}
+        for k, v in GMSH_MESH_DEFAULTS.items():
+            gmsh.option.setNumber(k, v)
     gmsh.option.setNumber("General.Terminal", 0)
-    return gmsh
+    gmsh.model.add(name)
+    try:
+        yield gmsh
+    finally:
+        if owned:
+            gmsh.finalize()
+        else:
+            gmsh.model.remove()
+            for k, v in saved.items():
+                gmsh.option.setNumber(k, v)
 
 
 def _finish(gmsh, comm, gdim):
-    msh, ct, ft = compat.model_to_mesh(gmsh.model, comm, 0, gdim=gdim)
-    gmsh.model.remove()
-    return msh, ct, ft
+    return compat.model_to_mesh(gmsh.model, comm, 0, gdim=gdim)
 
 
 def cylinder_billet(comm: MPI.Comm, radius: float, height: float, h: float,
@@ -53,38 +90,37 @@ def cylinder_billet(comm: MPI.Comm, radius: float, height: float, h: float,
     """
     if not (radius > 0 and height > 0 and h > 0):
         raise ValueError("radius, height and h must be > 0")
-    gmsh = _gmsh()
-    gmsh.model.add("billet")
-    if comm.rank == 0:
-        occ = gmsh.model.occ
-        cyl = occ.addCylinder(0, 0, 0, 0, 0, height, radius)
-        if quarter:
-            box = occ.addBox(0, 0, -1, 2 * radius, 2 * radius, height + 2)
-            occ.intersect([(3, cyl)], [(3, box)])
-        occ.synchronize()
-        vols = gmsh.model.getEntities(3)
-        gmsh.model.addPhysicalGroup(3, [v[1] for v in vols], 1)
-        groups = {k: [] for k in BILLET_TAGS}
-        eps = 1e-6 * max(radius, height)
-        for dim, tag in gmsh.model.getEntities(2):
-            c = np.array(gmsh.model.occ.getCenterOfMass(dim, tag))
-            if abs(c[2]) < eps:
-                groups["bottom"].append(tag)
-            elif abs(c[2] - height) < eps:
-                groups["top"].append(tag)
-            elif quarter and abs(c[0]) < eps:
-                groups["symmetry_x"].append(tag)
-            elif quarter and abs(c[1]) < eps:
-                groups["symmetry_y"].append(tag)
-            else:
-                groups["lateral"].append(tag)
-        for name, tags in groups.items():
-            if tags:
-                gmsh.model.addPhysicalGroup(2, tags, BILLET_TAGS[name])
-        gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
-        gmsh.option.setNumber("Mesh.CharacteristicLengthMin", 0.5 * h)
-        gmsh.model.mesh.generate(3)
-    return _finish(gmsh, comm, 3)
+    with gmsh_session("billet") as gmsh:
+        if comm.rank == 0:
+            occ = gmsh.model.occ
+            cyl = occ.addCylinder(0, 0, 0, 0, 0, height, radius)
+            if quarter:
+                box = occ.addBox(0, 0, -1, 2 * radius, 2 * radius, height + 2)
+                occ.intersect([(3, cyl)], [(3, box)])
+            occ.synchronize()
+            vols = gmsh.model.getEntities(3)
+            gmsh.model.addPhysicalGroup(3, [v[1] for v in vols], 1)
+            groups = {k: [] for k in BILLET_TAGS}
+            eps = 1e-6 * max(radius, height)
+            for dim, tag in gmsh.model.getEntities(2):
+                c = np.array(gmsh.model.occ.getCenterOfMass(dim, tag))
+                if abs(c[2]) < eps:
+                    groups["bottom"].append(tag)
+                elif abs(c[2] - height) < eps:
+                    groups["top"].append(tag)
+                elif quarter and abs(c[0]) < eps:
+                    groups["symmetry_x"].append(tag)
+                elif quarter and abs(c[1]) < eps:
+                    groups["symmetry_y"].append(tag)
+                else:
+                    groups["lateral"].append(tag)
+            for name, tags in groups.items():
+                if tags:
+                    gmsh.model.addPhysicalGroup(2, tags, BILLET_TAGS[name])
+            gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
+            gmsh.option.setNumber("Mesh.CharacteristicLengthMin", 0.5 * h)
+            gmsh.model.mesh.generate(3)
+        return _finish(gmsh, comm, 3)
 
 
 def block(comm: MPI.Comm, lower, upper, h: float, refine_box=None, h_fine: float = None,
@@ -102,44 +138,43 @@ def block(comm: MPI.Comm, lower, upper, h: float, refine_box=None, h_fine: float
     upper = np.asarray(upper, float)
     if lower.shape != (dim,) or upper.shape != (dim,) or np.any(upper <= lower) or h <= 0:
         raise ValueError("block needs lower < upper (length dim) and h > 0")
-    gmsh = _gmsh()
-    gmsh.model.add("block")
-    if comm.rank == 0:
-        occ = gmsh.model.occ
-        if dim == 3:
-            occ.addBox(*lower, *(upper - lower))
-        else:
-            occ.addRectangle(lower[0], lower[1], 0.0, *(upper - lower))
-        occ.synchronize()
-        ents = gmsh.model.getEntities(dim)
-        gmsh.model.addPhysicalGroup(dim, [e[1] for e in ents], 1)
-        names = ["xmin", "xmax", "ymin", "ymax", "zmin", "zmax"]
-        eps = 1e-9 * np.max(upper - lower)
-        for d_, tag in gmsh.model.getEntities(dim - 1):
-            c = np.array(occ.getCenterOfMass(d_, tag))[:dim]
-            for k in range(dim):
-                if abs(c[k] - lower[k]) < eps:
-                    gmsh.model.addPhysicalGroup(dim - 1, [tag], BLOCK_TAGS[names[2 * k]])
-                elif abs(c[k] - upper[k]) < eps:
-                    gmsh.model.addPhysicalGroup(dim - 1, [tag], BLOCK_TAGS[names[2 * k + 1]])
-        if refine_box is not None:
-            lo, hi = (np.asarray(b, float) for b in refine_box)
-            f = gmsh.model.mesh.field
-            bx = f.add("Box")
-            f.setNumber(bx, "VIn", h_fine)
-            f.setNumber(bx, "VOut", h)
-            for k, c in enumerate("XYZ"[:dim]):
-                f.setNumber(bx, f"{c}Min", lo[k])
-                f.setNumber(bx, f"{c}Max", hi[k])
-            if dim == 2:
-                f.setNumber(bx, "ZMin", -1.0)
-                f.setNumber(bx, "ZMax", 1.0)
-            f.setNumber(bx, "Thickness", float(np.max(hi - lo)) * 3.0)
-            f.setAsBackgroundMesh(bx)
-            gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
-            gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
-            gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
-        else:
-            gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
-        gmsh.model.mesh.generate(dim)
-    return _finish(gmsh, comm, dim)
+    with gmsh_session("block") as gmsh:
+        if comm.rank == 0:
+            occ = gmsh.model.occ
+            if dim == 3:
+                occ.addBox(*lower, *(upper - lower))
+            else:
+                occ.addRectangle(lower[0], lower[1], 0.0, *(upper - lower))
+            occ.synchronize()
+            ents = gmsh.model.getEntities(dim)
+            gmsh.model.addPhysicalGroup(dim, [e[1] for e in ents], 1)
+            names = ["xmin", "xmax", "ymin", "ymax", "zmin", "zmax"]
+            eps = 1e-9 * np.max(upper - lower)
+            for d_, tag in gmsh.model.getEntities(dim - 1):
+                c = np.array(occ.getCenterOfMass(d_, tag))[:dim]
+                for k in range(dim):
+                    if abs(c[k] - lower[k]) < eps:
+                        gmsh.model.addPhysicalGroup(dim - 1, [tag], BLOCK_TAGS[names[2 * k]])
+                    elif abs(c[k] - upper[k]) < eps:
+                        gmsh.model.addPhysicalGroup(dim - 1, [tag], BLOCK_TAGS[names[2 * k + 1]])
+            if refine_box is not None:
+                lo, hi = (np.asarray(b, float) for b in refine_box)
+                f = gmsh.model.mesh.field
+                bx = f.add("Box")
+                f.setNumber(bx, "VIn", h_fine)
+                f.setNumber(bx, "VOut", h)
+                for k, c in enumerate("XYZ"[:dim]):
+                    f.setNumber(bx, f"{c}Min", lo[k])
+                    f.setNumber(bx, f"{c}Max", hi[k])
+                if dim == 2:
+                    f.setNumber(bx, "ZMin", -1.0)
+                    f.setNumber(bx, "ZMax", 1.0)
+                f.setNumber(bx, "Thickness", float(np.max(hi - lo)) * 3.0)
+                f.setAsBackgroundMesh(bx)
+                gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+                gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+                gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+            else:
+                gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
+            gmsh.model.mesh.generate(dim)
+        return _finish(gmsh, comm, dim)

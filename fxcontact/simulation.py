@@ -192,10 +192,7 @@ class Simulation:
         self.F_ufl = F
         self.problem = NonlinearProblem(F, self.w, [b.bc for b in self._bcs],
                                         contributors=self.contributors)
-        fs_is = None
-        lin = self.solver_options.linear_solver
-        if isinstance(lin, str) and lin == "fieldsplit":
-            fs_is = self.fieldsplit_is()
+        fs_is = self.fieldsplit_is() if self.solver_options.uses_fieldsplit else None
         self.solver = NewtonSolver(self.problem, self.solver_options, fs_is)
         # start-up problem: the linearised material without contributors gives the first guess
         # when there is no previous velocity (a power law from v = 0 converges badly)

@@ -37,6 +37,10 @@ LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
 }
 
 
+#: PETSc option keys (without prefix) written by the last solver created under each prefix
+_WRITTEN_OPTIONS: Dict[str, set] = {}
+
+
 @dataclass
 class SolverOptions:
     """Newton settings, validated at construction.
@@ -73,6 +77,19 @@ class SolverOptions:
         if isinstance(self.linear_solver, str) and self.linear_solver not in LINEAR_SOLVERS:
             raise ValueError(f"unknown linear solver {self.linear_solver!r}; choose one of "
                              f"{sorted(LINEAR_SOLVERS)} or pass a dict of PETSc options")
+        if not isinstance(self.linear_solver, (str, dict)):
+            raise ValueError("linear_solver must be a preset name or a dict of PETSc options")
+
+    def linear_options(self) -> Dict[str, object]:
+        """PETSc options of the linear solver: the preset (or dict) with ``petsc_options``."""
+        lin = (LINEAR_SOLVERS[self.linear_solver] if isinstance(self.linear_solver, str)
+               else self.linear_solver)
+        return {**lin, **self.petsc_options}
+
+    @property
+    def uses_fieldsplit(self) -> bool:
+        """True if the preconditioner is a field split (it needs velocity/pressure ISs)."""
+        return self.linear_options().get("pc_type") == "fieldsplit"
 
 
 @dataclass
@@ -107,21 +124,25 @@ class NewtonSolver:
         snes = PETSc.SNES().create(comm)
         snes.setOptionsPrefix(self.options.prefix)
         opts = PETSc.Options()
-        lin = (LINEAR_SOLVERS[self.options.linear_solver]
-               if isinstance(self.options.linear_solver, str) else self.options.linear_solver)
         all_opts = {"snes_type": "newtonls", "snes_linesearch_type": self.options.line_search,
                     "snes_max_it": self.options.max_it, "snes_max_funcs": 100000}
-        all_opts.update(lin)
-        all_opts.update(self.options.petsc_options)
+        all_opts.update(self.options.linear_options())
         p = self.options.prefix
+        # options written by an earlier solver under this prefix must not leak into this one
+        # (e.g. a field-split option left over when this solver uses MUMPS); options the user
+        # set (command line, PETSc.Options) are left alone unless the presets override them
+        for key in _WRITTEN_OPTIONS.pop(p, set()):
+            if key not in all_opts:
+                opts.delValue(p + key)
         for k, v in all_opts.items():
             opts[p + k] = v
+        _WRITTEN_OPTIONS[p] = set(all_opts)
         snes.setFunction(problem.residual, self.b)
         snes.setJacobian(problem.jacobian, self.A, self.A)
         snes.setConvergenceTest(self._converged)
         snes.setFromOptions()
         ksp = snes.getKSP()
-        if lin.get("pc_type") == "fieldsplit":
+        if self.options.uses_fieldsplit:
             if fieldsplit_is is None:
                 raise ValueError("the field-split linear solver needs the velocity/pressure ISs")
             ksp.getPC().setFieldSplitIS(("u", fieldsplit_is[0]), ("p", fieldsplit_is[1]))

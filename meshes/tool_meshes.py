@@ -29,6 +29,8 @@ from typing import Sequence, Tuple
 
 import numpy as np
 
+from fxcontact.meshing import gmsh_session
+
 __all__ = [
     "icosphere",
     "structured_cylinder",
@@ -225,38 +227,6 @@ def box_surface(size=(1.0, 1.0, 1.0), n: int = 3, center=(0.0, 0.0, 0.0)) -> Mes
 # ------------------------------------------------------------------------------------------
 
 
-class _GmshSession:
-    """Initialise gmsh if needed (quiet), use a fresh model, restore the state on exit."""
-
-    def __init__(self, name: str):
-        self.name = name
-        self.owned = False
-
-    def __enter__(self):
-        import gmsh
-
-        self.gmsh = gmsh
-        try:
-            initialized = gmsh.option.getString("General.Version") != ""
-        except Exception:  # raised after a previous gmsh.finalize()
-            initialized = False
-        if not initialized:
-            gmsh.initialize([], readConfigFiles=False)
-            self.owned = True
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.add(self.name)
-        return gmsh
-
-    def __exit__(self, *exc):
-        gmsh = self.gmsh
-        try:
-            gmsh.model.remove()
-        finally:
-            if self.owned:
-                gmsh.finalize()
-        return False
-
-
 def _gmsh_surface_mesh(gmsh) -> Mesh:
     """Nodes and triangles of the current gmsh model's 2D mesh, renumbered compactly."""
     tags, coords, _ = gmsh.model.mesh.getNodes()
@@ -285,7 +255,7 @@ def cylinder_surface(radius: float = 5.0, length: float = 20.0, facet_size: floa
     Returns:
         (vertices, triangles) oriented outward.
     """
-    with _GmshSession("cylinder_tool") as gmsh:
+    with gmsh_session("cylinder_tool") as gmsh:
         gmsh.model.occ.addCylinder(0, 0, -0.5 * length, 0, 0, length, radius)
         gmsh.model.occ.synchronize()
         gmsh.option.setNumber("Mesh.MeshSizeMin", facet_size)
@@ -299,7 +269,7 @@ def cylinder_surface(radius: float = 5.0, length: float = 20.0, facet_size: floa
 
 def sphere_surface(radius: float = 1.0, facet_size: float = 0.3, center=(0.0, 0.0, 0.0)) -> Mesh:
     """Sphere surface meshed by gmsh (OpenCASCADE) with a target facet size, oriented outward."""
-    with _GmshSession("sphere_tool") as gmsh:
+    with gmsh_session("sphere_tool") as gmsh:
         gmsh.model.occ.addSphere(0, 0, 0, radius)
         gmsh.model.occ.synchronize()
         gmsh.option.setNumber("Mesh.MeshSizeMin", facet_size)

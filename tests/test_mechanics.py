@@ -26,12 +26,14 @@ def _faces(msh, L):
     }
 
 
-def compression(comm, m, a=0.02, dt=0.1, n_inc=10, K=10.0, n=(3, 3, 3), perturb=0.15):
+def compression(comm, m, a=0.02, dt=0.1, n_inc=10, K=10.0, n=(3, 3, 3), perturb=0.15,
+                solver_options=None):
     """Cube compressed between sliding plates: a fraction ``a`` of the height per increment."""
     L = (1.0, 1.0, 1.0)
     msh = box_mesh(comm, L, n, perturb=perturb)
     space = MixedSpace(msh)
-    sim = Simulation(space, NortonHoff(K=K, m=m, regularization=1e-8), progress=False)
+    sim = Simulation(space, NortonHoff(K=K, m=m, regularization=1e-8), progress=False,
+                     solver_options=solver_options)
     f = _faces(msh, L)
     H0 = L[2]
 
@@ -99,6 +101,32 @@ def test_compression_parallel_matches_serial():
     for rw, rs in zip(sims["world"][0].history, sims["self"][0].history):
         assert abs(rw["volume"] - rs["volume"]) <= 1e-8 * rs["volume"]
         assert rw["newton_iterations"] == rs["newton_iterations"]
+
+
+def test_fieldsplit_matches_mumps_and_options_do_not_leak():
+    """The Schur field split (preset, or a dict with pc_type=fieldsplit) gives the MUMPS
+    solution (Krylov rtol 1e-10 -> velocities within 1e-7), and a later MUMPS solver under the
+    same prefix does not inherit the field-split options."""
+    from fxcontact.solver import LINEAR_SOLVERS
+    from petsc4py import PETSc
+
+    comm = MPI.COMM_WORLD
+    ref, out_ref, _ = compression(comm, 0.2, n_inc=2)
+    custom = dict(LINEAR_SOLVERS["fieldsplit"], pc_fieldsplit_schur_fact_type="full")
+    for lin in ("fieldsplit", custom):
+        sim, out, _ = compression(comm, 0.2, n_inc=2,
+                                  solver_options=SolverOptions(linear_solver=lin))
+        assert sim.solver.snes.getKSP().getPC().getType() == "fieldsplit"
+        assert sim.solver.snes.getLinearSolveIterations() > 0
+        dv = np.max(np.abs(sim.w.x.array - ref.w.x.array))
+        assert dv <= 1e-7 * np.max(np.abs(ref.w.x.array)), dv
+        for o, r in zip(out, out_ref):
+            assert abs(o["stress"] / r["stress"] - 1.0) < 1e-7
+    after, _, _ = compression(comm, 0.2, n_inc=1)
+    assert after.solver.snes.getKSP().getPC().getType() == "lu"
+    keys = PETSc.Options().getAll()
+    assert not any(k.startswith("fxc_pc_fieldsplit") or k.startswith("fxc_fieldsplit")
+                   for k in keys), sorted(keys)
 
 
 def test_elastic_patch_test():
