@@ -705,10 +705,12 @@ def _nagata_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen,
             if bj < 0 or dj < bd - tol:
                 better = True
             elif dj <= bd + tol:
-                # tie: prefer converged, then stationary (interior), then smaller distance
+                # tie: prefer converged, then stationary (interior), then the lower patch index
+                # (not the smaller distance: on a shared patch edge that is decided by round-off
+                # and the chosen feature would flip between Newton iterations)
                 key_new = 2 * int(conv) + int(stat)
                 key_old = 2 * int(bconv) + int(bstat)
-                if key_new > key_old or (key_new == key_old and dj < bd):
+                if key_new > key_old or (key_new == key_old and f < cf[bj]):
                     better = True
             if better:
                 bj, bd, bconv, bstat, be, bz = j, dj, conv, stat, e, z
@@ -910,7 +912,7 @@ def nagata_project_ref(tool: "FacetedTool", P: np.ndarray, ptr: np.ndarray, idx:
             stat = np.linalg.norm(X.T @ (x - p)) <= gt and regular
             key = 2 * int(st == 1) + int(stat)
             if best is None or dj < best[1] - tol or (
-                    dj <= best[1] + tol and (key > best[2] or (key == best[2] and dj < best[1]))):
+                    dj <= best[1] + tol and (key > best[2] or (key == best[2] and f < best[0]))):
                 best = (f, dj, key, e, z)
         if best is None or best[2] < 2:
             flag[i] = 1
