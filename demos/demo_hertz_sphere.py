@@ -33,10 +33,16 @@
 # (≈ +1.3 % at 0.2); the resolution of the contact zone (≈ +2 % at h_fine = 50 µm, +1 % at
 # 25 µm). The defaults give +2.2 % on the force, +1.6 % on p_max.
 #
+# **Tool.** ``tool="analytic"`` (default) is the exact sphere. ``tool="nagata"`` and
+# ``tool="flat"`` replace it by a coarse triangulated sphere (:class:`FacetedTool`, THEORY §6–8),
+# see the section on the faceted tool below; ``--compare`` runs the three on the same block mesh.
+#
 # Run: ``python demos/demo_hertz_sphere.py`` (serial) or ``mpirun -n 2 python demos/...``.
 # ``--size`` sets ``h_fine`` (the one knob); outputs go to ``results/hertz_sphere``: the VTK
 # series, the CSV history, the pressure profile (CSV), a PNG of p(r) against Hertz and a PNG of
-# the deformed contact zone (displacements magnified).
+# the deformed contact zone (displacements magnified). ``--tool nagata|flat`` and
+# ``--tool-facet-size`` select a faceted tool; ``--compare`` prints the analytic / Nagata / flat
+# table and writes ``hertz_sphere_tools.png`` (the three profiles against Hertz).
 
 # %%
 from __future__ import annotations
@@ -57,6 +63,7 @@ from fxcontact.meshing import BLOCK_TAGS, gmsh_session
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Sphere
+from fxcontact.tools.faceted import FacetedTool
 
 
 # %% [markdown]
@@ -113,6 +120,117 @@ def graded_block(comm, width: float, height: float, h_fine: float, refine: float
 
 
 # %% [markdown]
+# ## The faceted sphere tool (``tool="nagata"`` / ``"flat"``)
+#
+# **Mesh.** The quarter model is valid only if the tool is symmetric about the planes x = 0 and
+# y = 0, which a generic sphere triangulation (gmsh, icosphere) is not. The tool is therefore an
+# *octahedral sphere*: each of the 8 octant faces of an octahedron is split into n² triangles
+# (barycentric grid, mapped to the sphere with equal angles along the octahedron edges). The
+# mesh is exactly mirror-symmetric about the three coordinate planes, and one octahedron vertex
+# (valence 4) is the lowest point of the sphere. n is chosen so that the edges at that vertex
+# are ``tool_facet_size`` long (chord 2R sin(π/4n)); the facets elsewhere are up to 1.45× longer.
+# The default 1 mm (n = 8, 512 triangles on the full sphere) is about 4× the Hertz contact radius
+# a = 0.258 mm: the whole contact zone lies on the 4 facets around the lowest vertex.
+#
+# **Positioning (fair comparison).** The vertices lie on the true sphere; the facets lie inside
+# it (a chord sags by h²/8R = 25 µm at h = 1 mm, twice the indentation). The lowest vertex is
+# placed at the first-touch point, the origin, exactly where the analytic sphere touches. First
+# touch therefore happens at the same place and time for the three tools, and δ is the same
+# rigid displacement from first touch. The Nagata patches interpolate that vertex and its normal
+# (vertical by symmetry), so they are tangent to the block there like the true sphere.
+#
+# **What to expect.** Around the lowest vertex the flat facets form a shallow square pyramid
+# (slopes tan(α/2) ≈ 0.10 along the axes and 0.14 along the diagonals, α the edge angle), not a
+# flat punch: a punch would need a facet centred at the lowest point, which breaks the quarter
+# symmetry. Flat contact is then conical: a smaller contact radius, a far smaller load, and a
+# pressure peak at the tip that grows as the block mesh is refined (the cone pressure is
+# log-singular). The Nagata patches restore the curvature: their gap error over the contact zone
+# is below 0.05 µm against the 6.6 µm sphere gap r²/2R at r = a (n = 8, NVV normals).
+#
+# **Measured** (``--compare``, default block mesh h_fine = 25 µm, 1 mm tool edges; errors
+# against Hertz): analytic P = 1027.6 N (+2.2 %), p_max = 7328 MPa (+1.6 %), a = 0.261 mm;
+# Nagata P = 1030.5 N (+2.5 %), p_max = 7309 MPa (+1.3 %, −0.26 % against the analytic tool),
+# a = 0.262 mm, no fallbacks, the same 4 Newton iterations per increment; flat P = 221 N
+# (−78 %), p_max = 5.7 p0 (4.7 p0 at h_fine = 50 µm: the tip peak is mesh dependent),
+# a = 0.065 mm. On the 50 µm test mesh the Nagata p_max stays within 1 % of the analytic one for
+# tool edges of 0.5, 1, 2 and 2.6 mm.
+#
+# **Fallbacks.** ``fallbacks`` is the largest number of nodes whose Nagata projection fell back
+# to the flat facet in any increment (``contact_fallbacks`` of the last evaluation); the tool's
+# own running count over all projections is ``tool_projection_fallbacks``.
+
+# %%
+def octahedral_sphere(n: int, radius: float = 1.0, center=(0.0, 0.0, 0.0)):
+    """Sphere triangulated from an octahedron, n² triangles per octant, mirror-symmetric about
+    the coordinate planes through ``center``; vertices on the sphere, outward orientation.
+
+    Returns ``(vertices (N, 3), triangles (8 n², 3))``; N = 4 n² + 2.
+    """
+    n = int(n)
+    if n < 1:
+        raise ValueError("n must be >= 1")
+    index, verts, tris = {}, [], []
+    # barycentric grid (i, j, k = n - i - j) on one octant face, equal angles along its edges
+    grid = [(i, j) for i in range(n + 1) for j in range(n + 1 - i)]
+    lam = np.array([(i, j, n - i - j) for i, j in grid], dtype=np.float64) / n
+    w = np.sin(0.5 * np.pi * lam)
+    local = []
+    for i in range(n):
+        for j in range(n - i):
+            local.append(((i, j), (i + 1, j), (i, j + 1)))
+            if i + j < n - 1:
+                local.append(((i + 1, j), (i + 1, j + 1), (i, j + 1)))
+    for sx in (1.0, -1.0):
+        for sy in (1.0, -1.0):
+            for sz in (1.0, -1.0):
+                p = w * np.array([sx, sy, sz])
+                p /= np.linalg.norm(p, axis=1, keepdims=True)
+                ids = {}
+                for (ij, q) in zip(grid, p):
+                    key = tuple(np.round(q, 12) + 0.0)
+                    if key not in index:
+                        index[key] = len(verts)
+                        verts.append(q)
+                    ids[ij] = index[key]
+                T = np.array([[ids[a], ids[b], ids[c]] for a, b, c in local], dtype=np.int64)
+                if sx * sy * sz < 0:  # mirrored octant: reverse to keep the outward orientation
+                    T = T[:, [0, 2, 1]]
+                tris.append(T)
+    V = np.array(verts) * radius + np.asarray(center, dtype=np.float64)
+    return V, np.vstack(tris)
+
+
+def octahedral_divisions(radius: float, facet_size: float) -> int:
+    """n such that the edges at an octahedron vertex, 2R sin(π/4n), are closest to
+    ``facet_size`` (at least 1)."""
+    if not 0 < facet_size < 2 * radius:
+        raise ValueError("tool_facet_size must be in (0, 2R)")
+    return max(1, int(round(0.5 * math.pi / (2.0 * math.asin(0.5 * facet_size / radius)))))
+
+
+def make_tool(kind: str, radius: float, speed: float, facet_size: float = 1.0,
+              normals="nvv"):
+    """The indenter touching the origin at t = 0 and moving down at ``speed``: the analytic
+    sphere, or the octahedral faceted sphere (lowest vertex at the origin) in Nagata or flat
+    mode. Returns ``(tool, info)`` with the facet count and the edge length at the lowest
+    vertex."""
+    center = (0.0, 0.0, radius)
+    velocity = (0.0, 0.0, -speed)
+    if kind == "analytic":
+        return Sphere(center=center, radius=radius, velocity=velocity, name="sphere"), {}
+    if kind not in ("nagata", "flat"):
+        raise ValueError(f"tool must be 'analytic', 'nagata' or 'flat', got {kind!r}")
+    n = octahedral_divisions(radius, facet_size)
+    V, T = octahedral_sphere(n, radius, center)
+    if isinstance(normals, str) and normals == "exact":
+        normals = (V - np.asarray(center)) / radius
+    tool = FacetedTool(V, T, mode=kind, normals=normals, velocity=velocity, name="sphere")
+    info = {"tool_divisions": n, "tool_triangles": int(T.shape[0]),
+            "tool_facet_size": 2.0 * radius * math.sin(0.25 * math.pi / n)}
+    return tool, info
+
+
+# %% [markdown]
 # ## Hertz formulas (rigid sphere on an elastic half-space)
 
 # %%
@@ -136,6 +254,7 @@ def gather_profile(contact: NodalContact, x: np.ndarray, comm) -> tuple:
 # %%
 def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, width=80.0,
         height=80.0, refine=0.4, growth=0.15, scheme="implicit", penalty=None, beta=1e4, n_steps=3,
+        tool="analytic", tool_facet_size=1.0, tool_normals="nvv",
         output_dir="results/hertz_sphere", picture=True, progress=True,
         comm=MPI.COMM_WORLD) -> dict:
     """Indent the block by ``indentation`` with the sphere in ``n_steps`` increments.
@@ -149,12 +268,21 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
         scheme: contact scheme (see :data:`fxcontact.contact.nodal.SCHEMES`).
         penalty: ρ, or None to use ``beta`` (ρ = β dt E*/h_fine, THEORY §2.5).
         n_steps: number of increments.
+        tool: ``"analytic"`` (exact sphere), ``"nagata"`` or ``"flat"`` (octahedral faceted
+            sphere, lowest vertex at the first-touch point; see :func:`make_tool`).
+        tool_facet_size: edge length of the faceted tool at its lowest vertex [mm].
+        tool_normals: nodal normals of the Nagata patches: ``"nvv"`` (estimated from the
+            facets, default), ``"exact"`` (the sphere's radial normals) or any value
+            :class:`FacetedTool` accepts.
     Returns:
         dict with ``force`` (4 × quarter), ``contact_radius`` (FEM, equivalent disc),
         ``contact_radius_bounds`` (largest active / smallest inactive nodal radius),
         ``p_max``, Hertz values for the same δ (``hertz_force``,
         ``hertz_contact_radius``, ``hertz_p_max``), the nodal profile ``r``, ``p``, the bottom
-        reaction, mesh size, dofs, run time and the history.
+        reaction, mesh size, dofs, run time and the history; ``tool``, the Newton iterations
+        summed over the increments (``newton_iterations``), Nagata fallbacks (``fallbacks``,
+        ``tool_projection_fallbacks``) and, for faceted tools, ``tool_triangles``,
+        ``tool_divisions``, ``tool_facet_size``.
     """
     t_start = time.perf_counter()
     if not (0 < indentation < 0.5 * radius):
@@ -170,15 +298,15 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
     sim.add_reaction("bottom", bottom)
     t_end = 1.0
     speed = indentation / t_end
-    tool = Sphere(center=(0.0, 0.0, radius), radius=radius, velocity=(0.0, 0.0, -speed),
-                  name="sphere")
+    indenter, tool_info = make_tool(tool, radius, speed, tool_facet_size, tool_normals)
     dt = t_end / n_steps
     if penalty is None:
         # ρ = β dt E*/h_e given explicitly: NodalContact(beta=...) leaves ρ unset until the
         # first increment, and writing the initial output fields then fails (see the report)
         penalty = penalty_from_beta(mat, beta, h_fine, dt=dt)
     boundary = ContactBoundary(space, ft, BLOCK_TAGS["zmax"])
-    contact = sim.add_contributor(NodalContact(boundary, tool, scheme=scheme, penalty=penalty,
+    contact = sim.add_contributor(NodalContact(boundary, indenter, scheme=scheme,
+                                               penalty=penalty,
                                                element_size=h_fine))
     sim.run(t_end, dt)
     last = sim.history[-1]
@@ -199,7 +327,11 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
            "radius": radius, "penetration": last["contact_penetration_true"],
            "active_nodes": int(np.sum(active)), "h_fine": h_fine, "cells": n_cells,
            "dofs": space.global_dofs(), "history": sim.history, "png": None,
-           "png_deformed": None}
+           "png_deformed": None, "tool": tool,
+           "newton_iterations": int(sum(r["newton_iterations"] for r in sim.history)),
+           "fallbacks": int(max(r["contact_fallbacks"] for r in sim.history)),
+           "tool_projection_fallbacks": comm.allreduce(
+               int(getattr(indenter, "total_fallbacks", 0)), op=MPI.SUM), **tool_info}
     if output_dir is not None and picture:
         out["png_deformed"] = render_deformed(
             sim, os.path.join(output_dir, "hertz_sphere_3d.png"), zone=4.0 * a_h)
@@ -210,6 +342,103 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
             out["png"] = plot_profile(out, os.path.join(output_dir, "hertz_sphere.png"))
     out["wall_time"] = time.perf_counter() - t_start
     return out
+
+
+# %% [markdown]
+# ## Comparison of the three tools on the same block mesh
+#
+# :func:`compare_tools` runs the analytic, Nagata and flat tools with the same parameters (each
+# run writes into its own subdirectory of ``output_dir``), prints a table and draws the three
+# nodal pressure profiles against Hertz. Acceptance (issue 4): the Nagata p_max within 5 % of
+# the analytic-tool p_max on the same mesh; flat facets are reported for comparison.
+
+# %%
+TOOLS = ("analytic", "nagata", "flat")
+
+
+def compare_tools(tools=TOOLS, output_dir="results/hertz_sphere", picture=True, **params) -> dict:
+    """Run :func:`run` once per tool kind with the same ``params``; returns ``{tool: result}``
+    plus ``"table"`` (text) and ``"png"`` (the profiles, rank 0; None without output)."""
+    comm = params.get("comm", MPI.COMM_WORLD)
+    out = {}
+    for kind in tools:
+        sub = None if output_dir is None else os.path.join(output_dir, kind)
+        out[kind] = run(tool=kind, output_dir=sub, picture=False, **params)
+    out["table"] = format_table(out, tools)
+    out["png"] = None
+    if output_dir is not None and picture and comm.rank == 0:
+        out["png"] = plot_tools(out, tools, os.path.join(output_dir, "hertz_sphere_tools.png"))
+    return out
+
+
+def format_table(results: dict, tools=TOOLS) -> str:
+    """Force, p_max, contact radius (with the error against Hertz and, for p_max, against the
+    analytic tool), Nagata fallbacks, Newton iterations and wall time, one line per tool."""
+    first = results[tools[0]]
+    ref = results.get("analytic")
+    lines = [f"Hertz (δ = {1e3 * first['indentation']:.1f} µm, R = {first['radius']:g} mm): "
+             f"P = {first['hertz_force']:.1f} N, p0 = {first['hertz_p_max']:.0f} MPa, "
+             f"a = {first['hertz_contact_radius']:.4f} mm; block mesh {first['cells']} "
+             f"tetrahedra, h_fine = {first['h_fine']} mm",
+             f"{'tool':9s}{'facets':>7s}{'force [N]':>11s}{'vs H':>8s}{'p_max [MPa]':>12s}"
+             f"{'vs H':>8s}{'vs an.':>8s}{'a [mm]':>8s}{'vs H':>8s}{'fallb.':>7s}"
+             f"{'Newton':>7s}{'time [s]':>9s}"]
+    for kind in tools:
+        r = results[kind]
+        vs_an = f"{r['p_max'] / ref['p_max'] - 1:8.2%}" if ref is not None else f"{'':8s}"
+        facets = str(r.get("tool_triangles", "-"))
+        lines.append(
+            f"{kind:9s}{facets:>7s}{r['force']:11.2f}{r['force'] / r['hertz_force'] - 1:8.2%}"
+            f"{r['p_max']:12.0f}{r['p_max'] / r['hertz_p_max'] - 1:8.2%}{vs_an}"
+            f"{r['contact_radius']:8.4f}"
+            f"{r['contact_radius'] / r['hertz_contact_radius'] - 1:8.2%}{r['fallbacks']:7d}"
+            f"{r['newton_iterations']:7d}{r['wall_time']:9.1f}")
+    facet = next((results[k] for k in tools if "tool_facet_size" in results[k]), None)
+    if facet is not None:
+        lines.append(f"faceted tool: octahedral sphere, n = {facet['tool_divisions']}, "
+                     f"{facet['tool_triangles']} triangles, edge {facet['tool_facet_size']:.3f} "
+                     f"mm at the lowest vertex (a/edge = "
+                     f"{facet['hertz_contact_radius'] / facet['tool_facet_size']:.2f})")
+    return "\n".join(lines)
+
+
+def plot_tools(results: dict, tools, path: str) -> str:
+    """p/p0 against r/a for each tool, with the Hertz ellipse."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    first = results[tools[0]]
+    a, p0 = first["hertz_contact_radius"], first["hertz_p_max"]
+    rr = np.linspace(0.0, a, 400)
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    ax.plot(rr / a, np.sqrt(1.0 - (rr / a) ** 2), "k-", label="Hertz, $p_0\\sqrt{1-r^2/a^2}$")
+    style = {"analytic": ("o", "C0"), "nagata": ("s", "C2"), "flat": ("^", "C3")}
+    for kind in tools:
+        r = results[kind]
+        sel = r["r"] < 2.0 * a
+        mk, col = style.get(kind, ("x", None))
+        lab = {"analytic": "analytic sphere", "nagata": "faceted, Nagata patches",
+               "flat": "faceted, flat facets"}.get(kind, kind)
+        ax.plot(r["r"][sel] / a, r["p"][sel] / p0, mk, color=col, ms=3.5, alpha=0.7,
+                mfc="none" if kind == "nagata" else col,
+                label=f"{lab}: $p_{{max}}/p_0$ = {r['p_max'] / p0:.3f}, "
+                      f"P = {r['force']:.0f} N")
+    ax.set_xlabel("$r/a$")
+    ax.set_ylabel("$p/p_0$")
+    ax.set_xlim(0, 1.5)
+    ax.set_ylim(0, None)
+    edge = next((results[k]["tool_facet_size"] for k in tools
+                 if "tool_facet_size" in results[k]), None)
+    extra = f", tool edge {edge:.2f} mm = {edge / a:.1f} a" if edge else ""
+    ax.set_title(f"Hertz sphere, δ = {1e3 * first['indentation']:.1f} µm (Hertz P = "
+                 f"{first['hertz_force']:.0f} N){extra}", fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
 
 
 # %% [markdown]
@@ -277,13 +506,35 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description="Hertz point contact (rigid sphere)")
     ap.add_argument("--size", type=float, default=0.025, help="fine element size h_fine [mm]")
     ap.add_argument("--scheme", default="implicit")
+    ap.add_argument("--tool", default="analytic", choices=TOOLS,
+                    help="indenter: exact sphere or faceted sphere (Nagata / flat)")
+    ap.add_argument("--tool-facet-size", type=float, default=1.0,
+                    help="faceted tool: edge length at the lowest vertex [mm]")
+    ap.add_argument("--tool-normals", default="nvv", choices=("nvv", "exact", "angle", "area"),
+                    help="nodal normals of the Nagata patches")
+    ap.add_argument("--compare", action="store_true",
+                    help="run the analytic, Nagata and flat tools and compare them")
     ap.add_argument("--output", default="results/hertz_sphere")
     args = ap.parse_args()
-    res = run(h_fine=args.size, scheme=args.scheme, output_dir=args.output)
+    if args.compare:
+        res = compare_tools(h_fine=args.size, scheme=args.scheme,
+                            tool_facet_size=args.tool_facet_size, tool_normals=args.tool_normals,
+                            output_dir=args.output)
+        if MPI.COMM_WORLD.rank == 0:
+            print(res["table"])
+            print(f"output: {res['png']}")
+        raise SystemExit(0)
+    res = run(h_fine=args.size, scheme=args.scheme, tool=args.tool,
+              tool_facet_size=args.tool_facet_size, tool_normals=args.tool_normals,
+              output_dir=args.output)
     if MPI.COMM_WORLD.rank == 0:
         lo, hi = res["contact_radius_bounds"]
         print(f"mesh: {res['cells']} tetrahedra, {res['dofs']} dofs, h_fine = {res['h_fine']} "
               f"mm, {res['active_nodes']} active nodes; {res['wall_time']:.1f} s")
+        if res["tool"] != "analytic":
+            print(f"tool: {res['tool']}, {res['tool_triangles']} triangles, edge "
+                  f"{res['tool_facet_size']:.3f} mm at the lowest vertex; Nagata fallbacks "
+                  f"{res['fallbacks']}")
         print(f"bottom reaction {res['bottom_reaction']:.2f} N")
         print(f"{'':22s}{'FEM':>12s}{'Hertz':>12s}{'error':>10s}")
         for name, k, kh in (("force P [N]", "force", "hertz_force"),
