@@ -11,7 +11,13 @@ implicit-exact     X(v) with exact ∇h and ∇²h          t + dt              
 
 ``implicit`` uses the Gauss–Newton tangent (no curvature term); ``implicit-exact`` adds the gap
 Hessian (and, for the cylindrical update, the second derivatives of X). Their residuals are the
-same: the exact gradient of the end-of-increment penalty. Each node is handled against the tool
+same: the exact gradient of the end-of-increment penalty. The curvature term ρS[h]₊∇²h is
+negative in the tangential directions of a convex tool and grows with the penetration: on the
+first iterates of an increment (predictor penetrations far above the converged ones) it can
+exceed the structural stiffness and make the tangent indefinite, and Newton stalls. So
+``implicit-exact`` uses the Gauss–Newton tangent until the active set has settled (``stable()``
+true at the previous iterate, collective) and the exact tangent from then on, which keeps the
+quadratic end of the convergence. Each node is handled against the tool
 it penetrates most. Convergence additionally requires an unchanged active set (and, for implicit
 schemes, unchanged projected features of faceted tools).
 
@@ -161,6 +167,7 @@ class NodalContact:
         self._tool = np.zeros(n, dtype=np.int32)
         self._feature = np.zeros(n, dtype=np.int64)
         self._status_prev = None
+        self._settled = False
         self._ever_active = np.zeros(n, dtype=bool)
         self._fallbacks = 0
         self._fields = None
@@ -266,6 +273,7 @@ class NodalContact:
 
     def begin_solve(self):
         self._status_prev = None
+        self._settled = False
 
     # ------------------------------------------------------------------ evaluation
     def _constraint(self, v: np.ndarray, jacobian: bool):
@@ -278,7 +286,8 @@ class NodalContact:
             nrm = pr.normal[:, :d]
             h = -pr.gap / dt - np.einsum("ni,ni->n", v - self._v_ref, nrm)
             return h, -nrm, empty, self._fixed_tool, pr.feature, pr.flag
-        exact = self.scheme == "implicit-exact"
+        # exact tangent once the active set has settled (see the module docstring)
+        exact = self.scheme == "implicit-exact" and self._settled
         t1 = self.t + dt
         if isinstance(self.kin, CartesianUpdate):
             X = self.x_t + dt * v
@@ -331,7 +340,8 @@ class NodalContact:
             status = status * (1 << 40) + np.where(self._h > 0, self._feature, 0)
         same = self._status_prev is not None and np.array_equal(status, self._status_prev)
         self._status_prev = status
-        return bool(self.boundary.comm.allreduce(int(same), op=MPI.MIN))
+        self._settled = bool(self.boundary.comm.allreduce(int(same), op=MPI.MIN))
+        return self._settled
 
     # ------------------------------------------------------------------ diagnostics / output
     def pressures(self) -> np.ndarray:
