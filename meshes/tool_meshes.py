@@ -4,7 +4,10 @@ gmsh builders (OpenCASCADE kernel, gmsh >= 4.8):
 
 * :func:`cylinder_surface` — closed capped cylinder of radius ``R`` and length ``L`` with a
   target facet size (the thesis's ironing tool: R = 5 mm, coarse facets 1.7 mm);
-* :func:`sphere_surface` — sphere with a target facet size.
+* :func:`sphere_surface` — sphere with a target facet size;
+* :func:`extruded_cylinder_surface` — open (lateral) cylinder surface, structured: a circle of
+  ``n_theta`` equal segments extruded in layers, so every cross-section is the same regular
+  polygon (the ironing demo's quasi-2D tool, with a chosen generator at the bottom).
 
 Pure-numpy generators (fast, deterministic, used by the tests):
 
@@ -15,8 +18,9 @@ Every function returns ``(vertices (N, 3) float64, triangles (M, 3) int64)`` ori
 counter-clockwise about the outward normal, as :class:`fxcontact.tools.faceted.FacetedTool`
 expects. :func:`write_surface` writes ``.msh`` (gmsh 2.2 format), ``.stl`` or ``.obj`` files.
 
-Command line: ``python meshes/tool_meshes.py OUTDIR [--length L] [--fine H]`` writes the coarse
-(1.7 mm) and fine cylinder R = 5 mm tool meshes as .msh and .stl into ``OUTDIR``.
+Command line: ``python meshes/tool_meshes.py OUTDIR [--length L] [--fine H] [--structured]``
+writes the coarse (1.7 mm) and fine cylinder R = 5 mm tool meshes as .msh and .stl into
+``OUTDIR`` (``--structured``: also the open extruded ones).
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ __all__ = [
     "transform_to_axis",
     "cylinder_surface",
     "sphere_surface",
+    "extruded_cylinder_surface",
     "write_surface",
 ]
 
@@ -280,6 +285,68 @@ def sphere_surface(radius: float = 1.0, facet_size: float = 0.3, center=(0.0, 0.
     return V + np.asarray(center, dtype=np.float64), T
 
 
+def extruded_cylinder_surface(radius: float = 5.0, length: float = 20.0,
+                              facet_size: float = 1.7, n_theta: int = None,
+                              n_axial: int = None, theta0: float = 0.0,
+                              center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0)) -> Mesh:
+    """Open lateral cylinder surface meshed by gmsh as a structured extrusion.
+
+    A circle split into ``n_theta`` equal segments (transfinite curve) is extruded along the
+    axis in ``n_axial`` layers of triangles: every cross-section is the same regular
+    ``n_theta``-gon inscribed in the circle (vertices on the true cylinder), facet edges run
+    along the generators, and each quad is split by the same diagonal. The ends are open.
+
+    Args:
+        radius: cylinder radius [mm].
+        length: length along the axis, centred on ``center`` [mm].
+        facet_size: target facet width around the circumference [mm], used when ``n_theta``
+            is None: ``n_theta = round(2πR / facet_size)`` (R = 5, 1.7 mm → 18 facets, chord
+            1.74 mm, the thesis's coarse ironing tool).
+        n_theta: number of facets around (>= 3).
+        n_axial: number of layers along the axis (default: facets about as long as wide).
+        theta0: angle of the first generator in the builder's frame (axis z, generator at
+            ``(R cos θ0, R sin θ0)``), before the rigid map to ``center``/``axis``.
+        center, axis: placement of the axis.
+
+    Returns:
+        (vertices, triangles), oriented with the normals pointing radially outward.
+    """
+    if not (radius > 0 and length > 0):
+        raise ValueError("radius and length must be > 0")
+    if n_theta is None:
+        if not facet_size > 0:
+            raise ValueError("facet_size must be > 0")
+        n_theta = max(3, int(round(2.0 * np.pi * radius / facet_size)))
+    n_theta = int(n_theta)
+    if n_theta < 3:
+        raise ValueError("n_theta must be >= 3")
+    if n_axial is None:
+        chord = 2.0 * radius * np.sin(np.pi / n_theta)
+        n_axial = max(1, int(round(length / chord)))
+    n_axial = int(n_axial)
+    if n_axial < 1:
+        raise ValueError("n_axial must be >= 1")
+    with gmsh_session("extruded_cylinder_tool") as gmsh:
+        occ = gmsh.model.occ
+        circle = occ.addCircle(0.0, 0.0, -0.5 * length, radius)
+        occ.synchronize()
+        gmsh.model.mesh.setTransfiniteCurve(circle, n_theta + 1)
+        occ.extrude([(1, circle)], 0.0, 0.0, length, numElements=[n_axial], recombine=False)
+        occ.synchronize()
+        gmsh.model.mesh.generate(2)
+        V, T = _gmsh_surface_mesh(gmsh)
+    V, T = _merge_vertices(V, T)
+    c, s = np.cos(theta0), np.sin(theta0)
+    V = V @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
+    T = orient_outward(V, T)  # consistent; an open surface keeps its first triangle's sense
+    P = V[T]
+    m = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    radial = P.mean(axis=1) * np.array([1.0, 1.0, 0.0])
+    if np.sum(np.einsum("ij,ij->i", m, radial)) < 0.0:
+        T = T[:, [0, 2, 1]]
+    return transform_to_axis(V, center, axis), np.ascontiguousarray(T)
+
+
 def write_surface(path: str, vertices: np.ndarray, triangles: np.ndarray) -> str:
     """Write a triangle surface with meshio; the format follows the extension (.msh = gmsh 2.2
     ASCII, .stl = binary STL, .obj, .vtk, ...). Returns ``path``."""
@@ -308,6 +375,8 @@ def main(argv=None) -> None:
     ap.add_argument("--length", type=float, default=20.0)
     ap.add_argument("--coarse", type=float, default=1.7, help="coarse facet size [mm]")
     ap.add_argument("--fine", type=float, default=0.4, help="fine facet size [mm]")
+    ap.add_argument("--structured", action="store_true",
+                    help="also write the open extruded (structured) cylinders")
     args = ap.parse_args(argv)
     os.makedirs(args.outdir, exist_ok=True)
     for label, h in (("coarse", args.coarse), ("fine", args.fine)):
@@ -316,6 +385,12 @@ def main(argv=None) -> None:
         for ext in (".msh", ".stl"):
             write_surface(stem + ext, V, T)
         print(f"{stem}.{{msh,stl}}: {V.shape[0]} vertices, {T.shape[0]} triangles, h = {h} mm")
+        if args.structured:
+            V, T = extruded_cylinder_surface(args.radius, args.length, h)
+            for ext in (".msh", ".stl"):
+                write_surface(f"{stem}_structured{ext}", V, T)
+            print(f"{stem}_structured.{{msh,stl}}: {V.shape[0]} vertices, {T.shape[0]} "
+                  f"triangles, open")
 
 
 if __name__ == "__main__":
