@@ -391,16 +391,22 @@ class Simulation:
         self._build()
         trial = float(dt)
         msg = ""
+        failed_its = 0
+        t_first = time.perf_counter()
         for k in range(max_cutbacks + 1):
             t0 = time.perf_counter()
             info = self._try_increment(trial)
             if info.converged:
                 row = self._commit(trial, info)
                 row["cutbacks"] = k
+                # Newton iterations of the accepted attempt plus those of the failed attempts
+                row["newton_iterations_all"] = info.iterations + failed_its
                 row["wall_increment"] = time.perf_counter() - t0
+                row["wall_increment_all"] = time.perf_counter() - t_first
                 self._record(row)
                 return IncrementResult(row, info)
             msg = info.message
+            failed_its += info.iterations
             log.warning("t = %.6g: Newton failed with dt = %.3g (%s); retrying with dt/2",
                         self.t, trial, msg)
             trial *= 0.5

@@ -227,3 +227,44 @@ def test_material_derivatives_fd():
                 d[l, k] += 0.5 * h
                 Dfd[:, :, k, l] = (mat.stress(eps + d) - mat.stress(eps - d)) / (2 * h)
         assert np.linalg.norm(Dfd - D) < 1e-6 * np.linalg.norm(D)
+
+
+class _UnsettledAboveDt:
+    """Contributor that adds nothing but never reports a settled state when dt > limit: Newton
+    then runs out of iterations, like a contact that cannot settle with a too large step."""
+
+    def __init__(self, limit):
+        self.limit, self.dt = limit, 0.0
+
+    def begin_increment(self, sim, t, dt, x):
+        self.dt = dt
+
+    def evaluate(self, w, jacobian):
+        from fxcontact.petsc import NodalTerms
+        return NodalTerms.empty(3)
+
+    def stable(self):
+        return self.dt <= self.limit
+
+
+def test_cutback_halves_dt_and_counts_failed_iterations():
+    from fxcontact.simulation import IncrementError
+
+    comm = MPI.COMM_WORLD
+    L = (1.0, 1.0, 1.0)
+    msh = box_mesh(comm, L, (2, 2, 2))
+    sim = Simulation(MixedSpace(msh), NortonHoff(K=10.0, m=0.3), progress=False,
+                     solver_options=SolverOptions(max_it=4))
+    f = _faces(msh, L)
+    for key, comp in (("x0", 0), ("y0", 1), ("z0", 2)):
+        sim.add_velocity_bc(f[key], 0.0, comp)
+    sim.add_velocity_bc(f["z1"], -0.1, 2)
+    sim.add_contributor(_UnsettledAboveDt(0.03))
+    res = sim.step(0.1, max_cutbacks=3)          # 0.1, 0.05 fail; 0.025 passes
+    row = res.row
+    assert row["cutbacks"] == 2 and abs(row["dt"] - 0.025) < 1e-15 and abs(sim.t - 0.025) < 1e-15
+    assert row["newton_iterations_all"] == row["newton_iterations"] + 2 * 4
+    assert row["wall_increment_all"] >= row["wall_increment"]
+    with pytest.raises(IncrementError, match="t = 0.025"):
+        sim.step(0.2, max_cutbacks=1)            # 0.2, 0.1 both fail
+    assert len(sim.history) == 1 and abs(sim.t - 0.025) < 1e-15

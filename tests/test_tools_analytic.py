@@ -618,3 +618,19 @@ def test_tools_are_immutable():
     with pytest.raises(ValueError):
         cyl.axis[0] = 1.0  # read-only array
     assert "Cylinder(" in repr(cyl) and "radius=0.8" in repr(cyl)
+
+
+def test_rigid_motion_callable_rates_integrated_and_cached():
+    """∫v for a rate with a jump (exact 1.1 at t = 0.8), ∫ω (0.15 t²); cached values are
+    copies (mutating a result does not change the next one) and distinct times differ."""
+    from fxcontact.tools.base import RigidMotion
+
+    m = RigidMotion(velocity=lambda t: (1.0 if t < 0.5 else 2.0, -t, 0.0),
+                    angular_velocity=lambda t: 0.3 * t)
+    for _ in range(2):
+        c = m.translation(0.8)
+        assert np.allclose(c, [1.1, -0.32, 0.0], rtol=1e-9, atol=1e-12)
+        c[0] = 99.0
+    for t in np.linspace(0.0, 3.0, 40):  # more times than the cache holds
+        assert abs(m.angle(t) - 0.15 * t**2) <= 1e-12 * max(1.0, t**2)
+    assert abs(m.translation(0.3)[0] - 0.3) < 1e-12
