@@ -104,8 +104,8 @@ def print_table(rows):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--h-fine", type=float, default=0.03,
-                    help="element size at the contact [mm] (default 0.03: ~200k dofs)")
+    ap.add_argument("--h-fine", type=float, default=0.015,
+                    help="element size at the contact [mm] (default 0.015: ~200k dofs)")
     ap.add_argument("--growth", type=float, default=0.15, help="mesh size gradient")
     ap.add_argument("--steps", type=int, default=3, help="increments (the first is not timed)")
     ap.add_argument("--schemes", default="implicit,explicit,implicit-exact",
