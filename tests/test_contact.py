@@ -325,3 +325,39 @@ def test_contact_parallel_matches_serial():
     assert np.max(np.abs(v1 - v2)) <= 1e-8 * np.max(np.abs(v2))
     for k in ("die_force_z", "contact_area", "contact_nodes", "contact_penetration_true"):
         assert abs(h1[k] - h2[k]) <= 1e-8 * max(abs(h2[k]), 1e-30), k
+
+
+def test_nagata_fallbacks_reported_per_increment():
+    """A faceted Nagata tool whose Newton projection is not allowed to iterate falls back to
+    the flat facet: the contact diagnostics report the count at the last evaluation and the sum
+    over every evaluation of the increment (reset at the next increment), never silently."""
+    import sys
+    from pathlib import Path
+
+    from fxcontact.tools.faceted import FacetedTool
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "meshes"))
+    import tool_meshes
+
+    V, T = tool_meshes.icosphere(2, radius=2.0, center=(0.0, 0.0, 2.5))
+    n = 40
+    rng = np.random.default_rng(4)
+    x = np.c_[rng.uniform(-1.0, 1.0, (n, 2)), rng.uniform(0.0, 0.4, n)]
+    b = _FakeBoundary(n)
+    diags = {}
+    for max_iter in (0, 30):
+        tool = FacetedTool(V, T, mode="nagata", max_iter=max_iter, name="ball")
+        c = NodalContact(b, tool, scheme="implicit", penalty=5.0, max_initial_penetration=10.0)
+        sim = _FakeSim(CartesianUpdate(), np.zeros(3 * n))
+        c.begin_increment(sim, 0.0, 0.1, x)
+        for _ in range(3):
+            c.evaluate(np.zeros(3 * n), False)
+        d = c.diagnostics()
+        diags[max_iter] = d
+        assert d["contact_fallbacks_all"] == 3 * d["contact_fallbacks"]
+        assert d["contact_fallbacks"] == tool.last_fallbacks
+        c.begin_increment(sim, 0.1, 0.1, x)
+        c.evaluate(np.zeros(3 * n), False)
+        assert c.diagnostics()["contact_fallbacks_all"] == c.diagnostics()["contact_fallbacks"]
+    assert diags[0]["contact_fallbacks"] > 0.5 * n
+    assert diags[30]["contact_fallbacks"] == 0

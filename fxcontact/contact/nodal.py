@@ -170,6 +170,7 @@ class NodalContact:
         self._settled = False
         self._ever_active = np.zeros(n, dtype=bool)
         self._fallbacks = 0
+        self._fallbacks_all = 0
         self._fields = None
 
     # ------------------------------------------------------------------ set-up per increment
@@ -238,6 +239,7 @@ class NodalContact:
         self.x_t = np.ascontiguousarray(x_t_all[b.vertices])
         self.rho = self._resolve_penalty(sim, dt)
         self._ever_active[:] = False
+        self._fallbacks_all = 0
         self._status_prev = None
         # burial check at the start of the increment (collective)
         pr0, tool0 = self._project_all(self.x_t, t, hessian=False)
@@ -320,6 +322,7 @@ class NodalContact:
                     f"is undefined (on the tool axis): the node is deep inside the tool")
         if flag is not None:
             self._fallbacks = int(np.sum(flag == 1))
+            self._fallbacks_all += self._fallbacks
         active = h > 0
         if self.sticky_gap > 0:
             self._ever_active |= active
@@ -369,7 +372,10 @@ class NodalContact:
                f"{self.name}_area": comm.allreduce(float(np.sum(b.areas[act])), op=MPI.SUM),
                f"{self.name}_pressure_max": comm.allreduce(
                    float(np.max(self.pressures(), initial=0.0)), op=MPI.MAX),
-               f"{self.name}_fallbacks": comm.allreduce(self._fallbacks, op=MPI.SUM)}
+               # projections that fell back to the flat facet (faceted Nagata tools): at the
+               # accepted iterate, and summed over every evaluation of the increment
+               f"{self.name}_fallbacks": comm.allreduce(self._fallbacks, op=MPI.SUM),
+               f"{self.name}_fallbacks_all": comm.allreduce(self._fallbacks_all, op=MPI.SUM)}
         for k, tool in enumerate(self.tools):
             sel = self._tool == k
             # force on the tool = −(force on the body) = Σ r_n
