@@ -28,3 +28,36 @@ def gather_by_position(comm, x, values, decimals=9):
     _, idx = np.unique(key, axis=0, return_index=True)
     order = np.lexsort(key[idx].T[::-1])
     return xs[idx][order], vs[idx][order]
+
+
+def _load_file(name, path):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, str(path))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def load_demo(name):
+    """Import ``demos/<name>.py`` as a module."""
+    from pathlib import Path
+
+    return _load_file(name, Path(__file__).resolve().parents[1] / "demos" / f"{name}.py")
+
+
+def load_tool_meshes():
+    """Import the tool-mesh script ``meshes/tool_meshes.py`` as a module."""
+    from pathlib import Path
+
+    return _load_file("tool_meshes", Path(__file__).resolve().parents[1] / "meshes" /
+                      "tool_meshes.py")
+
+
+def shared_tmpdir(prefix):
+    """A temporary directory made on rank 0 and known to every rank."""
+    import tempfile
+
+    comm = MPI.COMM_WORLD
+    d = tempfile.mkdtemp(prefix=prefix) if comm.rank == 0 else None
+    return comm.bcast(d, root=0)

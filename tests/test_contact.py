@@ -331,15 +331,10 @@ def test_nagata_fallbacks_reported_per_increment():
     """A faceted Nagata tool whose Newton projection is not allowed to iterate falls back to
     the flat facet: the contact diagnostics report the count at the last evaluation and the sum
     over every evaluation of the increment (reset at the next increment), never silently."""
-    import sys
-    from pathlib import Path
-
     from fxcontact.tools.faceted import FacetedTool
+    from helpers import load_tool_meshes
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "meshes"))
-    import tool_meshes
-
-    V, T = tool_meshes.icosphere(2, radius=2.0, center=(0.0, 0.0, 2.5))
+    V, T = load_tool_meshes().icosphere(2, radius=2.0, center=(0.0, 0.0, 2.5))
     n = 40
     rng = np.random.default_rng(4)
     x = np.c_[rng.uniform(-1.0, 1.0, (n, 2)), rng.uniform(0.0, 0.4, n)]

@@ -1,29 +1,16 @@
 """Demos run at small size (serial and on 2 ranks) and give physically sensible results."""
 
-import importlib.util
 import os
-import tempfile
 
 import numpy as np
 import pytest
 from mpi4py import MPI
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-DEMOS = os.path.join(os.path.dirname(HERE), "demos")
-
-
-def load_demo(name):
-    spec = importlib.util.spec_from_file_location(name, os.path.join(DEMOS, f"{name}.py"))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
+from helpers import load_demo, shared_tmpdir
 
 @pytest.fixture
 def outdir():
-    comm = MPI.COMM_WORLD
-    d = tempfile.mkdtemp(prefix="fxc-demo-") if comm.rank == 0 else None
-    return comm.bcast(d, root=0)
+    return shared_tmpdir("fxc-demo-")
 
 
 def test_upsetting_small(outdir):

@@ -1,10 +1,8 @@
 """Faceted tools: input checks, flat (Forge) and Nagata projections, search, motion, I/O."""
 
-import importlib.util
 import logging
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,16 +20,10 @@ from fxcontact.tools.faceted import (
 )
 from fxcontact.tools.nagata import domain_samples, patch_points
 
-
-def _load_tool_meshes():
-    path = Path(__file__).resolve().parents[1] / "meshes" / "tool_meshes.py"
-    spec = importlib.util.spec_from_file_location("tool_meshes", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from helpers import load_tool_meshes
 
 
-tm = _load_tool_meshes()
+tm = load_tool_meshes()
 
 
 def sphere_sdf(X, R=1.0):

@@ -3,31 +3,18 @@ accuracy (line contact: p_max within 3 % of Hertz for the FEM load, half-width w
 element; sphere: force–indentation within 3 %, p_max within 5 %, contact radius within one
 element)."""
 
-import importlib.util
 import math
 import os
-import tempfile
 
 import numpy as np
 import pytest
 from mpi4py import MPI
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-DEMOS = os.path.join(os.path.dirname(HERE), "demos")
-
-
-def load_demo(name):
-    spec = importlib.util.spec_from_file_location(name, os.path.join(DEMOS, f"{name}.py"))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
+from helpers import load_demo, shared_tmpdir
 
 @pytest.fixture
 def outdir():
-    comm = MPI.COMM_WORLD
-    d = tempfile.mkdtemp(prefix="fxc-hertz-") if comm.rank == 0 else None
-    return comm.bcast(d, root=0)
+    return shared_tmpdir("fxc-hertz-")
 
 
 def _hertz_profile_error(x, p, a, p0, upto=0.8):

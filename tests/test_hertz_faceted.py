@@ -3,7 +3,6 @@ within 5 % of the analytic-tool result on the same block mesh, flat facets are r
 comparison; faceted (Nagata) sphere contact on 2 ranks equals the serial run; deterministic
 Nagata patch choice on shared patch edges."""
 
-import importlib.util
 import math
 import os
 
@@ -18,18 +17,7 @@ from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.faceted import FacetedTool
 
-from helpers import gather_by_position
-
-HERE = os.path.dirname(os.path.abspath(__file__))
-DEMOS = os.path.join(os.path.dirname(HERE), "demos")
-
-
-def load_demo(name):
-    spec = importlib.util.spec_from_file_location(name, os.path.join(DEMOS, f"{name}.py"))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
+from helpers import gather_by_position, load_demo
 
 demo = load_demo("demo_hertz_sphere")
 

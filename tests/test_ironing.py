@@ -2,25 +2,14 @@
 2 ranks: outputs, the acceptance criteria of the issue (Nagata vs flat facets vs the analytic
 tool), and 1-rank vs 2-rank agreement of the faceted (Nagata) contact."""
 
-import importlib.util
 import math
 import os
-import tempfile
 
 import numpy as np
 import pytest
 from mpi4py import MPI
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-DEMOS = os.path.join(os.path.dirname(HERE), "demos")
-
-
-def load_demo(name):
-    spec = importlib.util.spec_from_file_location(name, os.path.join(DEMOS, f"{name}.py"))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
+from helpers import load_demo, shared_tmpdir
 
 demo = load_demo("demo_ironing")
 
@@ -30,9 +19,7 @@ NAGATA, FLAT, ANALYTIC = "nagata-coarse-implicit", "flat-coarse-implicit", "anal
 @pytest.fixture(scope="module")
 def quick():
     """The test configuration of the demo (demo.QUICK: 3 variants, 15 increments each)."""
-    comm = MPI.COMM_WORLD
-    d = tempfile.mkdtemp(prefix="fxc-ironing-") if comm.rank == 0 else None
-    d = comm.bcast(d, root=0)
+    d = shared_tmpdir("fxc-ironing-")
     res = demo.run(**demo.QUICK, output_dir=d, progress=False)
     return d, res
 

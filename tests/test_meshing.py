@@ -1,14 +1,12 @@
 """gmsh builders: isolation of gmsh options between builders and from a caller's session."""
 
-import sys
-from pathlib import Path
-
 from mpi4py import MPI
 
 from fxcontact.meshing import block, cylinder_billet, gmsh_session
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "meshes"))
-import tool_meshes  # noqa: E402
+from helpers import load_tool_meshes
+
+tool_meshes = load_tool_meshes()
 
 
 def _ncells(msh):

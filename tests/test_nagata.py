@@ -1,8 +1,6 @@
 """Nagata patches: edge coefficients, patch geometry, projection, gap derivatives (THEORY §7)."""
 
-import importlib.util
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,16 +25,10 @@ from fxcontact.tools.nagata import (
 )
 from fxcontact.tools.normals import LOCAL_EDGES, edge_topology, facet_vertex_normals
 
-
-def _load_tool_meshes():
-    path = Path(__file__).resolve().parents[1] / "meshes" / "tool_meshes.py"
-    spec = importlib.util.spec_from_file_location("tool_meshes", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from helpers import load_tool_meshes
 
 
-tm = _load_tool_meshes()
+tm = load_tool_meshes()
 
 
 def _patches(V, T, normals="nvv", crease_angle=math.radians(50)):

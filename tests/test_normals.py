@@ -1,8 +1,6 @@
 """Nodal normals, Normal Vector Voting and crease-preserving normals (THEORY §8)."""
 
-import importlib.util
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,16 +19,10 @@ from fxcontact.tools.normals import (
     vertex_normals,
 )
 
-
-def _load_tool_meshes():
-    path = Path(__file__).resolve().parents[1] / "meshes" / "tool_meshes.py"
-    spec = importlib.util.spec_from_file_location("tool_meshes", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from helpers import load_tool_meshes
 
 
-tm = _load_tool_meshes()
+tm = load_tool_meshes()
 
 
 def _cube_vertex_kind(V, half=0.5):
