@@ -148,8 +148,8 @@ def run_case(comm, element: str, variant: str, target: int, h: float, increments
         del msh, space, ft
     lin, extra = VARIANTS[variant]
     extra = {**extra, **(options or {})}
-    # a fresh options prefix per case: the solver writes its options into PETSc's global
-    # database and never removes them, so a shared prefix would leak options between cases
+    # one options prefix per case, so that the PETSc objects of a case are easy to tell apart
+    # in -log_view output
     opts = SolverOptions(linear_solver=lin, petsc_options=dict(extra), prefix=f"b{case_id}_",
                          **({"max_it": newton_cap} if newton_cap else {}))
     height, speed = 15.0, 5.0
