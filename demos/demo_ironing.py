@@ -98,7 +98,6 @@ import math
 import os
 import sys
 import time
-from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
@@ -114,7 +113,7 @@ from fxcontact.simulation import IncrementError, Simulation
 from fxcontact.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Cylinder
-from fxcontact.tools.base import RigidMotion, Tool
+from fxcontact.tools.base import MovedTool, StagedMotion, Tool
 from fxcontact.tools.faceted import FacetedTool
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -201,53 +200,18 @@ def slab_mesh(comm, length: float, thickness: float, height: float, h_fine: floa
 # %% [markdown]
 # ## Tools and their motion
 #
-# The motion (down, then along x) is piecewise constant. ``RigidMotion`` integrates a velocity
-# given as a function of time with ``scipy.integrate.quad`` at every projection (≈ 13 ms per
-# call here, 35× the projection of the analytic tool, which would swamp the contact timings),
-# so the demo integrates it exactly (:class:`StagedMotion`) and moves every tool, analytic or
-# faceted, with the same wrapper (:class:`MovedTool`).
+# The motion (down, then along x) is piecewise constant: a
+# :class:`~fxcontact.tools.base.StagedMotion` integrates it exactly (a velocity given as a
+# function of time would be integrated by quadrature at every projection), and
+# :class:`~fxcontact.tools.base.MovedTool` applies it to every tool, analytic or faceted, built
+# at its t = 0 position.
 
 # %%
-class StagedVelocity:
-    """Tool velocity: down at δ/(n_indent dt) for ``n_indent`` increments, then along x at
-    ``step``/dt; :meth:`displacement` is its exact integral."""
-
-    def __init__(self, indentation: float, n_indent: int, step: float, dt: float = 1.0):
-        self.t_ind = n_indent * dt
-        self.v_down = np.array([0.0, 0.0, -indentation / self.t_ind])
-        self.v_side = np.array([step / dt, 0.0, 0.0])
-
-    def __call__(self, t: float) -> np.ndarray:
-        # the explicit scheme takes the tool velocity at the start of the increment: the
-        # increment starting at t_ind already translates
-        return (self.v_down if t < self.t_ind * (1.0 - 1e-12) else self.v_side).copy()
-
-    def displacement(self, t: float) -> np.ndarray:
-        return self.v_down * min(t, self.t_ind) + self.v_side * max(t - self.t_ind, 0.0)
-
-
-@dataclass(frozen=True)
-class StagedMotion(RigidMotion):
-    """:class:`~fxcontact.tools.base.RigidMotion` of a :class:`StagedVelocity`, integrated
-    exactly."""
-
-    def translation(self, t: float) -> np.ndarray:
-        return self.velocity.displacement(t)
-
-
-class MovedTool(Tool):
-    """A static tool (at its t = 0 position) moved by a :class:`StagedMotion`."""
-
-    def __init__(self, tool: Tool, velocity: StagedVelocity):
-        if not tool.motion.is_static:
-            raise ValueError("MovedTool needs a static tool")
-        self.tool = tool
-        self.name = tool.name
-        self.has_hessian = tool.has_hessian
-        self.motion = StagedMotion(velocity=velocity)
-
-    def _project_reference(self, y: np.ndarray, hessian: bool):
-        return self.tool._project_reference(y, hessian)
+def staged_motion(indentation: float, n_indent: int, step: float, dt: float = 1.0):
+    """Down by δ over ``n_indent`` increments, then along x by ``step`` per increment."""
+    t_ind = n_indent * dt
+    return StagedMotion(stages=((t_ind, (0.0, 0.0, -indentation / t_ind), 0.0),
+                                (1e9, (step / dt, 0.0, 0.0), 0.0)))
 
 
 def faceted_surface(radius: float, facet_size: float, tool_length: float, center,
@@ -320,7 +284,7 @@ def run_variant(tool_kind: str, facets, scheme: str, *, radius, E, nu, height, i
                                center, tool_mesh, phase)
         tool = FacetedTool(V, T, mode=tool_kind, name="tool")
     deviation = tool_deviation(tool, center, radius, 0.5 * thickness)
-    tool = MovedTool(tool, StagedVelocity(indentation, n_indent, step))
+    tool = MovedTool(tool, staged_motion(indentation, n_indent, step))
     # gap stiffness k = β E*/h (ρ = k dt): the same penalty for every variant
     k = beta * mat.plane_strain_modulus / h_fine
     contact = sim.add_contributor(NodalContact(ContactBoundary(space, ft, BLOCK_TAGS["zmax"]),

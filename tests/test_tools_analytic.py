@@ -634,3 +634,79 @@ def test_rigid_motion_callable_rates_integrated_and_cached():
     for t in np.linspace(0.0, 3.0, 40):  # more times than the cache holds
         assert abs(m.angle(t) - 0.15 * t**2) <= 1e-12 * max(1.0, t**2)
     assert abs(m.translation(0.3)[0] - 0.3) < 1e-12
+
+
+def test_staged_motion_exact_and_equal_to_quadrature():
+    """Piecewise-constant rates: the exact integrals equal the quadrature of the same rates
+    given as functions (RigidMotion), inside stages, at the boundaries and after the end (at
+    rest); the rates are right-continuous at the stage boundaries."""
+    from fxcontact.tools.base import RigidMotion, StagedMotion
+
+    stages = ((2.0, (0.0, 0.0, -0.05), 0.0), (3.0, (0.4, 0.1, 0.0), 0.25),
+              (1.5, (0.0, 0.0, 0.0), -0.1))
+    m = StagedMotion(stages=stages, axis_point=(1.0, 0.0, 5.0), axis=(0.0, 1.0, 0.0))
+    ends = np.cumsum([s[0] for s in stages])
+
+    def v(t):
+        k = int(np.searchsorted(ends, t, side="right"))
+        return np.array(stages[k][1]) if k < len(stages) else np.zeros(3)
+
+    def w(t):
+        k = int(np.searchsorted(ends, t, side="right"))
+        return stages[k][2] if k < len(stages) else 0.0
+
+    ref = RigidMotion(velocity=v, angular_velocity=w, axis_point=(1.0, 0.0, 5.0),
+                      axis=(0.0, 1.0, 0.0))
+    for t in (0.0, 0.7, 2.0, 3.3, 5.0, 5.9, 6.5, 9.0):  # quad across jumps: ~1e-10 relative
+        assert np.allclose(m.translation(t), ref.translation(t), rtol=0, atol=1e-8), t
+        assert abs(m.angle(t) - ref.angle(t)) <= 1e-8, t
+        assert np.allclose(m.rotation(t), ref.rotation(t), atol=1e-8)
+    assert np.allclose(m.translation(5.0), [1.2, 0.3, -0.1], atol=1e-15)
+    assert m.angle(9.0) == pytest.approx(0.75 - 0.15, abs=1e-15)
+    # right-continuous rates: an increment starting at a boundary sees the next stage
+    assert np.array_equal(m.velocity(2.0), [0.4, 0.1, 0.0])
+    assert np.array_equal(m.velocity(2.0 * (1 - 1e-14)), [0.4, 0.1, 0.0])
+    assert np.array_equal(m.velocity(1.9), [0.0, 0.0, -0.05])
+    assert m.angular_velocity(5.0) == -0.1 and m.angular_velocity(6.5) == 0.0
+    p = np.array([[1.0, 0.0, 5.0]])
+    assert np.allclose(m.point_velocity(p, 3.0), ref.point_velocity(p, 3.0), atol=1e-8)
+    # exact inside a stage: c(3.3) = (0, 0, -0.1) + 1.3 (0.4, 0.1, 0), θ(3.3) = 1.3 · 0.25
+    assert np.allclose(m.translation(3.3), [0.52, 0.13, -0.1], rtol=0, atol=1e-15)
+    assert m.angle(3.3) == pytest.approx(0.325, abs=1e-15)
+    assert m.rotates and not m.is_static and m.duration == 6.5
+    still = StagedMotion(stages=((1.0, (0.0, 0.0, 0.0), 0.0),))
+    assert still.is_static and not still.rotates
+
+
+@pytest.mark.parametrize("stages", [(), ((0.0, (0, 0, 1), 0.0),), ((-1.0, (0, 0, 1), 0.0),),
+                                    ((1.0, (0, 1), 0.0),), ((1.0, (0, np.nan, 1), 0.0),),
+                                    ((1.0, (0, 0, 1), np.inf),), ((1.0, (0, 0, 1)),)])
+def test_staged_motion_bad_stages(stages):
+    from fxcontact.tools.base import StagedMotion
+
+    with pytest.raises(ValueError, match="stage"):
+        StagedMotion(stages=stages)
+
+
+@pytest.mark.parametrize("kind,inside", CASES, ids=CASE_IDS)
+def test_moved_tool_equals_tool_with_its_own_motion(kind, inside):
+    """A static tool moved by a one-stage StagedMotion projects like the same tool built with
+    that constant velocity and rotation speed (gap, normal, point, Hessian)."""
+    from fxcontact.tools.base import MovedTool, RigidMotion, StagedMotion
+
+    v, om = (0.3, -0.2, 0.1), 0.4
+    static = make_tool(kind, inside)
+    ax_pt, ax = (0.1, 0.2, -0.3), (0.0, 0.6, 0.8)
+    moved = MovedTool(static, StagedMotion(stages=((10.0, v, om),), axis_point=ax_pt, axis=ax))
+    ref = MovedTool(static, RigidMotion(velocity=v, angular_velocity=om, axis_point=ax_pt,
+                                        axis=ax))
+    x = np.random.default_rng(3).uniform(-1.5, 1.5, (50, 3))
+    for t in (0.0, 0.4, 2.5):
+        a, b = moved.project(x, t), ref.project(x, t)
+        for k in ("gap", "normal", "point", "hessian"):
+            assert np.allclose(getattr(a, k), getattr(b, k), rtol=0, atol=1e-12), (k, t)
+    assert moved.name == static.name and moved.has_hessian == static.has_hessian
+    with pytest.raises(ValueError, match="static"):
+        MovedTool(ref, StagedMotion(stages=((1.0, v, 0.0),)))
+    with pytest.raises(ValueError, match="RigidMotion"):
+        MovedTool(static, (0.0, 0.0, 1.0))

@@ -20,7 +20,7 @@ from typing import Callable, Optional, Union
 import numpy as np
 from scipy.integrate import quad
 
-__all__ = ["Projection", "RigidMotion", "Tool", "as_points"]
+__all__ = ["MovedTool", "Projection", "RigidMotion", "StagedMotion", "Tool", "as_points"]
 
 VectorOrCallable = Union[np.ndarray, tuple, list, Callable[[float], np.ndarray]]
 ScalarOrCallable = Union[float, Callable[[float], float]]
@@ -212,6 +212,96 @@ class RigidMotion:
         return v
 
 
+@dataclass(frozen=True)
+class StagedMotion(RigidMotion):
+    """Rigid motion made of consecutive stages of constant velocity and rotation speed,
+    integrated exactly (no quadrature): approach, then work stroke, then rest, ...
+
+    Args:
+        stages: sequence of ``(duration, velocity, angular_velocity)``: ``duration > 0`` [s],
+            ``velocity`` a 3-vector, ``angular_velocity`` ω [rad/s] about ``axis``. The first
+            stage starts at ``t = 0``; after the last one the tool is at rest.
+        axis_point, axis: rotation axis at ``t = 0`` (it translates with the tool).
+
+    The rates are right-continuous: at a stage boundary (to a relative 1e-12) the rates of the
+    next stage apply, so an increment starting at a boundary sees the new stage's velocity
+    (what the explicit schemes take). Example: press down by 0.1 in 2 s, then turn 90° in 10 s::
+
+        StagedMotion(stages=((2.0, (0, 0, -0.05), 0.0), (10.0, (0, 0, 0), np.pi / 20)),
+                     axis_point=(0, 0, 5), axis=(0, 1, 0))
+    """
+
+    stages: tuple = ()
+    _t: np.ndarray = field(init=False, repr=False, compare=False)
+    _sv: np.ndarray = field(init=False, repr=False, compare=False)
+    _sw: np.ndarray = field(init=False, repr=False, compare=False)
+    _c: np.ndarray = field(init=False, repr=False, compare=False)
+    _th: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        if len(self.stages) == 0:
+            raise ValueError("StagedMotion needs at least one (duration, velocity, "
+                             "angular_velocity) stage")
+        d, vs, ws = [], [], []
+        for k, st in enumerate(self.stages):
+            try:
+                dur, v, w = st
+                dur, w = float(dur), float(w)
+                v = np.asarray(v, dtype=np.float64).reshape(-1)
+            except (TypeError, ValueError):
+                raise ValueError(f"stage {k} must be (duration, 3-vector velocity, angular "
+                                 f"velocity), got {st!r}") from None
+            if not (np.isfinite(dur) and dur > 0):
+                raise ValueError(f"stage {k}: duration must be finite and > 0, got {dur!r}")
+            if v.shape != (3,) or not np.all(np.isfinite(v)) or not np.isfinite(w):
+                raise ValueError(f"stage {k}: velocity must be a finite 3-vector and the "
+                                 f"angular velocity finite, got {st!r}")
+            d.append(dur)
+            vs.append(v)
+            ws.append(w)
+        # start times of the stages, plus a stage at rest after the last one
+        d = np.array(d)
+        t = np.concatenate([[0.0], np.cumsum(d)])
+        sv = np.vstack(vs + [np.zeros(3)])
+        sw = np.array(ws + [0.0])
+        c = np.vstack([np.zeros(3), np.cumsum(sv[:-1] * d[:, None], axis=0)])
+        th = np.concatenate([[0.0], np.cumsum(sw[:-1] * d)])
+        for name, val in (("_t", t), ("_sv", sv), ("_sw", sw), ("_c", c), ("_th", th)):
+            object.__setattr__(self, name, val)
+        object.__setattr__(self, "velocity", lambda s: self._sv[self._stage(s, True)].copy())
+        object.__setattr__(self, "angular_velocity",
+                           lambda s: float(self._sw[self._stage(s, True)]))
+        super().__post_init__()
+
+    def _stage(self, t: float, rates: bool = False) -> int:
+        """Index of the stage holding ``t``; for the rates (``rates=True``) a time within a
+        relative 1e-12 of a stage start belongs to that stage (right-continuous rates)."""
+        tol = 1e-12 * max(1.0, self._t[-1]) if rates else 0.0
+        k = np.searchsorted(self._t, float(t) + tol, side="right") - 1
+        return int(min(max(k, 0), len(self._t) - 1))
+
+    @property
+    def duration(self) -> float:
+        """End time of the last stage."""
+        return float(self._t[-1])
+
+    @property
+    def is_static(self) -> bool:
+        return not (np.any(self._sv) or np.any(self._sw))
+
+    @property
+    def rotates(self) -> bool:
+        return bool(np.any(self._sw))
+
+    def translation(self, t: float) -> np.ndarray:
+        k = self._stage(t)
+        return self._c[k] + self._sv[k] * (float(t) - self._t[k])
+
+    def angle(self, t: float) -> float:
+        k = self._stage(t)
+        return float(self._th[k] + self._sw[k] * (float(t) - self._t[k]))
+
+
 class Tool(abc.ABC):
     """A rigid tool. Subclasses implement :meth:`_project_reference` in the reference frame.
 
@@ -262,3 +352,32 @@ class Tool(abc.ABC):
     def velocity(self, p, t: float = 0.0) -> np.ndarray:
         """Material velocity of the tool at current points ``p`` (N, 3)."""
         return self.motion.point_velocity(p, t)
+
+
+class MovedTool(Tool):
+    """A tool given at its position at ``t = 0`` (static), moved by any :class:`RigidMotion`
+    (e.g. a :class:`StagedMotion`): analytic or faceted alike.
+
+    Args:
+        tool: a static tool (its own motion must be at rest).
+        motion: the rigid motion applied to it.
+        name: label (default: the tool's).
+    """
+
+    def __init__(self, tool: Tool, motion: RigidMotion, name: Optional[str] = None):
+        if not isinstance(tool, Tool):
+            raise ValueError(f"tool must be a Tool, got {type(tool).__name__}")
+        if not isinstance(motion, RigidMotion):
+            raise ValueError(f"motion must be a RigidMotion, got {type(motion).__name__}")
+        if not tool.motion.is_static:
+            raise ValueError(f"MovedTool needs a static tool; '{tool.name}' already moves")
+        self.tool = tool
+        self.motion = motion
+        self.name = tool.name if name is None else str(name)
+        self.has_hessian = tool.has_hessian
+
+    def _project_reference(self, y: np.ndarray, hessian: bool) -> Projection:
+        return self.tool._project_reference(y, hessian)
+
+    def __repr__(self) -> str:
+        return f"MovedTool({self.tool!r}, {self.motion!r})"
