@@ -231,21 +231,24 @@ def faceted_surface(radius: float, facet_size: float, tool_length: float, center
 
 
 def tool_deviation(tool: Tool, center, radius: float, y: float, half_angle: float = 0.2,
-                   n: int = 4001) -> dict:
+                   n: int = 4001, free_point=None) -> dict:
     """Deviation of a tool surface from the true circle in the plane ``y``, over the arc
-    ``|θ| ≤ half_angle`` around the bottom (|x| ≤ 1 mm: the contact side, whose half-width is
-    ≈ 0.35 mm), from the signed gap of points of the circle: ``bottom_gap`` (gap of the
-    circle's lowest point: > 0 if the tool's surface is above it), ``dev_out`` (largest bulge
-    outside the circle) and ``dev_in`` (largest recess inside). Raises if a point below the
-    tool is found inside it (facet normals pointing into the tool)."""
+    ``|θ| ≤ half_angle`` around the circle's bottom (|x| ≤ 1 mm here: the contact side, whose
+    half-width is ≈ 0.35 mm), from the signed gap of points of the circle: ``bottom_gap`` (gap
+    of the circle's lowest point: > 0 if the tool's surface is recessed from it, into the tool),
+    ``dev_out`` (largest protrusion of the tool surface into free space beyond the circle) and
+    ``dev_in`` (largest recess). Raises if ``free_point`` (default: 1 mm below the circle, for a
+    roll; give the axis for a groove) is found inside the tool (normals pointing into it)."""
     th = np.linspace(-half_angle, half_angle, n)
     c = np.asarray(center, dtype=float)
     P = np.stack([c[0] + radius * np.sin(th), np.full(n, y), c[2] - radius * np.cos(th)], 1)
     gap = tool.project(P, 0.0, hessian=False).gap
-    # a point well outside (below) must have a positive gap: checks the facet orientation
-    below = tool.project(np.array([[c[0], y, c[2] - radius - 1.0]]), 0.0, hessian=False).gap
-    if not below[0] > 0.5:
-        raise ValueError(f"tool normals point into the tool (gap below the tool {below[0]:.3g})")
+    if free_point is None:
+        free_point = (c[0], y, c[2] - radius - 1.0)
+    free = tool.project(np.array([free_point], dtype=float), 0.0, hessian=False).gap
+    if not free[0] > 0.5:
+        raise ValueError(f"tool normals point into the tool (gap at a point of free space "
+                         f"{free[0]:.3g})")
     return {"bottom_gap": float(gap[n // 2]), "dev_out": float(max(-gap.min(), 0.0)),
             "dev_in": float(max(gap.max(), 0.0))}
 
@@ -312,13 +315,13 @@ def run_variant(tool_kind: str, facets, scheme: str, *, radius, E, nu, height, i
 
 # %%
 def oscillation(t: np.ndarray, f: np.ndarray) -> tuple:
-    """(max − min)/(2 mean) and std/mean of ``f`` after removing its least-squares line."""
+    """(max − min)/(2 |mean|) and std/|mean| of ``f`` after removing its least-squares line."""
     if len(f) < 3:
         return float("nan"), float("nan")
     A = np.c_[np.ones_like(t), t - t.mean()]
     coef, *_ = np.linalg.lstsq(A, f, rcond=None)
     r = f - A @ coef
-    m = float(np.mean(f))
+    m = abs(float(np.mean(f)))
     return float((r.max() - r.min()) / (2.0 * m)), float(np.std(r) / m)
 
 
@@ -461,7 +464,8 @@ def write_summary(summary: list, path: str) -> str:
 # ## Pictures: F_z, Newton iterations and contact nodes versus time
 
 # %%
-def plot_all(results: list, output_dir: str, n_indent: int) -> dict:
+def plot_all(results: list, output_dir: str, n_indent: int,
+             xlabel: str = "time [s] (indentation, then translation)") -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -489,7 +493,7 @@ def plot_all(results: list, output_dir: str, n_indent: int) -> dict:
                         ms=2.5, label=r["name"], zorder=1 if wide else 2)
             ax.axvline(n_indent, color="0.6", lw=0.8)
             ax.set_title(f"{scheme} scheme")
-            ax.set_xlabel("time [s] (indentation, then translation)")
+            ax.set_xlabel(xlabel)
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)
         axes[0][0].set_ylabel(ylabel)

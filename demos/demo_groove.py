@@ -1,0 +1,293 @@
+# ---
+# jupytext:
+#   text_representation:
+#     extension: .py
+#     format_name: percent
+# ---
+
+# %% [markdown]
+# # Round bar in a turning groove: a concave faceted tool, flat versus Nagata
+#
+# The counterpart of the ironing demo (``demo_ironing.py``) for a **concave** tool, the shape
+# of roll grooves in long-product rolling and of drawing dies: a round bar (radius
+# ``bar_radius`` = 5 mm, elastic E = 2·10⁵ MPa, ν = 0.3, plane strain) lies in a circular
+# groove of radius ``groove_radius`` = 6 mm. The groove is lifted by ``clearance`` + δ in
+# ``n_indent`` increments (δ past the first touch of the true circle), then **turns about its
+# own axis** by ``rotation_step`` per increment. A turning circular groove is the same surface
+# at every instant: with the analytic bore the solution does not change during the rotation;
+# a faceted groove brings its valleys (the concave vertex rows, where the facet normal jumps,
+# THEORY §6) past the contact zone one after the other. The contact is conformal (contact
+# width ≈ 3.5 mm for δ = 0.05 mm), so 3–4 coarse facets and their valleys are in contact at
+# once.
+#
+# Tools: the analytic bore (:class:`~fxcontact.tools.analytic.Cylinder` with ``inside=True``),
+# and the groove meshed by :func:`extruded_cylinder_surface` (``meshes/tool_meshes.py``: a
+# regular polygon inscribed in the circle, extruded along the axis; ``flip=True`` turns its
+# normals towards the axis, out of the tool material), ``coarse_facets`` = 36 (1.05 mm
+# facets) or ``fine_facets`` = 180 around, used **flat** (plane of the closest facet) or
+# **Nagata**-smoothed (NVV normals). A valley is at the bottom at t = 0, so the three grooves
+# share their lowest point; between the valleys the inscribed flat facets stand proud of the
+# circle by up to R(1 − cos(π/n)) = 0.023 mm (coarse), half of δ, and press the bar harder:
+# that is the flat tool's geometric error, not a numerical one.
+#
+# **Model.** The lower part of the bar's section: |x| ≤ ``half_width``, from the circular
+# bottom up to ``height`` above it, clamped on its top face (held by the other roll), one
+# element thick in y with u_y = 0 on both faces (plane strain). Structured tetrahedra of size
+# ``h`` near the contact (bottom ``fine_depth``), growing upwards. Frictionless nodal penalty,
+# gap stiffness k = β E*/h, the same for every tool.
+#
+# Reported per variant (same definitions as the ironing demo, statistics over the rotation
+# increments after ``settle``): Newton iterations per increment (mean, max, std), vertical
+# tool force and its oscillation (max − min over twice the mean, after removing a linear
+# trend), contact nodes, true maximum penetration, Nagata fall-backs, wall time and the
+# contact share of the Newton time.
+#
+# Run: ``python demos/demo_groove.py`` (or under ``mpirun -n 2``); ``--quick`` runs the
+# reduced configuration of the tests. Outputs in ``results/groove``: per variant a VTK series
+# and a CSV history, ``summary.csv``, the coarse and fine groove surfaces (STL), the PNGs
+# ``force.png``, ``newton.png``, ``contact_nodes.png``.
+
+# %%
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+
+import numpy as np
+from mpi4py import MPI
+
+import dolfinx
+import dolfinx.mesh
+
+from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.nodal import NodalContact
+from fxcontact.materials import LinearElastic
+from fxcontact.meshing import BLOCK_TAGS
+from fxcontact.simulation import IncrementError, Simulation
+from fxcontact.solver import SolverOptions
+from fxcontact.spaces import MixedSpace
+from fxcontact.tools.analytic import Cylinder
+from fxcontact.tools.base import MovedTool, StagedMotion
+from fxcontact.tools.faceted import FacetedTool
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(os.path.dirname(HERE), "meshes"))
+import demo_ironing as ironing  # noqa: E402  (graded meshes, statistics, tables, plots)
+import tool_meshes  # noqa: E402
+
+#: analytic bore, then flat and Nagata grooves, coarse and fine, under both schemes
+DEFAULT_VARIANTS = tuple(
+    [("analytic", None, s) for s in ("explicit", "implicit")]
+    + [(m, f, s) for f in ("coarse", "fine") for m in ("flat", "nagata")
+       for s in ("explicit", "implicit")])
+
+#: Reduced configuration of the tests: the coarse groove and the bore, implicit scheme.
+QUICK = dict(half_width=3.0, height=3.0, h_coarse=0.75, n_rotation=10,
+             variants=(("analytic", None, "implicit"), ("flat", "coarse", "implicit"),
+                       ("nagata", "coarse", "implicit")))
+
+
+# %% [markdown]
+# ## Bar section
+#
+# A structured box, tagged on its faces, then mapped onto the section: x is centred, and z is
+# stretched between the circular bottom f(x) = R_b − √(R_b² − x²) and the flat top.
+
+# %%
+def bar_section_mesh(comm, bar_radius: float, half_width: float, height: float,
+                     thickness: float, h: float, h_coarse: float, fine_depth: float,
+                     growth: float):
+    """(mesh, facet tags :data:`~fxcontact.meshing.BLOCK_TAGS`): ``zmin`` is the bar's surface."""
+    if not (0 < half_width < bar_radius and height > 0):
+        raise ValueError("need 0 < half_width < bar_radius and height > 0")
+    xs = np.linspace(-half_width, half_width, 2 * max(1, int(round(half_width / h))) + 1)
+    zs = ironing.graded_nodes(0.0, height, 0.0, min(fine_depth, height), h, h_coarse, growth)
+    nx, nz = len(xs) - 1, len(zs) - 1
+    msh = dolfinx.mesh.create_box(comm, [np.zeros(3), np.array([nx, 1.0, nz])], [nx, 1, nz],
+                                  dolfinx.mesh.CellType.tetrahedron)
+    fdim = msh.topology.dim - 1
+    ext = np.array([nx, 1.0, nz])
+    idx, val = [], []
+    for k, c in enumerate("xyz"):
+        for side, where in (("min", 0.0), ("max", ext[k])):
+            f = dolfinx.mesh.locate_entities_boundary(
+                msh, fdim, lambda x, k=k, w=where: np.abs(x[k] - w) < 1e-9)
+            idx.append(f)
+            val.append(np.full(len(f), BLOCK_TAGS[f"{c}{side}"], dtype=np.int32))
+    idx, val = np.concatenate(idx), np.concatenate(val)
+    order = np.argsort(idx, kind="stable")
+    ft = dolfinx.mesh.meshtags(msh, fdim, idx[order].astype(np.int32), val[order])
+    g = msh.geometry.x
+    x = np.interp(g[:, 0], np.arange(nx + 1), xs)
+    z = np.interp(g[:, 2], np.arange(nz + 1), zs)
+    bottom = bar_radius - np.sqrt(bar_radius**2 - x**2)
+    g[:, 0] = x
+    g[:, 1] = g[:, 1] * thickness
+    g[:, 2] = bottom + z * (height - bottom) / height
+    return msh, ft
+
+
+# %% [markdown]
+# ## One variant
+
+# %%
+def run_variant(tool_kind: str, facets, scheme: str, *, bar_radius, groove_radius, E, nu,
+                height, half_width, h, h_coarse, fine_depth, growth, clearance, indentation,
+                n_indent, rotation_step, n_rotation, facet_counts, beta, output_dir, progress,
+                comm) -> dict:
+    name = ironing.variant_name(tool_kind, facets, scheme)
+    msh, ft = bar_section_mesh(comm, bar_radius, half_width, height, h, h, h_coarse,
+                               fine_depth, growth)
+    space = MixedSpace(msh)
+    mat = LinearElastic(E, nu)
+    vdir = None if output_dir is None else os.path.join(output_dir, name)
+    sim = Simulation(space, mat, solver_options=SolverOptions(line_search="basic"),
+                     output_dir=vdir, name=name, progress=progress)
+    sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["ymin"]), 0.0, 1)
+    sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["ymax"]), 0.0, 1)
+    top = sim.facets(ft, BLOCK_TAGS["zmax"])
+    sim.add_velocity_bc(top, np.zeros(3))
+    sim.add_reaction("top", top)
+    # the groove's axis, with its lowest point `clearance` below the bar's
+    center = (0.0, 0.5 * h, groove_radius - clearance)
+    if tool_kind == "analytic":
+        tool = Cylinder(point=center, axis=(0.0, 1.0, 0.0), radius=groove_radius, inside=True,
+                        name="tool")
+    else:
+        V, T = groove_surface(groove_radius, facet_counts[facets], h + 4.0, center)
+        tool = FacetedTool(V, T, mode=tool_kind, flip=True, name="tool")
+    deviation = ironing.tool_deviation(tool, center, groove_radius, 0.5 * h,
+                                       half_angle=math.asin(min(1.0, half_width / groove_radius)),
+                                       free_point=center)
+    t_ind = float(n_indent)
+    motion = StagedMotion(stages=((t_ind, (0.0, 0.0, (clearance + indentation) / t_ind), 0.0),
+                                  (1e9, (0.0, 0.0, 0.0), rotation_step)),
+                          axis_point=center, axis=(0.0, 1.0, 0.0))
+    tool = MovedTool(tool, motion)
+    k = beta * mat.plane_strain_modulus / h
+    contact = sim.add_contributor(NodalContact(ContactBoundary(space, ft, BLOCK_TAGS["zmin"]),
+                                               tool, scheme=scheme, gap_stiffness=k,
+                                               element_size=h, name="contact"))
+    t0 = time.perf_counter()
+    status = "ok"
+    try:
+        sim.run(t_ind, 1.0, close=False)
+        sim.run(t_ind + n_rotation, 1.0)
+    except IncrementError as e:  # collective; outputs are closed
+        status = f"failed at t = {e.t:.4g}"
+    wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+    return {"name": name, "tool": tool_kind, "facets": facets, "scheme": scheme,
+            "status": status, "history": sim.history, "wall_time": wall,
+            "deviation": deviation,
+            "cells": comm.allreduce(msh.topology.index_map(3).size_local, op=MPI.SUM),
+            "dofs": space.global_dofs(),
+            "contact_nodes_total": comm.allreduce(len(contact.boundary), op=MPI.SUM)}
+
+
+def groove_surface(radius: float, n_facets: int, length: float, center):
+    """Groove polygon (axis y, a vertex row at the bottom), normals radially outward: build the
+    tool with ``flip=True``."""
+    return tool_meshes.extruded_cylinder_surface(radius, length, n_theta=n_facets,
+                                                 theta0=0.5 * np.pi, center=center,
+                                                 axis=(0.0, 1.0, 0.0))
+
+
+# %%
+def run(bar_radius=5.0, groove_radius=6.0, E=2e5, nu=0.3, height=4.0, half_width=4.0, h=0.25,
+        h_coarse=1.0, fine_depth=1.0, growth=1.3, clearance=0.05, indentation=0.05, n_indent=3,
+        rotation_step=math.radians(3.7), n_rotation=14, coarse_facets=36, fine_facets=180,
+        beta=1e3, settle=2, variants=DEFAULT_VARIANTS, output_dir="results/groove",
+        picture=True, progress=True, comm=MPI.COMM_WORLD) -> dict:
+    """Run the groove variants and compare them.
+
+    Args:
+        bar_radius, groove_radius: R_b < R_g [mm]; E [MPa], nu: the bar's material.
+        height: section height above the bar's lowest point [mm]; half_width: |x| ≤ half_width.
+        h: element size near the contact, also the slab thickness [mm]; h_coarse, growth,
+            fine_depth: grading upwards.
+        clearance: initial gap between the bar and the true groove [mm]; indentation: δ past the
+            first touch, reached after ``n_indent`` increments (dt = 1 s).
+        rotation_step: groove rotation per increment [rad] (default 0.37 coarse facet);
+            n_rotation: number of rotation increments.
+        coarse_facets, fine_facets: facets around the faceted grooves.
+        beta: dimensionless penalty, gap stiffness k = β E*/h.
+        settle: rotation increments excluded from the statistics.
+        variants: (tool, facets, scheme) as in the ironing demo.
+        output_dir: outputs (None: nothing written).
+    Returns:
+        dict with ``summary`` (rows of :func:`demo_ironing.summarize`), ``by_name``,
+        ``results``, ``parameters``, ``summary_csv``, ``png``.
+    """
+    if not (0 < bar_radius < groove_radius):
+        raise ValueError("need 0 < bar_radius < groove_radius (a groove wider than the bar)")
+    if not (clearance >= 0 and indentation > 0 and n_indent >= 1 and n_rotation >= settle + 3
+            and rotation_step != 0):
+        raise ValueError("need clearance >= 0, indentation > 0, n_indent >= 1, a non-zero "
+                         "rotation_step and n_rotation >= settle + 3")
+    for tk, f, s in variants:
+        if tk not in ("analytic", "flat", "nagata") or (tk == "analytic") != (f is None) \
+                or f not in (None, "coarse", "fine"):
+            raise ValueError(f"bad variant {(tk, f, s)!r}")
+    if output_dir is not None and comm.rank == 0:
+        os.makedirs(output_dir, exist_ok=True)
+    facet_counts = {"coarse": int(coarse_facets), "fine": int(fine_facets)}
+    common = dict(bar_radius=bar_radius, groove_radius=groove_radius, E=E, nu=nu,
+                  height=height, half_width=half_width, h=h, h_coarse=h_coarse,
+                  fine_depth=fine_depth, growth=growth, clearance=clearance,
+                  indentation=indentation, n_indent=n_indent, rotation_step=rotation_step,
+                  n_rotation=n_rotation, facet_counts=facet_counts, beta=beta,
+                  progress=progress, comm=comm)
+    results = [run_variant(tk, f, s, output_dir=output_dir, **common) for tk, f, s in variants]
+    summary = [ironing.summarize(r, n_indent + settle) for r in results]
+    out = {"summary": summary, "by_name": {row["variant"]: row for row in summary},
+           "results": {r["name"]: r for r in results},
+           "parameters": {**{k: v for k, v in common.items() if k != "comm"},
+                          "settle": settle, "variants": list(variants)},
+           "png": {}, "summary_csv": None}
+    if output_dir is not None and comm.rank == 0:
+        out["summary_csv"] = ironing.write_summary(summary, os.path.join(output_dir,
+                                                                         "summary.csv"))
+        for label, n in facet_counts.items():
+            if any(f == label for _, f, _ in variants):
+                V, T = groove_surface(groove_radius, n, h + 4.0,
+                                      (0.0, 0.5 * h, groove_radius - clearance))
+                tool_meshes.write_surface(os.path.join(output_dir, f"groove_{label}.stl"),
+                                          V, T)
+        if picture:
+            out["png"] = ironing.plot_all(results, output_dir, n_indent,
+                                          xlabel="time [s] (lift, then rotation)")
+    return out
+
+
+# %% [markdown]
+# ## Results (measured, serial, Debian 12 / dolfinx 0.5.2, 2-core machine)
+#
+# RESULTS
+
+# %% [markdown]
+# ## Script
+
+# %%
+def main(argv=None):
+    ap = argparse.ArgumentParser(description="Round bar in a turning faceted groove")
+    ap.add_argument("--quick", action="store_true",
+                    help="reduced configuration of the tests (coarse groove, implicit scheme)")
+    ap.add_argument("--output", default="results/groove")
+    args = ap.parse_args(argv)
+    kw = dict(QUICK) if args.quick else {}
+    res = run(**kw, output_dir=args.output)
+    if MPI.COMM_WORLD.rank == 0:
+        r0 = next(iter(res["results"].values()))
+        print(f"bar section: {r0['cells']} tetrahedra, {r0['dofs']} dofs, "
+              f"{r0['contact_nodes_total']} surface nodes; Newton statistics over the rotation")
+        print(ironing.format_table(res["summary"]))
+        print(f"outputs: {res['summary_csv']}, {', '.join(res['png'].values())}")
+    return res
+
+
+if __name__ == "__main__":
+    main()
