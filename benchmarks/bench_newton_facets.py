@@ -43,7 +43,8 @@ Reading hints:
 
 If ``demos/demo_groove.py`` exists and has ``run(**params)`` returning the same ``summary``
 rows, it is run as the extra case ``groove (concave)`` (its ``QUICK`` parameters if it has
-them, otherwise its defaults); otherwise a line says it is skipped.
+them, otherwise its defaults); otherwise a line says it is skipped. Its rows are that demo's
+summary as it reports them (force and oscillation with its own sign convention and phases).
 
 Rows are upserted by (ranks, case, variant) into ``benchmarks/results/newton_facets.csv`` with
 the case's overrides and the resolved parameters.

@@ -382,8 +382,9 @@ class Simulation:
         b2.destroy()
         return out
 
-    def step(self, dt: float, max_cutbacks: int = 5) -> IncrementResult:
-        """Advance by one increment of (at most) ``dt``, halving it on Newton failure."""
+    def step(self, dt: float, max_cutbacks: int = 5, min_dt: float = 0.0) -> IncrementResult:
+        """Advance by one increment of (at most) ``dt``, halving it on Newton failure (at most
+        ``max_cutbacks`` times, and never below ``min_dt``)."""
         if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
         if max_cutbacks < 0:
@@ -394,6 +395,9 @@ class Simulation:
         failed_its = 0
         t_first = time.perf_counter()
         for k in range(max_cutbacks + 1):
+            if k > 0 and trial < min_dt * (1.0 - 1e-12):
+                msg += f"; dt would fall below the smallest allowed {min_dt:.3g}"
+                break
             t0 = time.perf_counter()
             info = self._try_increment(trial)
             if info.converged:
@@ -449,6 +453,10 @@ class Simulation:
             callback: Optional[Callable] = None, close: bool = True) -> List[Dict[str, float]]:
         """Advance to ``t_end`` with increments ``dt`` (cut back on failure, then grown back).
 
+        An increment that fails is retried with dt halved, at most ``max_cutbacks`` times and
+        never below ``dt / 2**max_cutbacks``: a run whose sub-increments keep failing stops with
+        an :class:`IncrementError` instead of creeping on with ever smaller steps.
+
         Returns the history (one dict per increment). Outputs are flushed after each increment
         and closed on error, and at the end unless ``close=False`` (to continue with another
         ``run``).
@@ -468,7 +476,7 @@ class Simulation:
         try:
             while self.t < t_end - eps:
                 step = min(cur, t_end - self.t)
-                res = self.step(step, max_cutbacks)
+                res = self.step(step, max_cutbacks, min_dt=dt * 0.5 ** max_cutbacks)
                 if bar is not None:
                     bar.update(res.row["dt"])
                     bar.set_postfix(newton=res.info.iterations)

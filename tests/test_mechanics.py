@@ -268,3 +268,39 @@ def test_cutback_halves_dt_and_counts_failed_iterations():
     with pytest.raises(IncrementError, match="t = 0.025"):
         sim.step(0.2, max_cutbacks=1)            # 0.2, 0.1 both fail
     assert len(sim.history) == 1 and abs(sim.t - 0.025) < 1e-15
+
+
+class _ShrinkingLimit(_UnsettledAboveDt):
+    """Settles only for dt ≤ dt0 / 2^(n + 1) after n accepted increments: every increment
+    succeeds after cut-backs, with ever smaller steps whose sum never reaches t_end."""
+
+    def __init__(self, dt0):
+        super().__init__(dt0)
+        self.dt0 = dt0
+
+    def begin_increment(self, sim, t, dt, x):
+        self.dt = dt
+        self.limit = self.dt0 * 0.5 ** (len(sim.history) + 1)
+
+
+def test_run_stops_when_dt_would_creep_below_the_floor():
+    """Sub-increments that keep needing cut-backs end in an IncrementError once dt would fall
+    below dt / 2**max_cutbacks, instead of creeping on forever (the steps here sum to less than
+    0.1, so t_end = 1 would never be reached)."""
+    from fxcontact.simulation import IncrementError
+
+    comm = MPI.COMM_WORLD
+    L = (1.0, 1.0, 1.0)
+    msh = box_mesh(comm, L, (2, 2, 2))
+    sim = Simulation(MixedSpace(msh), NortonHoff(K=10.0, m=0.3), progress=False,
+                     solver_options=SolverOptions(max_it=3))
+    f = _faces(msh, L)
+    for key, comp in (("x0", 0), ("y0", 1), ("z0", 2)):
+        sim.add_velocity_bc(f[key], 0.0, comp)
+    sim.add_velocity_bc(f["z1"], -0.1, 2)
+    sim.add_contributor(_ShrinkingLimit(0.1))
+    with pytest.raises(IncrementError, match="smallest allowed 0.0125"):
+        sim.run(1.0, 0.1, max_cutbacks=3)
+    # accepted: 0.05, 0.025, 0.0125; the fourth increment would need 0.00625 < 0.1 / 2³
+    assert [round(r["dt"], 12) for r in sim.history] == [0.05, 0.025, 0.0125]
+    assert abs(sim.t - 0.0875) < 1e-12
