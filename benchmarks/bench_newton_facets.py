@@ -41,10 +41,9 @@ Reading hints:
 * A failed variant (an increment that did not converge after the cut-backs) keeps its status;
   its statistics are NaN if fewer than 3 steady increments were accepted.
 
-If ``demos/demo_groove.py`` exists and has ``run(**params)`` returning the same ``summary``
-rows, it is run as the extra case ``groove (concave)`` (its ``QUICK`` parameters if it has
-them, otherwise its defaults); otherwise a line says it is skipped. Its rows are that demo's
-summary as it reports them (force and oscillation with its own sign convention and phases).
+The ``groove`` cases run ``demos/demo_groove.py`` instead (a concave tool: a round bar in a
+turning groove of 36 to 180 facets, against the analytic bore; statistics over the rotation).
+The ``fine tools`` cases compare the fine (0.2 mm) flat and Nagata ironing tools.
 
 Rows are upserted by (ranks, case, variant) into ``benchmarks/results/newton_facets.csv`` with
 the case's overrides and the resolved parameters.
@@ -67,7 +66,6 @@ from mpi4py import MPI
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 RESULTS = os.path.join(HERE, "results")
-GROOVE = "groove (concave)"
 
 
 def tools(scheme: str = "implicit") -> tuple:
@@ -75,9 +73,15 @@ def tools(scheme: str = "implicit") -> tuple:
     return (("analytic", None, scheme), ("flat", "coarse", scheme), ("nagata", "coarse", scheme))
 
 
+def fine_tools(scheme: str = "implicit") -> tuple:
+    """The analytic tool and the fine (0.2 mm) flat and Nagata tools under ``scheme``."""
+    return (("analytic", None, scheme), ("flat", "fine", scheme), ("nagata", "fine", scheme))
+
+
 class Case(NamedTuple):
     name: str
-    params: dict  # overrides of demo_ironing.QUICK (``variants`` defaults to tools("implicit"))
+    params: dict  # overrides of the demo's QUICK (``variants`` defaults to tools("implicit"))
+    demo: str = "ironing"  # "ironing" (demos/demo_ironing.py) or "groove" (demo_groove.py)
 
 
 #: The sweep, in order (``--quick`` runs the first two). Add cases here.
@@ -91,12 +95,18 @@ CASES: List[Case] = [
     Case("unstructured tool", dict(tool_mesh="gmsh")),
     Case("thesis size", dict(h_fine=1.0, indentation=0.15, step=1.0, travel=5.0, margin=6.0,
                              margin_fine=1.0, fine_depth=2.0, h_coarse=2.0, start_offset=0.0)),
+    Case("fine tools", dict(variants=fine_tools("implicit"))),
+    Case("fine tools, start_offset 0", dict(start_offset=0.0, variants=fine_tools("implicit"))),
+    # concave tool: round bar in a turning groove (demos/demo_groove.py), 36 to 180 facets
+    Case("groove, 36 facets", {}, demo="groove"),
+    Case("groove, 72 facets", dict(coarse_facets=72), demo="groove"),
+    Case("groove, 180 facets", dict(coarse_facets=180), demo="groove"),
 ]
 
 #: Parameters of ``demo_ironing.run`` written to the CSV (resolved values).
 PARAMS = ["h_fine", "indentation", "n_indent", "step", "travel", "settle", "start_offset",
           "beta", "tool_mesh", "phase", "margin", "margin_fine", "fine_depth", "h_coarse",
-          "growth", "line_search"]
+          "growth", "line_search", "h", "coarse_facets", "rotation_step", "n_rotation"]
 STATS = ["status", "newton_mean", "newton_max", "newton_std", "newton_total", "cutbacks",
          "force_mean", "oscillation", "contact_nodes_mean", "penetration_max", "fallbacks",
          "wall_time"]
@@ -233,8 +243,13 @@ def verdict(case: str, rows: List[dict]) -> List[str]:
         nm, nx = float(nag["newton_mean"]), float(nag["newton_max"])
         fm, fx = float(flat["newton_mean"]), float(flat["newton_max"])
         if any(math.isnan(v) for v in (nm, nx, fm, fx)):
-            out.append(f"{case}: {name} vs {flat['variant']}: not comparable (status "
-                       f"{nag['status']!r} / {flat['status']!r})")
+            if nag["status"] == "ok" and flat["status"] != "ok" and not math.isnan(nm):
+                out.append(f"{case}: flat facets {flat['status']} (Newton did not converge "
+                           f"even after the cut-backs), Nagata converged with {nm:.2f} / "
+                           f"{nx:.0f} iterations")
+            else:
+                out.append(f"{case}: {name} vs {flat['variant']}: not comparable (status "
+                           f"{nag['status']!r} / {flat['status']!r})")
             continue
         tail = ""
         if ana is not None and not math.isnan(float(ana["newton_mean"])):
@@ -251,19 +266,18 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cases", nargs="+", default=None, metavar="NAME",
-                    help="cases to run, by name or slug (e.g. 'soft penalty' or soft-penalty; "
-                         f"'{GROOVE}' or {slug(GROOVE)}); default: all")
+                    help="cases to run, by name or slug (e.g. 'soft penalty' or soft-penalty); "
+                         "default: all")
     ap.add_argument("--quick", action="store_true", help="only the first two cases")
     ap.add_argument("--list", action="store_true", help="list the cases and exit")
     ap.add_argument("--csv", default=os.path.join(RESULTS, "newton_facets.csv"))
     a = ap.parse_args(argv)
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *x, **k: None)
-    names = [c.name for c in CASES] + [GROOVE]
+    names = [c.name for c in CASES]
     if a.list:
         for c in CASES:
-            say(f"{c.name!r:32s} {slug(c.name):28s} {describe(c.params)}")
-        say(f"{GROOVE!r:32s} {slug(GROOVE):28s} demos/demo_groove.py (if present)")
+            say(f"{c.name!r:32s} {slug(c.name):28s} demo_{c.demo}: {describe(c.params)}")
         return None
     if a.cases is not None:
         lookup = {n: n for n in names} | {slug(n): n for n in names}
@@ -274,36 +288,24 @@ def main(argv=None):
     else:
         selected = set(names[:2] if a.quick else names)
 
-    demo = load_module("demo_ironing")
+    demos = {d: load_module(f"demo_{d}") for d in sorted({c.demo for c in CASES})}
     t_all = time.perf_counter()
     rows: List[dict] = []
     for c in CASES:
         if c.name not in selected:
             continue
+        demo = demos[c.demo]
         kw = {**demo.QUICK, "variants": tools("implicit"), **c.params}
-        say(f"[{c.name}] {describe(c.params)} ...", flush=True)
+        say(f"[{c.name}] demo_{c.demo}: {describe(c.params)} ...", flush=True)
         new = case_rows(comm, c.name, demo.run, kw, describe(c.params))
         rows += new
         if comm.rank == 0:
             upsert_csv(a.csv, new)
-    if GROOVE in selected:
-        groove = load_module("demo_groove")
-        if groove is None or not callable(getattr(groove, "run", None)):
-            say(f"[{GROOVE}] skipped: demos/demo_groove.py "
-                f"{'has no run()' if groove is not None else 'does not exist'}")
-        else:
-            quick = getattr(groove, "QUICK", None)
-            kw = dict(quick) if isinstance(quick, dict) else {}
-            label = "QUICK" if kw else "defaults"
-            say(f"[{GROOVE}] demo_groove.run() with its {label} ...", flush=True)
-            new = case_rows(comm, GROOVE, groove.run, kw, label)
-            rows += new
-            if comm.rank == 0:
-                upsert_csv(a.csv, new)
     wall = comm.allreduce(time.perf_counter() - t_all, op=MPI.MAX)
 
     if comm.rank == 0 and rows:
-        print(f"\nNewton iterations per accepted increment over the steady translation, "
+        print(f"\nNewton iterations per accepted increment over the steady phase (translation "
+              f"or rotation), "
               f"rtol 1e-9 for every tool; {comm.size} rank(s)")
         print_table(rows)
         print()

@@ -490,7 +490,11 @@ def plot_all(results: list, output_dir: str, n_indent: int,
                 ax.plot(t, y, color=colors[r["tool"]], ls=":" if fine else "-",
                         lw=4.0 if wide else (1.0 if fine else 1.5), alpha=0.35 if wide else 1.0,
                         marker="o" if key != "tool_force_z" and not wide else None,
-                        ms=2.5, label=r["name"], zorder=1 if wide else 2)
+                        ms=2.5, label=r["name"] + ("" if r["status"] == "ok"
+                                                   else f" ({r['status']})"),
+                        zorder=1 if wide else 2)
+                if r["status"] != "ok" and len(t):  # mark where a failed variant stopped
+                    ax.plot(t[-1:], y[-1:], "X", color=colors[r["tool"]], ms=10, zorder=3)
             ax.axvline(n_indent, color="0.6", lw=0.8)
             ax.set_title(f"{scheme} scheme")
             ax.set_xlabel(xlabel)
@@ -546,13 +550,20 @@ def plot_all(results: list, output_dir: str, n_indent: int,
 #   20.8 % against 1.14 % with Nagata (18×; test size 22.5 % vs 1.48 %, 15×).
 # * Newton iterations: with the implicit (Gauss–Newton) scheme the curved tools (analytic,
 #   Nagata coarse or fine) need 5–6 iterations per increment, steadily, and the flat coarse tool
-#   only 1–3: its 2–4 nodes stay pinned at the wedge, whereas at the soft edge of a smooth
-#   contact nodes enter and leave the active set over several iterations (the exact-Hessian
-#   ``implicit-exact`` scheme does not change this: Nagata 5.4 / 6 at test size;
-#   ``quasi-implicit`` needs 2.8 / 3). The issue's expectation "fewer and steadier iterations with
-#   Nagata than with flat facets" is therefore **not met** here, nor in exploratory runs at
-#   h = 1 mm (the thesis's block size), δ up to 0.3 mm, or with the unstructured gmsh tool
-#   (flat 1.5–2.6 vs Nagata 6.6–11.4 iterations per increment on average).
+#   only 1–3: its 2–4 nodes stay pinned at the wedge and its gap is piecewise linear (the
+#   Gauss–Newton step is exact once no node changes facet), whereas a curved gap leaves a
+#   Gauss–Newton tail and at the soft edge of a smooth contact nodes enter and leave the active
+#   set over several iterations (the exact-Hessian ``implicit-exact`` scheme does not change
+#   this: Nagata 5.4 / 6 at test size; ``quasi-implicit`` needs 2.8 / 3). The issue's
+#   expectation "fewer and steadier iterations with Nagata than with flat facets" is therefore
+#   **not met** on this convex coarse tool, in any of the cases of
+#   ``benchmarks/bench_newton_facets.py`` (node under a vertex row at every increment,
+#   h = 1 mm, deeper indentation, soft penalty, unstructured tool; table in
+#   ``benchmarks/README.md``): a node penetrating next to a convex facet edge is pushed away
+#   from it, so the facets never switch. The Nagata counts equal the analytic tool's.
+#   Smoothing does decide convergence where flat facets switch: the fine flat tool below, and
+#   the concave grooves of ``demo_groove.py`` (72 and 180 facets: flat fails, Nagata converges
+#   in 4 and 2.3 iterations per increment).
 # * The facet-switching cycle of THEORY §6 does occur, with the *fine* flat tool in the
 #   degenerate position ``start_offset=0`` (a node exactly under the bottom vertex row at
 #   t = 0): in the first increment the two middle nodes slide sideways by ~7·10⁻⁴ mm across the

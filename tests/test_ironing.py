@@ -84,9 +84,10 @@ def test_force_oscillation_nagata_vs_flat(quick):
 
 @pytest.mark.xfail(strict=True, reason="not met: with the implicit (Gauss–Newton) scheme the "
                    "flat coarse tool needs fewer Newton iterations than Nagata (measured mean "
-                   "1.6 / max 3 vs 6.0 / 7 here, 1.6 / 3 vs 5.6 / 6 at the demo size; also at "
-                   "h = 1 mm, δ up to 0.3 mm, with the unstructured gmsh tool). See the results "
-                   "in demos/demo_ironing.py.")
+                   "1.6 / max 3 vs 6.0 / 7 here, 1.6 / 3 vs 5.6 / 6 at the demo size): its gap "
+                   "is piecewise linear and no node switches facet on this convex tool; the "
+                   "same in every case of benchmarks/bench_newton_facets.py. Nagata decides "
+                   "convergence where flat facets do switch (tests/test_groove.py).")
 def test_newton_iterations_nagata_vs_flat(quick):
     """Acceptance (issue): with Nagata smoothing the number of Newton iterations per increment
     is lower and steadier than with flat facets."""
