@@ -173,15 +173,15 @@ def run_variant(tool_kind: str, facets, scheme: str, *, bar_radius, groove_radiu
                                                tool, scheme=scheme, gap_stiffness=k,
                                                element_size=h, name="contact"))
     t0 = time.perf_counter()
-    status = "ok"
+    status, error = "ok", ""
     try:
         sim.run(t_ind, 1.0, max_cutbacks=max_cutbacks, close=False)
         sim.run(t_ind + n_rotation, 1.0, max_cutbacks=max_cutbacks)
     except IncrementError as e:  # collective; outputs are closed
-        status = f"failed at t = {e.t:.4g}"
+        status, error = f"failed at t = {e.t:.4g}", str(e)
     wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
     return {"name": name, "tool": tool_kind, "facets": facets, "scheme": scheme,
-            "status": status, "history": sim.history, "wall_time": wall,
+            "status": status, "error": error, "history": sim.history, "wall_time": wall,
             "deviation": deviation,
             "cells": comm.allreduce(msh.topology.index_map(3).size_local, op=MPI.SUM),
             "dofs": space.global_dofs(),

@@ -295,15 +295,15 @@ def run_variant(tool_kind: str, facets, scheme: str, *, radius, E, nu, height, i
                                                element_size=h_fine, name="contact"))
     n_trans = int(round(travel / step))
     t0 = time.perf_counter()
-    status = "ok"
+    status, error = "ok", ""
     try:
         sim.run(float(n_indent), 1.0, close=False)
         sim.run(float(n_indent + n_trans), 1.0)
     except IncrementError as e:  # collective: raised on every rank; outputs are closed
-        status = f"failed at t = {e.t:.4g}"
+        status, error = f"failed at t = {e.t:.4g}", str(e)
     wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
     return {"name": name, "tool": tool_kind, "facets": facets, "scheme": scheme,
-            "status": status, "history": sim.history, "wall_time": wall,
+            "status": status, "error": error, "history": sim.history, "wall_time": wall,
             "deviation": deviation,
             "cells": comm.allreduce(msh.topology.index_map(3).size_local, op=MPI.SUM),
             "dofs": space.global_dofs(),

@@ -392,6 +392,7 @@ class Simulation:
         self._build()
         trial = float(dt)
         msg = ""
+        msgs: List[str] = []
         failed_its = 0
         t_first = time.perf_counter()
         for k in range(max_cutbacks + 1):
@@ -410,10 +411,14 @@ class Simulation:
                 self._record(row)
                 return IncrementResult(row, info)
             msg = info.message
+            msgs.append(msg)
             failed_its += info.iterations
             log.warning("t = %.6g: Newton failed with dt = %.3g (%s); retrying with dt/2",
                         self.t, trial, msg)
             trial *= 0.5
+        earlier = [m for m in dict.fromkeys(msgs[:-1]) if m != msgs[-1]] if msgs else []
+        if earlier:
+            msg += f" (earlier attempts: {' | '.join(earlier)})"
         raise IncrementError(self.t, trial * 2, msg)
 
     def _record(self, row):

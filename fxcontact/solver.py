@@ -3,6 +3,12 @@
 Options live under a prefix (default ``fxc_``), never in the global database unprefixed. The
 convergence test requires, besides a small residual or step, that every contributor reports a
 stable state (e.g. an unchanged contact active set, THEORY §3.6).
+
+A Newton iteration that cycles — the contributors' state (contact active set, facets) and the
+residual norm repeating with a period of 2 to 4 iterations, twice over — never converges: it is
+stopped at once (instead of running to ``max_it``) with a message naming what switches (nodes
+entering and leaving contact, or nodes switching between the facets of a faceted tool), so that
+the cut-back starts early and a final failure says why.
 """
 
 from __future__ import annotations
@@ -150,6 +156,8 @@ class NewtonSolver:
         self.snes = snes
         self._norms: List[float] = []
         self._f0 = None
+        self._states: list = []
+        self._cycle_message = ""
         PETSc.Log.begin()
         self._ev = [PETSc.Log.Event("KSPSolve"), PETSc.Log.Event("PCSetUp")]
 
@@ -160,13 +168,24 @@ class NewtonSolver:
         if it == 0:
             self._f0 = fnorm
             self._norms = [fnorm]
+            self._states = []
         else:
             self._norms.append(fnorm)
         o = self.options
         # every contributor must report a stable state at this (accepted) iterate
         # (called at every iteration, including 0, so each contributor takes its snapshot)
-        stable = all([c.stable() for c in self.problem.contributors])
+        contributors = self.problem.contributors
+        stable = all([c.stable() for c in contributors])
         log.debug("Newton it %d: |R| = %.3e  |dx| = %.3e  stable=%s", it, fnorm, snorm, stable)
+        period = self._cycle_period(contributors, fnorm)
+        if period:
+            hints = [c.cycle_hint() for c in contributors if hasattr(c, "cycle_hint")]
+            self._cycle_message = (
+                f"Newton iterates cycle with period {period} (the same contact state and "
+                f"residual {fnorm:.3e} every {period} iterations, twice over): "
+                + ("; ".join(hints) if hints else "reduce dt"))
+            log.debug(self._cycle_message)
+            return PETSc.SNES.ConvergedReason.DIVERGED_DTOL
         if stable:
             if fnorm <= o.atol:
                 return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
@@ -177,6 +196,31 @@ class NewtonSolver:
         if it >= o.max_it:
             return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
         return PETSc.SNES.ConvergedReason.ITERATING
+
+    #: periods looked for by the cycle detection, and the residual match that defines a repeat
+    CYCLE_PERIODS = (2, 3, 4)
+    CYCLE_RTOL = 1e-6
+
+    def _cycle_period(self, contributors, fnorm: float) -> int:
+        """Period p of a cycle of the Newton iterates (0 if none): the contributors' state
+        (e.g. the contact active set and facets) and the residual norm equal those of p
+        iterations earlier, at 2p consecutive iterations (the orbit went round twice). Such an
+        iteration never converges; stopping it early saves the remaining iterations before
+        the cut-back."""
+        fp = tuple(c.fingerprint() for c in contributors if hasattr(c, "fingerprint"))
+        states = self._states
+        states.append((fp, fnorm))
+        k = len(states) - 1
+        for p in self.CYCLE_PERIODS:
+            n = 2 * p
+            if k < p + n - 1:
+                continue
+            if all(states[j][0] == states[j - p][0]
+                   and abs(states[j][1] - states[j - p][1])
+                   <= self.CYCLE_RTOL * max(states[j][1], 1e-300)
+                   for j in range(k - n + 1, k + 1)):
+                return p
+        return 0
 
     def _linear_time(self) -> float:
         return sum(e.getPerfInfo()["time"] for e in self._ev)
@@ -191,6 +235,7 @@ class NewtonSolver:
                 c.begin_solve()
         w = prob.w
         x = w.vector.copy()
+        self._cycle_message = ""
         t0 = time.perf_counter()
         lin0 = self._linear_time()
         try:
@@ -204,6 +249,8 @@ class NewtonSolver:
         wall = time.perf_counter() - t0
         if prob.error and not msg:
             msg = prob.error
+        if self._cycle_message and not msg:
+            msg = self._cycle_message
         converged = reason > 0
         if converged:
             x.copy(w.vector)

@@ -93,6 +93,10 @@ def test_fine_flat_groove_fails_nagata_converges(quick):
     out = demo.run(**kw, output_dir=None, progress=False)
     s = out["by_name"]
     assert s[FLAT]["status"].startswith("failed"), s[FLAT]["status"]
+    # recognised as a cycle (stopped early) and explained
+    err = out["results"][FLAT]["error"]
+    assert "cycle with period 2" in err and "facet switching" in err, err
+    assert "mode='nagata'" in err
     assert s[NAGATA]["status"] == "ok" and s[NAGATA]["cutbacks"] == 0
     assert s[NAGATA]["newton_max"] <= 5
     F_a = res["by_name"][ANALYTIC]["force_mean"]

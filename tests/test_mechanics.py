@@ -304,3 +304,59 @@ def test_run_stops_when_dt_would_creep_below_the_floor():
     # accepted: 0.05, 0.025, 0.0125; the fourth increment would need 0.00625 < 0.1 / 2³
     assert [round(r["dt"], 12) for r in sim.history] == [0.05, 0.025, 0.0125]
     assert abs(sim.t - 0.0875) < 1e-12
+
+
+class _State:
+    """Contributor stand-in whose fingerprint is set by the test."""
+
+    def __init__(self):
+        self.fp = ()
+
+    def fingerprint(self):
+        return self.fp
+
+
+def _cycle_detector():
+    from types import SimpleNamespace
+
+    from fxcontact.solver import NewtonSolver
+
+    fake = SimpleNamespace(_states=[], CYCLE_PERIODS=NewtonSolver.CYCLE_PERIODS,
+                           CYCLE_RTOL=NewtonSolver.CYCLE_RTOL)
+    return lambda c, f: NewtonSolver._cycle_period(fake, [c], f)
+
+
+@pytest.mark.parametrize("period", [2, 3, 4])
+def test_cycle_detection_periodic_orbit(period):
+    """A periodic sequence of (contact state, residual) is reported once it has gone round
+    twice after its first period, i.e. at iteration 3p − 1 (0-based)."""
+    detect, c = _cycle_detector(), _State()
+    found = []
+    for k in range(20):
+        c.fp = ((k % period,),)
+        found.append(detect(c, 10.0 + (k % period)))
+    first = found.index(period)
+    assert first == 3 * period - 1 and not any(found[:first])
+
+
+def test_cycle_detection_ignores_converging_and_changing_sequences():
+    detect, c = _cycle_detector(), _State()
+    # alternating states but a decreasing residual: converging, not a cycle
+    for k in range(30):
+        c.fp = ((k % 2,),)
+        assert detect(c, 1e3 * 0.5 ** k) == 0
+    # a settled state with a decreasing residual
+    detect, c = _cycle_detector(), _State()
+    for k in range(30):
+        c.fp = ((7,),)
+        assert detect(c, 1e3 * 0.1 ** k) == 0
+    # the same residual but states that never repeat
+    detect, c = _cycle_detector(), _State()
+    for k in range(30):
+        c.fp = ((k,),)
+        assert detect(c, 5.0) == 0
+    # period 2 with a residual that drifts by more than the match tolerance
+    detect, c = _cycle_detector(), _State()
+    for k in range(30):
+        c.fp = ((k % 2,),)
+        assert detect(c, (1.0 + 1e-4 * k) * (3.0 if k % 2 else 4.0)) == 0

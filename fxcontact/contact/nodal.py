@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import logging
 import math
+import zlib
 from typing import Dict, List, Optional, Sequence
 
 import numpy as np
@@ -168,6 +169,8 @@ class NodalContact:
         self._feature = np.zeros(n, dtype=np.int64)
         self._status_prev = None
         self._settled = False
+        self._changes = (0, 0)
+        self._fingerprint = ()
         self._ever_active = np.zeros(n, dtype=bool)
         self._fallbacks = 0
         self._fallbacks_all = 0
@@ -341,10 +344,38 @@ class NodalContact:
         status = np.where(self._h > 0, 1 + self._tool, 0).astype(np.int64)
         if self.scheme in ("implicit", "implicit-exact"):
             status = status * (1 << 40) + np.where(self._h > 0, self._feature, 0)
-        same = self._status_prev is not None and np.array_equal(status, self._status_prev)
+        prev = self._status_prev
+        same = prev is not None and np.array_equal(status, prev)
+        comm = self.boundary.comm
+        # what changed since the previous iterate: status (in/out of contact), or only the
+        # projected feature (facet, patch) of a node in contact — for the cycle diagnosis
+        if prev is None:
+            n_status = n_feature = 0
+        else:
+            was, now = prev > 0, status > 0
+            n_status = int(np.sum(was != now))
+            n_feature = int(np.sum(was & now & (prev != status)))
+        self._changes = tuple(comm.allreduce(np.array([n_status, n_feature]), op=MPI.SUM))
+        self._fingerprint = tuple(comm.allgather(zlib.crc32(status.tobytes())))
         self._status_prev = status
-        self._settled = bool(self.boundary.comm.allreduce(int(same), op=MPI.MIN))
+        self._settled = bool(comm.allreduce(int(same), op=MPI.MIN))
         return self._settled
+
+    def fingerprint(self) -> tuple:
+        """Identifier of the contact state at the last :meth:`stable` call (the same on every
+        rank): the solver uses it to recognise a Newton iteration that cycles."""
+        return self._fingerprint
+
+    def cycle_hint(self) -> str:
+        """What changes at each iteration of a cycling Newton iteration, and the usual cure."""
+        n_status, n_feature = self._changes
+        if n_feature and not n_status:
+            return (f"contact '{self.name}': {n_feature} node(s) switch between tool facets at "
+                    f"every iteration (facet switching, THEORY §6): smooth the faceted tool "
+                    f"(mode='nagata') or reduce dt")
+        return (f"contact '{self.name}': {n_status} node(s) enter and leave contact"
+                + (f" and {n_feature} switch facets" if n_feature else "")
+                + " at every iteration: reduce dt (cut-back)")
 
     # ------------------------------------------------------------------ diagnostics / output
     def pressures(self) -> np.ndarray:
