@@ -31,7 +31,6 @@ import importlib.util
 import os
 import time
 
-import numpy as np
 from mpi4py import MPI
 
 HERE = os.path.dirname(os.path.abspath(__file__))

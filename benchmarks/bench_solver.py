@@ -48,7 +48,7 @@ sys.path.insert(0, os.path.dirname(HERE))
 from fxcontact.materials import NortonHoff  # noqa: E402
 from fxcontact.meshing import BILLET_TAGS, cylinder_billet  # noqa: E402
 from fxcontact.simulation import Simulation  # noqa: E402
-from fxcontact.solver import LINEAR_SOLVERS, SolverOptions  # noqa: E402
+from fxcontact.solver import SolverOptions  # noqa: E402
 from fxcontact.spaces import MixedSpace  # noqa: E402
 
 RESULTS = os.path.join(HERE, "results")

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from typing import Dict, Tuple
+from typing import Dict
 
 import numpy as np
 from mpi4py import MPI

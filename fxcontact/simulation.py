@@ -14,7 +14,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass
-from typing import Callable, Dict, List, Optional, Sequence, Union
+from typing import Callable, Dict, List, Optional
 
 import numpy as np
 import ufl
@@ -120,7 +120,7 @@ class Simulation:
         self.contributors: List = []
         self.history: List[Dict[str, float]] = []
         self._built = False
-        W, gdim = space.W, space.gdim
+        W = space.W
         self.w = dolfinx.fem.Function(W, name="solution")
         self.w_prev = dolfinx.fem.Function(W)
         self.dt_c = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(1.0))
@@ -370,7 +370,6 @@ class Simulation:
         return row
 
     def _cell_average(self, frm) -> np.ndarray:
-        sp = self.space
         b1 = dolfinx.fem.petsc.assemble_vector(frm)
         b2 = dolfinx.fem.petsc.assemble_vector(self._cellvol_form)
         for b in (b1, b2):

@@ -5,8 +5,6 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-import dolfinx
-
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact, penalty_from_beta
 from fxcontact.contact.penalty import penalty_kernel, penalty_kernel_numpy
@@ -234,8 +232,8 @@ def _strip_under_arc(comm, scheme, dt, t_end=3.2, R=200.0, k=2e6):
     sim = Simulation(sp, NortonHoff(10.0, 0.3, regularization=1e-4), progress=False)
     sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["ymin"]), np.array([1.0, 0.0]))
     arc = Cylinder((-8.0, -np.sqrt(R**2 - 64.0), 0.0), (0, 0, 1), R, inside=True, name="arc")
-    c = sim.add_contributor(NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["ymax"]), arc,
-                                         scheme=scheme, gap_stiffness=k))
+    sim.add_contributor(NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["ymax"]), arc,
+                                     scheme=scheme, gap_stiffness=k))
     sim.run(t_end, dt)
     pen = max(r["contact_penetration_true"] for r in sim.history)
     return sim, pen

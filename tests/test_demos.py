@@ -25,7 +25,6 @@ def test_upsetting_small(outdir):
     assert res["radius_mid"] > homog
     hist = res["history"]
     assert len(hist) == 4
-    V0 = np.pi * 100.0 * 15.0 / 4.0
     assert abs(hist[-1]["volume"] / hist[0]["volume"] - 1.0) < 2e-2  # faceted lateral surface
     assert res["die_force"] < 0.0
     if comm.rank == 0:
@@ -38,7 +37,6 @@ def test_upsetting_sliding_is_homogeneous(outdir):
     demo = load_demo("demo_upsetting")
     res = demo.run(h=5.0, n_steps=2, reduction=0.1, dies="sliding", output_dir=None,
                    progress=False)
-    H = 15.0 * 0.9
     # sliding dies: (nearly) uniform radial expansion — the bulge is < 1 % of the expansion
     # (sticking dies give a bulge of the order of the expansion itself)
     expansion = res["radius_end"] - 10.0

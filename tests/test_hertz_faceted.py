@@ -4,7 +4,6 @@ comparison; faceted (Nagata) sphere contact on 2 ranks equals the serial run; de
 Nagata patch choice on shared patch edges."""
 
 import math
-import os
 
 import numpy as np
 from mpi4py import MPI

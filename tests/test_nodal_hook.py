@@ -15,7 +15,6 @@ import dolfinx.nls.petsc
 from fxcontact import compat
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.materials import NortonHoff
-from fxcontact.petsc import NonlinearProblem
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace, velocity_bc
 from fxcontact.springs import NodalSprings, spring_kernel, spring_kernel_numpy

@@ -8,7 +8,7 @@ that contributions from all ranks are summed (each vertex is then handled by its
 from __future__ import annotations
 
 import logging
-from typing import Optional, Sequence, Union
+from typing import Sequence, Union
 
 import numpy as np
 import ufl

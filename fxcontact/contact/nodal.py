@@ -31,7 +31,7 @@ from __future__ import annotations
 import logging
 import math
 import zlib
-from typing import Dict, List, Optional, Sequence
+from typing import Dict, List, Optional
 
 import numpy as np
 from mpi4py import MPI
@@ -44,7 +44,7 @@ from fxcontact.contact.penalty import penalty_kernel, penalty_kernel_numpy
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic, NortonHoff
 from fxcontact.petsc import ContributorError, NodalTerms
-from fxcontact.tools.base import Projection, Tool
+from fxcontact.tools.base import Tool
 
 __all__ = ["NodalContact", "SCHEMES", "penalty_from_beta"]
 
@@ -284,7 +284,6 @@ class NodalContact:
     def _constraint(self, v: np.ndarray, jacobian: bool):
         """h, ∇h, ∇²h (or empty), tool index and feature per node for the current velocity."""
         d, dt = self.gdim, self.dt
-        n = len(v)
         empty = np.zeros((0, d, d))
         if self.scheme in ("explicit", "quasi-implicit"):
             pr = self._fixed
