@@ -27,27 +27,19 @@ from __future__ import annotations
 
 import argparse
 import csv
-import importlib.util
 import os
 import time
 
 from mpi4py import MPI
 
+from _common import load_demo
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
 RESULTS = os.path.join(HERE, "results")
 FIELDS = ["ranks", "scheme", "h_fine", "growth", "dofs", "cells", "contact_nodes", "active_nodes",
           "increments", "newton_its", "contact_s", "assembly_s", "linear_s", "total_s",
           "contact_per_it", "assembly_per_it", "linear_per_it", "total_per_it", "share_total",
           "share_nonsolver", "force_err", "wall_s"]
-
-
-def load_demo():
-    spec = importlib.util.spec_from_file_location(
-        "demo_hertz_sphere", os.path.join(ROOT, "demos", "demo_hertz_sphere.py"))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def run_case(comm, demo, scheme: str, h_fine: float, growth: float, steps: int) -> dict:
@@ -114,7 +106,7 @@ def main():
     if a.steps < 2:
         ap.error("--steps must be >= 2 (the first increment is not timed)")
     comm = MPI.COMM_WORLD
-    demo = load_demo()
+    demo = load_demo("demo_hertz_sphere")
     path = a.csv or os.path.join(RESULTS, "contact.csv" if comm.size == 1
                                  else f"contact_np{comm.size}.csv")
     rows = []

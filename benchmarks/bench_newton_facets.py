@@ -53,8 +53,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import importlib.util
-import inspect
 import math
 import os
 import re
@@ -63,8 +61,9 @@ from typing import List, NamedTuple
 
 from mpi4py import MPI
 
+from _common import load_demo, read_csv
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
 RESULTS = os.path.join(HERE, "results")
 
 
@@ -117,17 +116,6 @@ def slug(name: str) -> str:
     return re.sub(r"[^a-z0-9]+", "-", name.lower()).strip("-")
 
 
-def load_module(name: str):
-    """Load ``demos/<name>.py`` as a module (None if the file does not exist)."""
-    path = os.path.join(ROOT, "demos", f"{name}.py")
-    if not os.path.exists(path):
-        return None
-    spec = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def describe(params: dict) -> str:
     """Compact text of a case's overrides (variants by their scheme)."""
     items = []
@@ -138,21 +126,11 @@ def describe(params: dict) -> str:
     return " ".join(items) if items else "-"
 
 
-def call_run(run, comm, kw: dict) -> dict:
-    """``run(**kw)`` without outputs; ``comm``, ``progress``, ``picture`` passed if accepted."""
-    sig = inspect.signature(run).parameters
-    extra = dict(output_dir=None, progress=False, picture=False, comm=comm)
-    kw = {**kw, **{k: v for k, v in extra.items()
-                   if k in sig or k == "output_dir"
-                   or any(p.kind == p.VAR_KEYWORD for p in sig.values())}}
-    return run(**kw)
-
-
 def case_rows(comm, name: str, run, kw: dict, overrides: str) -> List[dict]:
     """Run one case; one CSV/table row per variant (a single error row if run() raised)."""
     t0 = time.perf_counter()
     try:
-        res = call_run(run, comm, kw)
+        res = run(**kw, output_dir=None, progress=False, picture=False, comm=comm)
     except Exception as e:  # e.g. run()'s parameter validation, raised on every rank
         wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
         return [{"ranks": comm.size, "case": name, "variant": "-", "overrides": overrides,
@@ -169,13 +147,6 @@ def case_rows(comm, name: str, run, kw: dict, overrides: str) -> List[dict]:
 
 
 # ------------------------------------------------------------------------------ CSV / tables
-def read_csv(path: str) -> List[dict]:
-    if not os.path.exists(path):
-        return []
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
-
-
 def key(r) -> tuple:
     return (str(r["ranks"]), r["case"], r["variant"])
 
@@ -288,7 +259,7 @@ def main(argv=None):
     else:
         selected = set(names[:2] if a.quick else names)
 
-    demos = {d: load_module(f"demo_{d}") for d in sorted({c.demo for c in CASES})}
+    demos = {d: load_demo(f"demo_{d}") for d in sorted({c.demo for c in CASES})}
     t_all = time.perf_counter()
     rows: List[dict] = []
     for c in CASES:

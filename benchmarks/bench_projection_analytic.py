@@ -11,10 +11,10 @@ reference frame and rotates the results back.
 """
 
 import argparse
-import time
 
 import numpy as np
 
+from _common import best_time
 from fxcontact.tools.analytic import Cone, Cylinder, Plane, Sphere
 
 
@@ -39,15 +39,6 @@ def moving_tools(backend):
         ("cone, moving", Cone((0.0, 0.0, -1.0), (0.1, 0.0, 1.0), 0.5, velocity=(0.0, 0.0, 1.0),
                               angular_velocity=3.0, backend=backend)),
     ]
-
-
-def best_time(fn, repeat):
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main():

@@ -14,27 +14,18 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 
+from _common import best_time, load_tool_meshes
 from fxcontact.tools.faceted import FacetedTool, flat_project_ref, nagata_project_ref
-
-
-def _tool_meshes():
-    path = Path(__file__).resolve().parents[1] / "meshes" / "tool_meshes.py"
-    spec = importlib.util.spec_from_file_location("tool_meshes", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def cylinder_with(n_tri: int, radius: float = 5.0, length: float = 40.0):
     """Structured cylinder with ≈ n_tri triangles and facets of aspect ≈ 1."""
-    tm = _tool_meshes()
+    tm = load_tool_meshes()
     n_theta = max(6, int(round(math.sqrt(n_tri * math.pi * radius / length))))
     n_axial = max(1, int(round(n_tri / (2 * n_theta))))
     return tm.structured_cylinder(radius, length, n_theta, n_axial)
@@ -45,15 +36,6 @@ def points_near(n: int, rng, radius=5.0, length=40.0, band=0.05, offset=0.0):
     z = rng.uniform(-0.45 * length, 0.45 * length, n)
     r = radius + offset + rng.uniform(-band, band, n)
     return np.stack([r * np.cos(th), r * np.sin(th), z], axis=1)
-
-
-def best_time(fn, repeat: int) -> float:
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main(argv=None):

@@ -45,6 +45,7 @@ from petsc4py import PETSc
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 
+from _common import best_time, read_csv  # noqa: E402
 from fxcontact.materials import NortonHoff  # noqa: E402
 from fxcontact.meshing import BILLET_TAGS, cylinder_billet  # noqa: E402
 from fxcontact.simulation import Simulation  # noqa: E402
@@ -119,15 +120,6 @@ def peak_rss_mb() -> float:
     except OSError:
         pass
     return float("nan")
-
-
-def best_of(fn, repeat=3) -> float:
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def run_case(comm, element: str, variant: str, target: int, h: float, increments: int,
@@ -235,7 +227,7 @@ def run_case(comm, element: str, variant: str, target: int, h: float, increments
 
         def timed(fn):
             comm.barrier()
-            return comm.allreduce(best_of(fn), op=MPI.MAX)
+            return comm.allreduce(best_time(fn), op=MPI.MAX)
 
         row["F_asm_s"] = timed(lambda: prob.assemble_residual(b))
         row["J_asm_s"] = timed(lambda: prob.assemble_jacobian(sim.solver.A))
@@ -248,13 +240,6 @@ def run_case(comm, element: str, variant: str, target: int, h: float, increments
 
 
 # ------------------------------------------------------------------------------ CSV / tables
-def read_csv(path: str) -> List[dict]:
-    if not os.path.exists(path):
-        return []
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
-
-
 def key(r) -> tuple:
     return (str(r["ranks"]), r["element"], r["solver"], r["size"], r["mode"])
 
