@@ -54,7 +54,6 @@ import argparse
 import math
 import os
 import sys
-import time
 
 import numpy as np
 from mpi4py import MPI
@@ -66,7 +65,7 @@ from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact
 from fxcontact.materials import LinearElastic
 from fxcontact.meshing import BLOCK_TAGS
-from fxcontact.simulation import IncrementError, Simulation
+from fxcontact.simulation import Simulation
 from fxcontact.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Cylinder
@@ -172,20 +171,9 @@ def run_variant(tool_kind: str, facets, scheme: str, *, bar_radius, groove_radiu
     contact = sim.add_contributor(NodalContact(ContactBoundary(space, ft, BLOCK_TAGS["zmin"]),
                                                tool, scheme=scheme, gap_stiffness=k,
                                                element_size=h, name="contact"))
-    t0 = time.perf_counter()
-    status, error = "ok", ""
-    try:
-        sim.run(t_ind, 1.0, max_cutbacks=max_cutbacks, close=False)
-        sim.run(t_ind + n_rotation, 1.0, max_cutbacks=max_cutbacks)
-    except IncrementError as e:  # collective; outputs are closed
-        status, error = f"failed at t = {e.t:.4g}", str(e)
-    wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
-    return {"name": name, "tool": tool_kind, "facets": facets, "scheme": scheme,
-            "status": status, "error": error, "history": sim.history, "wall_time": wall,
-            "deviation": deviation,
-            "cells": comm.allreduce(msh.topology.index_map(3).size_local, op=MPI.SUM),
-            "dofs": space.global_dofs(),
-            "contact_nodes_total": comm.allreduce(len(contact.boundary), op=MPI.SUM)}
+    return ironing.run_stages(sim, contact, (t_ind, t_ind + n_rotation), name=name,
+                              tool_kind=tool_kind, facets=facets, scheme=scheme,
+                              deviation=deviation, max_cutbacks=max_cutbacks)
 
 
 def groove_surface(radius: float, n_facets: int, length: float, center):
@@ -322,7 +310,7 @@ def main(argv=None):
     if MPI.COMM_WORLD.rank == 0:
         r0 = next(iter(res["results"].values()))
         print(f"bar section: {r0['cells']} tetrahedra, {r0['dofs']} dofs, "
-              f"{r0['contact_nodes_total']} surface nodes; Newton statistics over the rotation")
+              f"{r0['surface_nodes']} surface nodes; Newton statistics over the rotation")
         print(ironing.format_table(res["summary"]))
         print(f"outputs: {res['summary_csv']}, {', '.join(res['png'].values())}")
     return res

@@ -294,20 +294,30 @@ def run_variant(tool_kind: str, facets, scheme: str, *, radius, E, nu, height, i
                                                tool, scheme=scheme, gap_stiffness=k,
                                                element_size=h_fine, name="contact"))
     n_trans = int(round(travel / step))
+    return run_stages(sim, contact, (float(n_indent), float(n_indent + n_trans)),
+                      name=name, tool_kind=tool_kind, facets=facets, scheme=scheme,
+                      deviation=deviation)
+
+
+def run_stages(sim, contact, stage_ends, *, name, tool_kind, facets, scheme, deviation,
+               max_cutbacks: int = 5) -> dict:
+    """Run ``sim`` to each time of ``stage_ends`` (dt = 1 s) and collect the variant's result:
+    history, status (and the error text of a failed run), wall time, mesh size, deviation."""
+    comm = sim.comm
     t0 = time.perf_counter()
     status, error = "ok", ""
     try:
-        sim.run(float(n_indent), 1.0, close=False)
-        sim.run(float(n_indent + n_trans), 1.0)
+        for i, t_end in enumerate(stage_ends):
+            sim.run(t_end, 1.0, max_cutbacks=max_cutbacks, close=i == len(stage_ends) - 1)
     except IncrementError as e:  # collective: raised on every rank; outputs are closed
         status, error = f"failed at t = {e.t:.4g}", str(e)
     wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
     return {"name": name, "tool": tool_kind, "facets": facets, "scheme": scheme,
             "status": status, "error": error, "history": sim.history, "wall_time": wall,
             "deviation": deviation,
-            "cells": comm.allreduce(msh.topology.index_map(3).size_local, op=MPI.SUM),
-            "dofs": space.global_dofs(),
-            "top_nodes": comm.allreduce(len(contact.boundary), op=MPI.SUM)}
+            "cells": comm.allreduce(sim.mesh.topology.index_map(3).size_local, op=MPI.SUM),
+            "dofs": sim.space.global_dofs(),
+            "surface_nodes": comm.allreduce(len(contact.boundary), op=MPI.SUM)}
 
 
 # %% [markdown]
@@ -622,7 +632,7 @@ def main(argv=None):
     res = run(**kw)
     if MPI.COMM_WORLD.rank == 0:
         r0 = next(iter(res["results"].values()))
-        print(f"slab: {r0['cells']} tetrahedra, {r0['dofs']} dofs, {r0['top_nodes']} top-face "
+        print(f"slab: {r0['cells']} tetrahedra, {r0['dofs']} dofs, {r0['surface_nodes']} top-face "
               f"nodes; Newton statistics over the steady translation")
         print(format_table(res["summary"]))
         print(f"outputs: {res['summary_csv']}, {', '.join(res['png'].values())}")

@@ -61,3 +61,13 @@ def shared_tmpdir(prefix):
     comm = MPI.COMM_WORLD
     d = tempfile.mkdtemp(prefix=prefix) if comm.rank == 0 else None
     return comm.bcast(d, root=0)
+
+
+def assert_histories_match(h_par, h_ser, keys, rtol=1e-8):
+    """Same number of increments and, per increment, the values of ``keys`` within ``rtol``
+    of the reference's vertical tool force (at least 1)."""
+    assert len(h_par) == len(h_ser)
+    for a, b in zip(h_par, h_ser):
+        F = max(abs(b["tool_force_z"]), 1.0)
+        for k in keys:
+            assert abs(a[k] - b[k]) <= rtol * F, (k, a["time"], a[k], b[k])

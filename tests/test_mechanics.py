@@ -247,19 +247,26 @@ class _UnsettledAboveDt:
         return self.dt <= self.limit
 
 
-def test_cutback_halves_dt_and_counts_failed_iterations():
-    from fxcontact.simulation import IncrementError
-
+def _pressed_cube(max_it, contributor):
+    """A Norton–Hoff unit cube pressed on its top face, Newton capped at ``max_it``
+    iterations, with ``contributor`` deciding when a state is settled."""
     comm = MPI.COMM_WORLD
     L = (1.0, 1.0, 1.0)
     msh = box_mesh(comm, L, (2, 2, 2))
     sim = Simulation(MixedSpace(msh), NortonHoff(K=10.0, m=0.3), progress=False,
-                     solver_options=SolverOptions(max_it=4))
+                     solver_options=SolverOptions(max_it=max_it))
     f = _faces(msh, L)
     for key, comp in (("x0", 0), ("y0", 1), ("z0", 2)):
         sim.add_velocity_bc(f[key], 0.0, comp)
     sim.add_velocity_bc(f["z1"], -0.1, 2)
-    sim.add_contributor(_UnsettledAboveDt(0.03))
+    sim.add_contributor(contributor)
+    return sim
+
+
+def test_cutback_halves_dt_and_counts_failed_iterations():
+    from fxcontact.simulation import IncrementError
+
+    sim = _pressed_cube(4, _UnsettledAboveDt(0.03))
     res = sim.step(0.1, max_cutbacks=3)          # 0.1, 0.05 fail; 0.025 passes
     row = res.row
     assert row["cutbacks"] == 2 and abs(row["dt"] - 0.025) < 1e-15 and abs(sim.t - 0.025) < 1e-15
@@ -289,16 +296,7 @@ def test_run_stops_when_dt_would_creep_below_the_floor():
     0.1, so t_end = 1 would never be reached)."""
     from fxcontact.simulation import IncrementError
 
-    comm = MPI.COMM_WORLD
-    L = (1.0, 1.0, 1.0)
-    msh = box_mesh(comm, L, (2, 2, 2))
-    sim = Simulation(MixedSpace(msh), NortonHoff(K=10.0, m=0.3), progress=False,
-                     solver_options=SolverOptions(max_it=3))
-    f = _faces(msh, L)
-    for key, comp in (("x0", 0), ("y0", 1), ("z0", 2)):
-        sim.add_velocity_bc(f[key], 0.0, comp)
-    sim.add_velocity_bc(f["z1"], -0.1, 2)
-    sim.add_contributor(_ShrinkingLimit(0.1))
+    sim = _pressed_cube(3, _ShrinkingLimit(0.1))
     with pytest.raises(IncrementError, match="smallest allowed 0.0125"):
         sim.run(1.0, 0.1, max_cutbacks=3)
     # accepted: 0.05, 0.025, 0.0125; the fourth increment would need 0.00625 < 0.1 / 2³
