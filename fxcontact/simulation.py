@@ -400,6 +400,20 @@ class Simulation:
                 break
             t0 = time.perf_counter()
             info = self._try_increment(trial)
+            fb = self.solver_options.line_search_fallback
+            if not info.converged and fb and fb != self.solver_options.line_search \
+                    and not self.problem.error:
+                # second attempt at the same dt with the fallback line search
+                log.info("t = %.6g: Newton failed with the %s line search (%s); retrying dt = "
+                         "%.3g with the %s line search", self.t, self.solver_options.line_search,
+                         info.message, trial, fb)
+                failed_its += info.iterations
+                msgs.append(info.message)
+                self.solver.set_line_search(fb)
+                try:
+                    info = self._try_increment(trial)
+                finally:
+                    self.solver.set_line_search(self.solver_options.line_search)
             if info.converged:
                 row = self._commit(trial, info)
                 row["cutbacks"] = k
