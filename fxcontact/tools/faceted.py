@@ -285,7 +285,7 @@ def read_surface(path: str) -> Tuple[np.ndarray, np.ndarray]:
 
 
 # ------------------------------------------------------------------------------------------
-# Closest point on a triangle (Ericson, Real-Time Collision Detection §5.1.5)
+# Closest point on a triangle (Ericson, Real-Time Collision Detection, sect. 5.1.5; THEORY §6)
 # ------------------------------------------------------------------------------------------
 
 
