@@ -30,6 +30,7 @@ import os
 import numpy as np
 from mpi4py import MPI
 
+from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import BILLET_TAGS, cylinder_billet
 from fxcontact.simulation import Simulation
@@ -101,7 +102,9 @@ if __name__ == "__main__":
     ap.add_argument("--size", type=float, default=2.0, help="element size [mm]")
     ap.add_argument("--dies", default="sticking", choices=["sticking", "sliding"])
     ap.add_argument("--output", default="results/upsetting")
+    add_verbosity_arguments(ap)
     a = ap.parse_args()
+    configure_logging(a.verbose, a.quiet)
     res = run(h=a.size, dies=a.dies, output_dir=a.output)
     if MPI.COMM_WORLD.rank == 0:
         homog = 10.0 * np.sqrt(15.0 / res["height"])
