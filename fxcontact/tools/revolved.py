@@ -349,7 +349,9 @@ class _Profile:
             half = math.asin(min(1.0, 0.5 * c / r))
             seg = _Seg.arc(o, r, a0, sg * 2.0 * half, i, f"segment {i} (arc)")
             # lowest ρ reached inside the sweep (direction −e_ρ)
-            if seg.contains_angle(o + np.array([0.0, -1.0]), strict=True) and o[1] - r <= tol:
+            low = o - np.array([0.0, r])  # lowest point of the circle
+            if (o[1] - r <= tol and seg.contains_angle(low, strict=True)
+                    and min(np.hypot(*(low - A)), np.hypot(*(low - B))) > 1e-9 * L):
                 raise ValueError(f"segment {i}: the arc reaches the axis between its end points "
                                  f"(lowest ρ = {o[1] - r:.6g})")
             segs.append(seg)
@@ -780,8 +782,10 @@ class RevolvedProfile(_AnalyticTool):
         for p in prof.prims:
             names.setdefault(p.feature, p.label)
         for i, m, kink in prof.verts:
-            where = "axis point" if prof.on_axis[i] else ("kink circle" if kink
-                                                          else "tangent junction circle")
+            if prof.on_axis[i]:
+                where = "axis point, apex" if kink else "axis point, smooth pole"
+            else:
+                where = "kink circle" if kink else "tangent junction circle"
             names[prof.n + i] = f"point {i} ({where})"
         self.feature_names = dict(sorted(names.items()))
         _check_name(name)
@@ -1101,6 +1105,10 @@ def faceted_revolved(tool: RevolvedProfile, n_theta: int, sector: Optional[Tuple
             add_piece(lambda f, a_=a_, b_=b_, p=p: p.A0 + (a_ + f * (b_ - a_)) * p.u,
                       nsub(b_ - a_))
     nodes_a = np.array(nodes)
+    # the profile points exactly (arc end points are recomputed with rounding errors)
+    for pp in prof.points:
+        near = np.hypot(*(nodes_a - pp).T) <= _SNAP * prof.L
+        nodes_a[near] = pp
     mids_a = np.array(mids)
     w = tool.axis
     e1 = tool.e_fixed
