@@ -75,7 +75,7 @@ def to3d(q, phi):
 # independent profile model: pieces c(u), u ∈ [0, 1], with derivatives
 # --------------------------------------------------------------------------------------------
 
-FAR = 200.0
+FAR = 20.0
 
 
 def pieces(kind):
@@ -143,8 +143,8 @@ def tool_polygon(kind, inside):
 def brute_force(kind, inside, x):
     """Closest surface point and signed gap of each row of x, by sampling + refinement."""
     ps = pieces(kind)
-    uu = np.linspace(0, 1, 600)
-    th = np.linspace(0, 2 * np.pi, 240, endpoint=False)
+    uu = np.linspace(0, 1, 300)
+    th = np.linspace(0, 2 * np.pi, 120, endpoint=False)
     U, TH = np.meshgrid(uu, th, indexing="ij")
     allc = [[] for _ in range(len(x))]  # candidate closest points of every row
 
@@ -176,14 +176,24 @@ def brute_force(kind, inside, x):
             out.append(P3(c, ue, t))
         return out
 
+    # best sample of every piece; a piece can hold the closest point only if its best sample
+    # minus its sample spacing is not farther than the best sample of all pieces
+    near = []
     for c, dc in ps:
         Q = np.array([c(u) for u in uu])
         S = (AXIS_POINT + Q[:, None, 0, None] * AXIS
              + Q[:, None, 1, None] * (np.cos(th)[None, :, None] * E1
                                       + np.sin(th)[None, :, None] * E2)).reshape(-1, 3)
-        for i, xi in enumerate(x):
-            k = np.argmin(np.einsum("ij,ij->i", S - xi, S - xi))
-            allc[i] += cands(c, dc, xi, U.ravel()[k], TH.ravel()[k])
+        spacing = math.hypot(np.max(np.linalg.norm(np.diff(Q, axis=0), axis=1)),
+                             np.max(Q[:, 1]) * (th[1] - th[0]))
+        D = np.sqrt(np.maximum((x * x).sum(1)[:, None] + (S * S).sum(1)[None, :]
+                               - 2 * x @ S.T, 0.0))
+        k = np.argmin(D, axis=1)
+        near.append((c, dc, k, D[np.arange(len(x)), k], spacing))
+    dmin = np.min([n[3] for n in near], axis=0)
+    for c, dc, k, dk, spacing in near:
+        for i in np.flatnonzero(dk - spacing <= dmin + 1e-9):
+            allc[i] += cands(c, dc, x[i], U.ravel()[k[i]], TH.ravel()[k[i]])
     best_P = np.empty_like(x)
     best_d = np.empty(len(x))
     margin = np.empty(len(x))
@@ -625,3 +635,52 @@ def test_faceted_bad_arguments():
             faceted_revolved(tool, **kw)
     with pytest.raises(ValueError, match="RevolvedProfile"):
         faceted_revolved(Cylinder((0, 0, 0), (0, 0, 1), 1.0), 8)
+
+
+# --------------------------------------------------------------------------------------------
+# a contact run
+# --------------------------------------------------------------------------------------------
+
+def test_contact_implicit_exact_same_as_cylinder_and_cone():
+    """A Norton–Hoff block (2-D) pressed by a roll with the implicit-exact scheme: a
+    RevolvedProfile made of one line parallel to the axis (cylinder) or from the axis (cone, whose
+    section by the plane z = 0 is a circle) converges like the equivalent Cylinder / Cone, with
+    the same tool force to 1e-8 (relative) and the same Newton iteration counts."""
+    from mpi4py import MPI
+
+    from fxcontact.contact.boundary import ContactBoundary
+    from fxcontact.contact.nodal import NodalContact
+    from fxcontact.materials import NortonHoff
+    from fxcontact.meshing import BLOCK_TAGS, block
+    from fxcontact.simulation import Simulation
+    from fxcontact.spaces import MixedSpace
+
+    comm = MPI.COMM_WORLD
+    al = 0.5
+    apex = (0.0, 3.0 - 0.05, -3.0 / math.tan(al))  # radius 3 at z = 0
+    vel = (0.0, -0.5, 0.0)
+    pairs = {
+        "cylinder": (Cylinder((0.0, 2.95, 0.0), (0, 0, 1), 3.0, velocity=vel, name="roll"),
+                     RevolvedProfile([(-1.0, 3.0), (1.0, 3.0)], inside=False,
+                                     axis_point=(0.0, 2.95, 0.0), velocity=vel, name="roll")),
+        "cone": (Cone(apex, (0, 0, 1), al, velocity=vel, name="roll"),
+                 RevolvedProfile([(0.0, 0.0), (math.cos(al), math.sin(al))], inside=False,
+                                 axis_point=apex, velocity=vel, name="roll")),
+    }
+    for kind, tools in pairs.items():
+        out = []
+        for tool in tools:
+            msh, _, ft = block(comm, [-4.0, -2.0], [4.0, 0.0], 0.5, dim=2)
+            sp = MixedSpace(msh)
+            sim = Simulation(sp, NortonHoff(10.0, 0.3, regularization=1e-4), progress=False)
+            sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["ymin"]), np.array([0.0, 0.0]))
+            sim.add_contributor(NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["ymax"]), tool,
+                                             scheme="implicit-exact", penalty=1e3))
+            res = [sim.step(0.1, max_cutbacks=0) for _ in range(2)]  # no cut-back allowed
+            assert all(r.info.converged for r in res)
+            its = [r.info.iterations for r in res]
+            out.append((its, sim.history[-1]["roll_force_y"], sim.history[-1]["contact_nodes"]))
+        (it_ref, f_ref, n_ref), (it, f, n) = out
+        assert n_ref > 0 and f_ref > 0, (kind, out)
+        assert it == it_ref and n == n_ref, (kind, out)
+        assert abs(f - f_ref) <= 1e-8 * abs(f_ref), (kind, f, f_ref)
