@@ -91,7 +91,7 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import List, Optional, Sequence, Tuple
+from typing import List, Optional, Tuple
 
 import numba
 import numpy as np
@@ -99,9 +99,7 @@ import numpy as np
 from fxcontact.tools.analytic import (
     AXIS_TOL,
     _AnalyticTool,
-    _check_backend,
     _check_flag,
-    _check_name,
     _finite_vector,
     _fixed_perpendicular,
     _readonly,
@@ -133,17 +131,19 @@ def _cross(a, b) -> float:
 
 
 class _Seg:
-    """One primitive of the profile: a line (with parameter range, possibly infinite) or an arc.
+    """One primitive of the profile: a line piece or a circular arc.
 
-    ``A``/``B`` the finite end points (None for an infinite end), ``ta``/``tb`` the unit
-    tangents at the start and end (in the profile direction), ``nu(t)`` the free-side normal."""
+    Lines: origin ``A0``, unit direction ``u``, parameter range ``[tlo, thi]`` (infinite for an
+    extended end), ``length`` of the finite profile part ``[0, length]``. Arcs: centre ``o``,
+    radius ``r``, unit start direction ``a0`` from the centre, signed sweep ``delta`` (> 0
+    counter-clockwise). ``ta``/``tb``: unit tangents at the start and end, in the profile
+    direction."""
 
     def __init__(self, kind, feature, label):
         self.kind = kind
         self.feature = feature
         self.label = label
 
-    # lines: A0 (origin), u (unit), tlo, thi
     @classmethod
     def line(cls, A0, u, tlo, thi, feature, label):
         s = cls(_LINE, feature, label)
@@ -788,8 +788,6 @@ class RevolvedProfile(_AnalyticTool):
                 where = "kink circle" if kink else "tangent junction circle"
             names[prof.n + i] = f"point {i} ({where})"
         self.feature_names = dict(sorted(names.items()))
-        _check_name(name)
-        _check_backend(backend)
         self._init_common(name, backend,
                           RigidMotion(velocity=velocity, angular_velocity=angular_velocity,
                                       axis_point=_tup(self.axis_point), axis=_tup(self.axis)))
@@ -1113,7 +1111,6 @@ def faceted_revolved(tool: RevolvedProfile, n_theta: int, sector: Optional[Tuple
     w = tool.axis
     e1 = tool.e_fixed
     e2 = np.cross(w, e1)
-    ncol = nt
     nring = nt if periodic else nt + 1
     th = th0 + (th1 - th0) * np.arange(nring) / nt
     V: List[np.ndarray] = []
@@ -1125,7 +1122,6 @@ def faceted_revolved(tool: RevolvedProfile, n_theta: int, sector: Optional[Tuple
         else:
             for t in th:
                 V.append(tool.axis_point + s * w + rho * (math.cos(t) * e1 + math.sin(t) * e2))
-    V_list = V
     T: List[Tuple[int, int, int]] = []
 
     def vid(k, j):
@@ -1134,25 +1130,25 @@ def faceted_revolved(tool: RevolvedProfile, n_theta: int, sector: Optional[Tuple
         return ring_start[k] + (j % nt if periodic else j)
 
     for k in range(len(nodes_a) - 1):
-        for j in range(ncol):
+        for j in range(nt):
             a_, b_ = vid(k, j), vid(k + 1, j)
             c_, d_ = vid(k + 1, j + 1), vid(k, j + 1)
             if a_ == d_:  # node k on the axis
                 T.append((a_, b_, c_))
             elif b_ == c_:  # node k + 1 on the axis
                 T.append((a_, b_, d_))
-            elif 2 * j + 1 == ncol:  # middle column of an odd count: 4 triangles
+            elif 2 * j + 1 == nt:  # middle column of an odd count: 4 triangles
                 s, rho = mids_a[k]
                 tm = th0 + (th1 - th0) * (j + 0.5) / nt
-                x = len(V_list)
-                V_list.append(tool.axis_point + s * w
+                x = len(V)
+                V.append(tool.axis_point + s * w
                               + rho * (math.cos(tm) * e1 + math.sin(tm) * e2))
                 T.extend([(a_, b_, x), (b_, c_, x), (c_, d_, x), (d_, a_, x)])
-            elif 2 * j + 1 < ncol:
+            elif 2 * j + 1 < nt:
                 T.extend([(a_, b_, c_), (a_, c_, d_)])
             else:
                 T.extend([(a_, b_, d_), (b_, c_, d_)])
-    Va = np.array(V_list, dtype=np.float64)
+    Va = np.array(V, dtype=np.float64)
     Ta = np.array(T, dtype=np.int64)
     # the (profile, θ) orientation has its normal on the right of the profile direction:
     # free space is there iff the tool is on the left
