@@ -378,9 +378,10 @@ def test_line_profiles_equal_cone_and_cylinder(inside, backend):
     _same(rp.project(x), Sphere(c, 1.2, inside=inside, axis=w).project(x))
 
 
-def test_axis_and_singular_points():
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_axis_and_singular_points(backend):
     w = np.array([0.0, 0.0, 1.0])
-    die = RevolvedProfile.die(1.6, 1.0, math.radians(10), 0.5)
+    die = RevolvedProfile.die(1.6, 1.0, math.radians(10), 0.5, backend=backend)
     # on the axis: the closest points form a circle: flag 2, finite, e_fixed used
     pr = die.project([[0, 0, 1.0], [0, 0, 20.0]])
     np.testing.assert_array_equal(pr.flag, [2, 2])
@@ -390,7 +391,7 @@ def test_axis_and_singular_points():
     np.testing.assert_allclose(pr.hessian[1], -np.diag([0, 1, 0]) / (AXIS_TOL * die.length_scale))
     # cone apex: on the axis behind it regular (unique), at it flag 2 with normal ∓w
     for inside in (False, True):
-        cone = RevolvedProfile([(0, 0), (1, 1)], inside=inside)
+        cone = RevolvedProfile([(0, 0), (1, 1)], inside=inside, backend=backend)
         sg = -1 if inside else 1
         pr = cone.project([[0, 0, -1.0], [0, 0, 0.0], [0, 0, 2.0]])
         np.testing.assert_array_equal(pr.flag, [0, 2, 2])
@@ -399,7 +400,7 @@ def test_axis_and_singular_points():
         np.testing.assert_allclose(pr.gap[:2], [sg, 0.0])
         np.testing.assert_allclose(pr.hessian[0], sg * np.diag([1, 1, 0]))
     # sphere made of an arc centred on the axis: on the axis regular, at the centre flag 2
-    sph = RevolvedProfile(*SPHERE_PROFILE, inside=False)
+    sph = RevolvedProfile(*SPHERE_PROFILE, inside=False, backend=backend)
     pr = sph.project([[0, 0, 0.5], [0, 0, 3.0], [0, 0, 0.0]])
     np.testing.assert_array_equal(pr.flag, [0, 0, 2])
     np.testing.assert_allclose(pr.gap, [-0.7, 1.8, -1.2])
@@ -487,6 +488,16 @@ def test_standard_profiles_geometry():
 def test_bad_profiles(build, match):
     with pytest.raises(ValueError, match=match):
         build()
+
+
+def test_immutable_and_repr():
+    die = RevolvedProfile.die(1.6, 1.0, 0.2, 0.5)
+    with pytest.raises(AttributeError):
+        die.inside = False
+    with pytest.raises(ValueError):
+        die.points[0, 0] = 1.0  # read-only array
+    assert repr(die).startswith("RevolvedProfile(") and "inside=True" in repr(die)
+    assert die.name == "die" and RevolvedProfile.grooved_roll(2.0, 3.0).name == "roll"
 
 
 def test_inside_is_required_and_point_order_does_not_matter():

@@ -808,13 +808,6 @@ class RevolvedProfile(_AnalyticTool):
                 logger.debug("%s: %d singular point(s) (flag = 2)", self.name, n_sing)
         return Projection(gap, nrm, pt, hes if hessian else None, feat, flag)
 
-    def profile_gap(self, q) -> np.ndarray:
-        """Signed 2-D distance of (N, 2) meridian points ``(s, ρ)`` to the profile."""
-        q = np.atleast_2d(np.asarray(q, dtype=np.float64))
-        e = self.e_fixed
-        x = self.axis_point + q[:, :1] * self.axis + q[:, 1:2] * e
-        return self._project_reference(x, False).gap
-
     def _repr_fields(self):
         return (f"points={self.points.tolist()}, arcs={self.arcs}, inside={self.inside}, "
                 f"axis_point={_tup(self.axis_point)}, axis={_tup(self.axis)}")
