@@ -76,12 +76,13 @@ axis point), ``2n + 1`` / ``2n + 2`` the tangent extensions of arc end segments
 (:attr:`RevolvedProfile.feature_names` spells them out). Segment and point numbers are those of
 the given profile.
 
-Flags: 0 regular; 2 singular — a point on the axis (``ρ ≤ AXIS_TOL·L``, ``L`` the profile size)
-whose closest points form a circle (``e_r`` replaced by :attr:`e_fixed`, ``1/ρ`` by
-``1/(AXIS_TOL·L)`` in the hoop term, as for ``Cylinder``), an arc centre (all arc points are
-closest; the arc midpoint is taken and ``1/|q − o|`` replaced by ``1/(AXIS_TOL·r)``), or a point
-exactly on a kink circle. Points on the axis whose closest point is on the axis (an axis end of
-the profile, or an arc centred on the axis) are regular: their projection is unique.
+Flags: 0 regular; 2 singular — a point on the axis (``ρ ≤ AXIS_TOL·L``, ``L`` the profile size,
+:attr:`~RevolvedProfile.length_scale`) whose closest points form a circle (``e_r`` replaced by
+:attr:`~RevolvedProfile.e_fixed`, ``1/ρ`` by ``1/(AXIS_TOL·L)`` in the hoop term, as for
+``Cylinder``), the centre of the closest arc (all its points are closest; the arc midpoint is
+taken and ``1/|q − o|`` replaced by ``1/(AXIS_TOL·r)``), or a point exactly on a kink circle.
+Points on the axis whose closest point is on the axis (an axis end of the profile, or an arc
+centred on the axis) are regular: their projection is unique.
 
 Backends: ``backend="numba"`` (one ``@numba.njit(cache=True)`` kernel looping over the points)
 or ``"numpy"`` (:func:`revolved_numpy`, vectorised reference twin, for testing only).
