@@ -38,6 +38,11 @@ _API = {
     "NodalContact": ("contact.nodal", "nodal penalty contact, four schemes (§2-§3)"),
     "SCHEMES": ("contact.nodal", "names of the contact time-integration schemes (§3)"),
     "penalty_from_beta": ("contact.nodal", "penalty rho from the dimensionless beta (§2.5)"),
+    "FRICTION_MODES": ("contact.nodal", "implicit or explicit friction (§9.4)"),
+    "Frictionless": ("contact.friction", "no tangential stress (the default law, §9)"),
+    "Coulomb": ("contact.friction", "Coulomb friction limited by Tresca (§9.2)"),
+    "Tresca": ("contact.friction", "Tresca friction factor law tau = mbar k (§9.2)"),
+    "Norton": ("contact.friction", "viscoplastic (Norton) friction (§9.2)"),
     "NodalSprings": ("springs", "nodal springs/dashpots: the smallest nodal contributor"),
     # tools and their motions
     "Tool": ("tools.base", "base class of rigid tools (projection, motion)"),
@@ -49,6 +54,12 @@ _API = {
     "Sphere": ("tools.analytic", "analytic ball or spherical cavity (§4.1)"),
     "Cylinder": ("tools.analytic", "analytic cylinder (roll, mandrel) or bore (§4.1)"),
     "Cone": ("tools.analytic", "analytic cone or conical bore (drawing die) (§4.1)"),
+    "RevolvedProfile": ("tools.revolved", "surface of revolution of a line/arc profile: dies, "
+                        "grooved rolls (§4.1)"),
+    "die_profile": ("tools.revolved", "drawing-die meridian profile: cone, fillet, land"),
+    "grooved_roll_profile": ("tools.revolved", "grooved-roll meridian profile"),
+    "faceted_revolved": ("tools.revolved", "triangulation of a revolved profile (whole or "
+                         "mirror-symmetric sector)"),
     "FacetedTool": ("tools.faceted", "triangulated tool, flat or Nagata projection (§6-§8)"),
     "read_surface": ("tools.faceted", "read a tool surface (gmsh .msh, STL, OBJ)"),
     "check_surface": ("tools.faceted", "check a triangulated surface, naming bad items"),
