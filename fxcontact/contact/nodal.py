@@ -129,9 +129,10 @@ class NodalContact:
             process, taken at each increment as the largest of the tools' surface speeds at
             the contact nodes' projections and the contact nodes' speeds of the predictor (a
             roll that starts turning after a pressing stage gets the v₀ of its surface speed).
-        friction_tangent: ``"auto"`` (default: the secant friction tangent while the nodes'
-            stick/slip state changes between Newton iterations, the consistent one once it has
-            settled — quadratic end of the convergence), ``"consistent"`` or ``"secant"``.
+        friction_tangent: ``"auto"`` (default: the secant friction tangent until the nodes'
+            stick/slip state is unchanged and their slip velocities move by less than v₀
+            between two Newton iterations, the consistent one from then on — quadratic end of
+            the convergence; THEORY §9.5), ``"consistent"`` or ``"secant"``.
         name: label used in history columns.
         backend: "numba" or "numpy" (reference twin of the kernels, for testing).
 
@@ -602,7 +603,13 @@ class NodalContact:
             fr = np.where(self._branch > 0,
                           np.where(slip < STICK_FACTOR * self.slip_velocity, 1, 2), 0)
             fr_same = self._fr_state_prev is not None and np.array_equal(fr, self._fr_state_prev)
+            # ... and the slip velocities moved by less than v₀ (the law's nonlinearity scale)
+            # since the previous iterate: the consistent tangent's basin of convergence
+            if fr_same and len(fr):
+                fr_same = bool(np.max(np.linalg.norm(self._dvt - self._dvt_prev, axis=1))
+                               < self.slip_velocity)
             self._fr_state_prev = fr
+            self._dvt_prev = self._dvt.copy()
             self._fr_settled = bool(comm.allreduce(int(fr_same), op=MPI.MIN))
         return self._settled
 
