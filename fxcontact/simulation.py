@@ -608,28 +608,22 @@ class Simulation:
         nown = self.mesh.topology.index_map(tdim).size_local
         self._c2v_owned = compat.cell_vertices(self.mesh)[:nown]
         vol0, _ = self._cell_measures(self.space.vertex_positions())
+        msg = None
         if np.any(vol0 == 0.0):
             i = int(np.flatnonzero(vol0 == 0.0)[0])
             c = self.space.vertex_positions()[self._c2v_owned[i]].mean(axis=0)
-            raise ValueError(f"the mesh has a degenerate (zero-volume) cell at "
-                             f"{np.array2string(c, precision=4)}")
+            msg = (f"the mesh has {int(np.sum(vol0 == 0.0))} degenerate (zero-volume) cell(s), "
+                   f"e.g. with centroid {np.array2string(c, precision=4)}")
+        msgs = [m for m in self.comm.allgather(msg) if m]   # raised on every rank
+        if msgs:
+            raise ValueError(msgs[0])
         self._vol0 = vol0
 
     def _cell_measures(self, X: np.ndarray):
-        """Signed measure (volume/area) and shape quality of the owned cells for the vertex
-        positions X: q = 12 (3|V|)^(2/3) / Σ l² (tetrahedron) or 4√3 |A| / Σ l² (triangle),
-        1 for the regular simplex, 0 for a flat one."""
-        P = X[self._c2v_owned]
-        nv = P.shape[1]
-        E = P[:, 1:] - P[:, :1]
-        vol = np.linalg.det(E) / math.factorial(nv - 1) if len(P) else np.zeros(0)
-        L2 = sum(np.sum((P[:, i] - P[:, j]) ** 2, axis=1) for i in range(nv)
-                 for j in range(i + 1, nv))
-        if nv == 4:
-            q = 12.0 * np.cbrt(3.0 * np.abs(vol)) ** 2 / L2
-        else:
-            q = 4.0 * math.sqrt(3.0) * np.abs(vol) / L2
-        return vol, q
+        """Signed measure and shape quality of the owned cells for the vertex positions X
+        (:func:`fxcontact.mesh_health.simplex_measures`)."""
+        from fxcontact.mesh_health import simplex_measures
+        return simplex_measures(X[self._c2v_owned])
 
     def _health(self, X: np.ndarray):
         """(min signed quality, min volume ratio, local index of the worst cell) (local)."""
@@ -657,9 +651,11 @@ class Simulation:
             return True
         sp = self.space
         self.w.x.scatter_forward()
-        X = self.kinematics.positions(self.vertex_positions(), self.w.x.array[sp.vertex_dofs], dt)
+        x_t = self.vertex_positions()
+        X = self.kinematics.positions(x_t, self.w.x.array[sp.vertex_dofs], dt)
         _, r, i = self._health(X)
-        worst = self.comm.allgather((r, None if i < 0 else X[self._c2v_owned[i]].mean(axis=0)))
+        # the cell is located by its centroid at the start of the increment (the last output)
+        worst = self.comm.allgather((r, None if i < 0 else x_t[self._c2v_owned[i]].mean(axis=0)))
         r_min, c = min(worst, key=lambda a: a[0])
         if r_min > 0.0:
             return True
