@@ -200,6 +200,7 @@ def list_checkpoints(directory: str, name: Optional[str] = None) -> List[str]:
 
 
 def latest_checkpoint(directory: str, name: Optional[str] = None) -> Optional[str]:
+    """The newest complete checkpoint in ``directory`` (of the run ``name``), or None."""
     ckpts = list_checkpoints(directory, name)
     return ckpts[-1] if ckpts else None
 
