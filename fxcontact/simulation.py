@@ -597,9 +597,8 @@ class Simulation:
             where = os.path.join(self.output_dir, self.name) if self.output_dir else self.name
             raise OutputError(
                 f"writing the outputs of increment {self.increment} (t = {self.t:.6g}) failed "
-                f"({errs[0]}); the history and the VTK series up to the previous increment are in "
-                f"{where}_history.csv and {where}.pvd. Free disk space and resume from the last "
-                f"checkpoint")
+                f"({errs[0]}); what was written before is intact ({where}_history.csv, "
+                f"{where}.pvd). Free disk space and resume from the last checkpoint")
 
     # ------------------------------------------------------------------------ mesh health
     def _init_mesh_health(self):
