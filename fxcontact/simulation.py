@@ -5,7 +5,10 @@ contributors prepare (explicit projections…), Newton starts from the previous 
 (predictor), and on success the geometry (or the displacement), the cumulative equivalent strain,
 the history and the outputs are updated. A failed Newton solve is retried with ``dt`` halved, at
 most ``max_cutbacks`` times, then :class:`IncrementError` names the time; everything written so far
-stays on disk.
+stays on disk. A converged increment whose geometry update would invert a cell is treated as a
+failed one (:class:`MeshInversionError` if it persists); the mesh quality is a history column.
+Checkpoints (every n increments and at a failed increment) let a killed run be resumed
+(:meth:`Simulation.resume`, :mod:`fxcontact.checkpoint`).
 """
 
 from __future__ import annotations
@@ -761,7 +764,7 @@ class Simulation:
         if self.comm.rank == 0:
             os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
         ck.write(self.comm, path, manifest, arrays)
-        if path == self._checkpoint_path():
+        if self.output_dir is not None and path == self._checkpoint_path():
             ck.prune(self.comm, self.checkpoint_dir, self.name, self.checkpoint_keep)
         self.comm.barrier()
         log.info("checkpoint written: %s", path)
