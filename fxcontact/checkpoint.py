@@ -66,7 +66,7 @@ class PerVertex:
 class VertexLookup:
     """Values saved per vertex, looked up on the vertices of the resumed partition."""
 
-    def __init__(self, table: "_KeyTable", vertex_keys: np.ndarray, what: str):
+    def __init__(self, table: "KeyTable", vertex_keys: np.ndarray, what: str):
         self._table, self._vkeys, self._what = table, vertex_keys, what
 
     def at(self, vertices) -> np.ndarray:
@@ -77,11 +77,9 @@ class VertexLookup:
 # ------------------------------------------------------------------------------ keys
 def vertex_keys(msh) -> np.ndarray:
     """(num_local_vertices,) input index (mesh file / generator numbering) of each vertex."""
-    tdim = msh.topology.dim
     imap = msh.topology.index_map(0)
     nv = imap.size_local + imap.num_ghosts
     nodes = compat.entities_to_geometry(msh, 0, np.arange(nv, dtype=np.int32)).ravel()
-    del tdim
     return np.asarray(msh.geometry.input_global_indices, dtype=np.int64)[nodes]
 
 
@@ -126,7 +124,7 @@ def _as_records(keys: np.ndarray) -> np.ndarray:
     return keys.view(dt).reshape(-1)
 
 
-class _KeyTable:
+class KeyTable:
     """Sorted (key → value) table of one saved field, gathered from every rank's file."""
 
     def __init__(self, keys: np.ndarray, values: np.ndarray):

@@ -816,17 +816,17 @@ class Simulation:
         arrays = ck.read_arrays(path, int(man["nranks"]))
         keys = self._checkpoint_keys()
         sp = self.space
-        tw = ck._KeyTable(arrays["w_key"], arrays["w_prev"])
+        tw = ck.KeyTable(arrays["w_key"], arrays["w_prev"])
         self.w_prev.x.array[:] = tw.lookup(keys["w"], "the solution")
         self.w.x.array[:] = self.w_prev.x.array
-        tc = ck._KeyTable(arrays["c_key"], np.c_[arrays["strain"], arrays["strain_rate"]])
+        tc = ck.KeyTable(arrays["c_key"], np.c_[arrays["strain"], arrays["strain_rate"]])
         sc = tc.lookup(keys["c"], "the strain")
         self.strain.x.array[:] = sc[:, 0]
         self.strain_rate.x.array[:] = sc[:, 1]
-        tx = ck._KeyTable(arrays["x_key"], arrays["x"])
+        tx = ck.KeyTable(arrays["x_key"], arrays["x"])
         self.mesh.geometry.x[:] = tx.lookup(keys["x"], "the geometry")
         if self.u is not None:
-            tu = ck._KeyTable(arrays["w_key"], arrays["u"])
+            tu = ck.KeyTable(arrays["w_key"], arrays["u"])
             self.u.x.array[:] = tu.lookup(keys["w"], "the displacement")[sp.V_to_W]
         for i, (c, st) in enumerate(zip(self.contributors, man["contributors"])):
             if not st:
@@ -837,7 +837,7 @@ class Simulation:
             state = {}
             for k, e in st.items():
                 if e.get("per_vertex"):
-                    table = ck._KeyTable(arrays[f"c{i}.{k}.key"], arrays[f"c{i}.{k}.val"])
+                    table = ck.KeyTable(arrays[f"c{i}.{k}.key"], arrays[f"c{i}.{k}.val"])
                     state[k] = ck.VertexLookup(table, keys["v"][:, None],
                                                f"{type(c).__name__}.{k}")
                 else:
