@@ -251,9 +251,13 @@ def write(comm: MPI.Comm, path: str, manifest: dict, arrays: Dict[str, np.ndarra
                 json.dump(manifest, fh, default=_json_default)
                 fh.flush()
                 os.fsync(fh.fileno())
+            old = path + ".old"
             if os.path.isdir(path):   # an older checkpoint of the same increment
-                shutil.rmtree(path)
+                if os.path.isdir(old):
+                    shutil.rmtree(old)
+                os.rename(path, old)
             os.rename(tmp, path)
+            shutil.rmtree(old, ignore_errors=True)
         except OSError as e:
             err = str(e)
     err = comm.bcast(err, root=0)

@@ -763,7 +763,12 @@ class Simulation:
         path = path or self._checkpoint_path()
         if self.comm.rank == 0:
             os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-        ck.write(self.comm, path, manifest, arrays)
+        try:
+            ck.write(self.comm, path, manifest, arrays)
+        except OSError as e:
+            prev = ck.latest_checkpoint(os.path.dirname(os.path.abspath(path)), self.name)
+            raise OutputError(f"{e} (increment {self.increment}, t = {self.t:.6g}); the previous "
+                              f"checkpoint {prev} is intact") from e
         if self.output_dir is not None and path == self._checkpoint_path():
             ck.prune(self.comm, self.checkpoint_dir, self.name, self.checkpoint_keep)
         self.comm.barrier()

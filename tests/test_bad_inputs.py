@@ -31,8 +31,7 @@ COMM = MPI.COMM_WORLD
 TAGS = {"x0": 1, "y0": 2, "z0": 3, "z1": 4}
 
 
-@pytest.fixture(scope="module")
-def ctx():
+def _cube():
     """A 2×2×2 unit cube with tagged faces x0, y0, z0 (1–3) and the top z1 (4)."""
     msh = box_mesh(COMM, n=(2, 2, 2))
     loc = dolfinx.mesh.locate_entities_boundary
@@ -45,6 +44,18 @@ def ctx():
     ft = dolfinx.mesh.meshtags(msh, 2, idx.astype(np.int32), val[first])
     space = fx.MixedSpace(msh)
     return dict(msh=msh, ft=ft, space=space, top=fx.ContactBoundary(space, ft, TAGS["z1"]))
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    """The cube for the set-up errors (nothing moves it)."""
+    return _cube()
+
+
+@pytest.fixture
+def cube():
+    """A fresh cube for each run (an updated-Lagrangian run moves its mesh)."""
+    return _cube()
 
 
 def _sim(c, **kw):
@@ -194,7 +205,8 @@ def test_catalogue_is_large_and_listed_in_the_readme():
 
 # ----------------------------------------------------------------------------- during a run
 RUN_TIME_CASES = ["bc-function-returns-nan", "newton-fails-after-all-cutbacks",
-                  "disk-full-history", "disk-full-vtk", "checkpoint-of-another-mesh",
+                  "disk-full-history", "disk-full-vtk", "disk-full-checkpoint",
+                  "checkpoint-of-another-mesh",
                   "tool-starts-buried", "friction-needs-shear-limit"]
 
 
@@ -231,8 +243,8 @@ def out():
         shutil.rmtree(d, ignore_errors=True)
 
 
-def test_bc_function_returns_nan(ctx, out):
-    s = _pressed(ctx, out, top=lambda t: -0.1 if t < 0.15 else float("nan"))
+def test_bc_function_returns_nan(cube, out):
+    s = _pressed(cube, out, top=lambda t: -0.1 if t < 0.15 else float("nan"))
     with pytest.raises(ValueError, match=r"condition\(s\) #\[3\].*non-finite.*t = 0.2"):
         s.run(0.4, 0.1)
     _outputs_intact(out, 1, [0.0, 0.1])
@@ -257,8 +269,8 @@ class _RefuseAfter:
         return True
 
 
-def test_newton_fails_after_all_cutbacks(ctx, out):
-    s = _pressed(ctx, out, checkpoint_every=10)
+def test_newton_fails_after_all_cutbacks(cube, out):
+    s = _pressed(cube, out, checkpoint_every=10)
     s.add_contributor(_RefuseAfter(0.2))
     with pytest.raises(IncrementError, match=r"t = 0.2 failed.*refused.*Results up to t = 0.2"):
         s.run(0.5, 0.1, max_cutbacks=2)
@@ -267,7 +279,7 @@ def test_newton_fails_after_all_cutbacks(ctx, out):
     assert latest_checkpoint(os.path.join(out, "checkpoints"), "p").endswith("p_000002")
 
 
-def test_disk_full_history(ctx, out, monkeypatch):
+def test_disk_full_history(cube, out, monkeypatch):
     write = HistoryWriter.write
     calls = []
 
@@ -278,13 +290,13 @@ def test_disk_full_history(ctx, out, monkeypatch):
         write(self, row)
 
     monkeypatch.setattr(HistoryWriter, "write", failing)
-    s = _pressed(ctx, out)
+    s = _pressed(cube, out)
     with pytest.raises(OutputError, match=r"increment 2 .*No space left on device.*intact"):
         s.run(0.4, 0.1)
     _outputs_intact(out, 1, [0.0, 0.1])
 
 
-def test_disk_full_vtk(ctx, out, monkeypatch):
+def test_disk_full_vtk(cube, out, monkeypatch):
     write = SeriesWriter.write
     calls = []
 
@@ -295,14 +307,39 @@ def test_disk_full_vtk(ctx, out, monkeypatch):
         write(self, functions, t)
 
     monkeypatch.setattr(SeriesWriter, "write", failing)
-    s = _pressed(ctx, out)
+    s = _pressed(cube, out)
     with pytest.raises(OutputError, match=r"increment 2 .*No space left on device"):
         s.run(0.4, 0.1)
     _outputs_intact(out, 2, [0.0, 0.1])
 
 
-def test_checkpoint_of_another_mesh(ctx, out):
-    s = _pressed(ctx, out, checkpoint_every=1)
+def test_disk_full_checkpoint(cube, out, monkeypatch):
+    import fxcontact.checkpoint as ck
+    savez = np.savez
+    calls = []
+
+    def failing(fh, **arrays):   # the third checkpoint fails on the last rank
+        calls.append(1)
+        if len(calls) == 3 and COMM.rank == COMM.size - 1:
+            raise OSError(28, "No space left on device")
+        savez(fh, **arrays)
+
+    monkeypatch.setattr(ck.np, "savez", failing)
+    s = _pressed(cube, out, checkpoint_every=1, checkpoint_keep=5)
+    with pytest.raises(OutputError, match=r"cannot write checkpoint .*p_000003.*No space left"
+                       r".*increment 3.*previous checkpoint .*p_000002 is intact"):
+        s.run(0.5, 0.1)
+    monkeypatch.undo()
+    _outputs_intact(out, 3, [0.0, 0.1, 0.2, 0.3])
+    assert latest_checkpoint(os.path.join(out, "checkpoints"), "p").endswith("p_000002")
+    s2 = _pressed(_cube(), out)      # the same initial mesh
+    s2.resume()
+    assert s2.increment == 2
+    s2.close()
+
+
+def test_checkpoint_of_another_mesh(cube, out):
+    s = _pressed(cube, out, checkpoint_every=1)
     s.run(0.1, 0.1)
     path = latest_checkpoint(os.path.join(out, "checkpoints"), "p")
     manifest = Path(path, "manifest.json").read_bytes()
@@ -316,20 +353,20 @@ def test_checkpoint_of_another_mesh(ctx, out):
     _outputs_intact(out, 1, [0.0, 0.1])
 
 
-def test_tool_starts_buried(ctx, out):
-    s = _pressed(ctx, out)
-    s.add_contributor(fx.NodalContact(fx.ContactBoundary(ctx["space"], ctx["ft"], TAGS["z1"]),
+def test_tool_starts_buried(cube, out):
+    s = _pressed(cube, out)
+    s.add_contributor(fx.NodalContact(fx.ContactBoundary(cube["space"], cube["ft"], TAGS["z1"]),
                                       _die(z=0.6), penalty=10.0))
     with pytest.raises(ValueError, match=r"buried in tool 'die' deeper than the limit"):
         s.run(0.2, 0.1)
     _outputs_intact(out, 0, [0.0])
 
 
-def test_friction_needs_shear_limit(ctx, out):
-    s = fx.Simulation(ctx["space"], fx.LinearElastic(100.0, 0.3), progress=False,
+def test_friction_needs_shear_limit(cube, out):
+    s = fx.Simulation(cube["space"], fx.LinearElastic(100.0, 0.3), progress=False,
                       output_dir=out, name="p")
-    s.add_velocity_bc(s.facets(ctx["ft"], TAGS["z0"]), 0.0)
-    s.add_contributor(fx.NodalContact(fx.ContactBoundary(ctx["space"], ctx["ft"], TAGS["z1"]),
+    s.add_velocity_bc(s.facets(cube["ft"], TAGS["z0"]), 0.0)
+    s.add_contributor(fx.NodalContact(fx.ContactBoundary(cube["space"], cube["ft"], TAGS["z1"]),
                                       _die(), penalty=10.0, friction=fx.Tresca(0.5)))
     with pytest.raises(ValueError, match=r"shear flow stress k .*give shear_limit="):
         s.run(0.2, 0.1)
