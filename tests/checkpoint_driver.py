@@ -4,7 +4,7 @@
 
 MODE ``full`` runs to the end; ``resume`` resumes from the newest checkpoint in OUT first. With
 ``--pause-after N`` the run writes ``OUT/paused`` after increment N and sleeps (the test kills it
-there). At the end, rank 0 writes ``OUT/final.npz``: the vertex velocities, pressures and
+there); with ``--die-writing N`` it kills itself (SIGKILL) while writing its N-th checkpoint. At the end, rank 0 writes ``OUT/final.npz``: the vertex velocities, pressures and
 positions keyed by the initial vertex positions, the cell strains keyed by the initial cell
 centroids.
 
@@ -109,7 +109,23 @@ def main():
     ap.add_argument("out")
     ap.add_argument("mode", choices=["full", "resume"])
     ap.add_argument("--pause-after", type=int, default=0)
+    ap.add_argument("--die-writing", type=int, default=0)
     a = ap.parse_args()
+    if a.die_writing:
+        # SIGKILL this process in the middle of writing checkpoint number N: its rank file is
+        # in the temporary directory, the manifest and the rename are not done
+        import signal
+        import fxcontact.checkpoint as ck
+        savez, count = np.savez, []
+
+        def savez_and_die(fh, **arrays):
+            savez(fh, **arrays)
+            count.append(1)
+            if len(count) == a.die_writing:
+                fh.flush()
+                os.kill(os.getpid(), signal.SIGKILL)
+
+        ck.np.savez = savez_and_die
     sim = build(a.out)
     if a.mode == "resume":
         sim.resume()

@@ -1,10 +1,11 @@
 """Restart after a crash: a run killed with SIGKILL and resumed from its last checkpoint gives the
 history and the fields of the uninterrupted run; bad checkpoints are refused with a clear error.
 
-The kill tests start the run of ``checkpoint_driver.py`` as a subprocess (serially and under
-``mpirun -n 2``), kill it while it sleeps after increment 5 (the newest checkpoint is then the one
-of increment 4, and the CSV/VTK outputs already hold increment 5), resume it in another
-subprocess and compare with an uninterrupted run.
+The kill tests start the run of ``checkpoint_driver.py`` as a subprocess and SIGKILL it: serially
+while it writes its checkpoint of increment 6, under ``mpirun -n 2`` (the whole process group)
+while it sleeps after increment 5. The newest checkpoint is then the one of increment 4 and the
+CSV/VTK outputs already hold later increments; the run is resumed in another subprocess and
+compared with an uninterrupted run.
 """
 
 import csv
@@ -111,11 +112,14 @@ def _compare(ref_dir, dir_, tol):
 
 @pytest.fixture(scope="module")
 def serial_runs():
-    """An uninterrupted serial run, and a serial run killed after increment 5 (kept aside)."""
+    """An uninterrupted serial run, and a serial run killed while it writes its third
+    checkpoint (increment 6; kept aside)."""
     d = shared_tmpdir("fxc_ckpt_")
     if MPI.COMM_WORLD.rank == 0:
         _run(1, os.path.join(d, "full"), "full")
-        _run_and_kill(1, os.path.join(d, "killed"))
+        r = subprocess.run(_cmd(1, os.path.join(d, "killed"), "full", "--die-writing", "3"),
+                           env=_env(), capture_output=True, text=True, timeout=300)
+        assert r.returncode == -signal.SIGKILL, r.stderr[-3000:]
     MPI.COMM_WORLD.barrier()
     yield d
     if MPI.COMM_WORLD.rank == 0:
@@ -125,11 +129,12 @@ def serial_runs():
 @pytest.mark.serial
 def test_killed_serial_run_resumes_to_the_same_result(serial_runs):
     full, killed = os.path.join(serial_runs, "full"), os.path.join(serial_runs, "killed")
-    # killed at increment 5: the newest checkpoint is the one of increment 4, the outputs
-    # already hold increment 5
+    # killed while writing the checkpoint of increment 6: that one is an incomplete temporary
+    # directory, the newest checkpoint is the one of increment 4, the outputs hold increment 6
+    assert os.path.isdir(os.path.join(killed, "checkpoints", "press_000006.tmp"))
     assert latest_checkpoint(os.path.join(killed, "checkpoints")).endswith("press_000004")
-    assert len(_csv(os.path.join(killed, "press_history.csv"))) == 5
-    assert len(read_pvd(os.path.join(killed, "press.pvd"))) == 6
+    assert len(_csv(os.path.join(killed, "press_history.csv"))) == 6
+    assert len(read_pvd(os.path.join(killed, "press.pvd"))) == 7
     res = os.path.join(serial_runs, "resumed")
     shutil.copytree(killed, res)
     _run(1, res, "resume")
