@@ -152,11 +152,11 @@ def test_killed_run_on_two_ranks_resumes_to_the_same_result(serial_runs):
     _run(2, os.path.join(d, "killed2"), "resume")
     _compare(os.path.join(d, "full2"), os.path.join(d, "killed2"), 1e-10)
     # a serial checkpoint resumed on 2 ranks: another partition, the same result up to the
-    # round-off of the distributed solve (the 1-vs-2-rank agreement of the other tests)
+    # round-off of the distributed solve (measured: 3e-15 relative; 1 vs 2 ranks: 6e-13)
     res = os.path.join(d, "serial_on_two")
     shutil.copytree(os.path.join(d, "killed"), res)
     _run(2, res, "resume")
-    _compare(os.path.join(d, "full"), res, 1e-8)
+    _compare(os.path.join(d, "full"), res, 1e-10)
 
 
 # ----------------------------------------------------------------------------- in process
