@@ -40,7 +40,7 @@ from fxcontact.spaces import MixedSpace
 # %%
 def run(radius=10.0, height=15.0, h=2.5, K=50.0, m=0.15, die_speed=5.0, reduction=0.3,
         n_steps=15, dies="sticking", output_dir="results/upsetting", picture=True,
-        progress=True, comm=MPI.COMM_WORLD) -> dict:
+        progress=True, comm=MPI.COMM_WORLD, checkpoint_every=0, resume=False) -> dict:
     """Upset the billet by ``reduction`` of its height in ``n_steps`` increments.
 
     Args:
@@ -49,6 +49,8 @@ def run(radius=10.0, height=15.0, h=2.5, K=50.0, m=0.15, die_speed=5.0, reductio
         die_speed: closing speed of the upper die [mm/s] (the lower die is fixed).
         reduction: final height reduction (fraction of the initial height).
         dies: ``"sticking"`` (no radial velocity on the end faces) or ``"sliding"``.
+        checkpoint_every: write a checkpoint every n increments (``output_dir/checkpoints``).
+        resume: continue from the newest checkpoint (a run that was killed).
     Returns:
         dict with the history, the final height, the maximum radius at mid-height and on the
         end faces (barrelling), the final die force and the paths of the outputs.
@@ -58,7 +60,8 @@ def run(radius=10.0, height=15.0, h=2.5, K=50.0, m=0.15, die_speed=5.0, reductio
     msh, _, ft = cylinder_billet(comm, radius, height, h, quarter=True)
     space = MixedSpace(msh)
     sim = Simulation(space, NortonHoff(K=K, m=m, regularization=1e-4 * die_speed / height),
-                     output_dir=output_dir, name="upsetting", progress=progress)
+                     output_dir=output_dir, name="upsetting", progress=progress,
+                     checkpoint_every=checkpoint_every)
     f = {k: sim.facets(ft, v) for k, v in BILLET_TAGS.items()}
     sim.add_velocity_bc(f["symmetry_x"], 0.0, 0)
     sim.add_velocity_bc(f["symmetry_y"], 0.0, 1)
@@ -70,7 +73,12 @@ def run(radius=10.0, height=15.0, h=2.5, K=50.0, m=0.15, die_speed=5.0, reductio
         sim.add_velocity_bc(f["top"], -die_speed, 2)
     sim.add_reaction("die", f["top"])
     t_end = reduction * height / die_speed
-    sim.run(t_end, t_end / n_steps)
+    if resume:
+        sim.resume()
+    if sim.t < t_end * (1.0 - 1e-9):
+        sim.run(t_end, t_end / n_steps)
+    else:  # resumed from the checkpoint of the last increment: nothing left to do
+        sim.close()
     # barrelling: radius of the lateral surface at mid-height vs at the end faces
     x = space.vertex_positions()
     r = np.hypot(x[:, 0], x[:, 1])
@@ -102,10 +110,15 @@ if __name__ == "__main__":
     ap.add_argument("--size", type=float, default=2.0, help="element size [mm]")
     ap.add_argument("--dies", default="sticking", choices=["sticking", "sliding"])
     ap.add_argument("--output", default="results/upsetting")
+    ap.add_argument("--checkpoint-every", type=int, default=5,
+                    help="write a checkpoint every n increments (0: never)")
+    ap.add_argument("--resume", action="store_true",
+                    help="continue a killed run from its newest checkpoint")
     add_verbosity_arguments(ap)
     a = ap.parse_args()
     configure_logging(a.verbose, a.quiet)
-    res = run(h=a.size, dies=a.dies, output_dir=a.output)
+    res = run(h=a.size, dies=a.dies, output_dir=a.output, checkpoint_every=a.checkpoint_every,
+              resume=a.resume)
     if MPI.COMM_WORLD.rank == 0:
         homog = 10.0 * np.sqrt(15.0 / res["height"])
         print(f"final height {res['height']:.3f} mm, die force (full billet) "

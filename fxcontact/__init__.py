@@ -27,6 +27,14 @@ _API = {
     "Simulation": ("simulation", "increment loop: BCs, contributors, cut-back, outputs (§1.5)"),
     "IncrementError": ("simulation", "raised when an increment fails after its cut-backs"),
     "IncrementResult": ("simulation", "outcome of one accepted increment (history row + info)"),
+    "MeshInversionError": ("simulation", "raised when an element would turn inside out even "
+                           "after the cut-backs"),
+    "OutputError": ("simulation", "raised when writing the history or the VTK series fails"),
+    "CheckpointError": ("checkpoint", "a checkpoint that is missing, incomplete, of another "
+                        "version, mesh or set-up"),
+    "PerVertex": ("checkpoint", "per-vertex contributor state saved in a checkpoint"),
+    "latest_checkpoint": ("checkpoint", "the newest complete checkpoint in a directory"),
+    "simplex_measures": ("mesh_health", "signed volume and shape quality of simplices"),
     "MixedSpace": ("spaces", "MINI (or Taylor-Hood) velocity-pressure space, vertex maps (§1.3)"),
     "facets_with_tags": ("spaces", "facet indices carrying given tags"),
     # materials

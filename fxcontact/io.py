@@ -18,34 +18,98 @@ from mpi4py import MPI
 
 from fxcontact import compat
 
-__all__ = ["SeriesWriter", "HistoryWriter", "render_png", "gather_mesh_data"]
+__all__ = ["SeriesWriter", "HistoryWriter", "render_png", "gather_mesh_data", "read_pvd",
+           "write_pvd"]
 
 log = logging.getLogger(__name__)
 
 
 class SeriesWriter:
-    """VTK (.pvd) time series on the current (moving) mesh."""
+    """VTK (.pvd) time series on the current (moving) mesh.
 
-    def __init__(self, comm: MPI.Comm, directory: str, name: str):
+    ``VTKFile`` writes its ``.pvd`` index only when closed, so the index ``<name>.pvd`` is
+    rewritten here (rank 0, atomically) after every step: a run that is killed keeps a readable
+    series. With ``resume_time`` the series continues a previous one: its steps up to that time
+    are kept, later ones (written after the checkpoint of a run that was then killed) dropped,
+    and the new steps go to files ``<name>_r<k>…`` of a new segment ``k``.
+    """
+
+    def __init__(self, comm: MPI.Comm, directory: str, name: str,
+                 resume_time: Optional[float] = None):
         if comm.rank == 0:
             os.makedirs(directory, exist_ok=True)
         comm.barrier()
+        self.comm = comm
+        self.directory = directory
         self.path = os.path.join(directory, f"{name}.pvd")
-        self._f = compat.VTKFile(comm, self.path, "w")
+        self._entries: List[tuple] = []
+        stem = name
+        if resume_time is not None:
+            data = None
+            if comm.rank == 0:
+                tol = 1e-12 * max(1.0, abs(resume_time))
+                kept = [e for e in read_pvd(self.path) if e[0] <= resume_time + tol]
+                k = 1
+                while any(os.path.exists(os.path.join(directory, f"{name}_r{k}{suffix}"))
+                          for suffix in (".pvd", "000000.pvtu")):
+                    k += 1
+                data = (kept, k)
+            kept, k = comm.bcast(data, root=0)
+            self._entries = list(kept)
+            stem = f"{name}_r{k}"
+        self._stem = stem
+        self._count = 0
+        self._f = compat.VTKFile(comm, os.path.join(directory, f"{stem}.pvd"), "w")
 
     def write(self, functions: Sequence, t: float):
         self._f.write_function(list(functions), float(t))
+        self._entries.append((float(t), f"{self._stem}{self._count:06d}.pvtu"))
+        self._count += 1
+        if self.comm.rank == 0:
+            write_pvd(self.path, self._entries)
 
     def close(self):
         if self._f is not None:
             self._f.close()
             self._f = None
+            if self.comm.rank == 0:
+                # VTKFile has just written its own index of this segment: keep the whole series
+                seg = os.path.join(self.directory, f"{self._stem}.pvd")
+                if os.path.abspath(seg) != os.path.abspath(self.path) and os.path.exists(seg):
+                    os.remove(seg)
+                write_pvd(self.path, self._entries)
+
+
+def read_pvd(path: str) -> List[tuple]:
+    """``[(time, file), …]`` of a ``.pvd`` collection (empty if the file does not exist)."""
+    import xml.etree.ElementTree as ET
+    if not os.path.exists(path):
+        return []
+    root = ET.parse(path).getroot()
+    return [(float(d.get("timestep")), d.get("file")) for d in root.iter("DataSet")]
+
+
+def write_pvd(path: str, entries: Sequence[tuple]):
+    """Write a ``.pvd`` collection atomically (temporary file, then rename)."""
+    lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="1.0">',
+             "  <Collection>"]
+    lines += [f'    <DataSet timestep="{t!r}" part="0" file="{f}" />' for t, f in entries]
+    lines += ["  </Collection>", "</VTKFile>", ""]
+    tmp = path + ".tmp"
+    with open(tmp, "w") as fh:
+        fh.write("\n".join(lines))
+    os.replace(tmp, path)
 
 
 class HistoryWriter:
-    """CSV history, one row per increment, written by rank 0 and flushed at once."""
+    """CSV history, one row per increment, written by rank 0 and flushed at once.
 
-    def __init__(self, comm: MPI.Comm, directory: str, name: str):
+    ``rows``: rows already computed (a resumed run): the file is rewritten with them
+    (atomically) and continued.
+    """
+
+    def __init__(self, comm: MPI.Comm, directory: str, name: str,
+                 rows: Optional[Sequence[Dict[str, float]]] = None):
         self.comm = comm
         self.path = os.path.join(directory, f"{name}_history.csv")
         self._fh = None
@@ -53,7 +117,20 @@ class HistoryWriter:
         self._keys: Optional[List[str]] = None
         if comm.rank == 0:
             os.makedirs(directory, exist_ok=True)
-            self._fh = open(self.path, "w", newline="")
+            if rows:
+                tmp = self.path + ".tmp"
+                with open(tmp, "w", newline="") as fh:
+                    self._keys = list(rows[0].keys())
+                    w = csv.DictWriter(fh, fieldnames=self._keys, extrasaction="ignore")
+                    w.writeheader()
+                    for r in rows:
+                        w.writerow({k: r.get(k, "") for k in self._keys})
+                os.replace(tmp, self.path)
+                self._fh = open(self.path, "a", newline="")
+                self._writer = csv.DictWriter(self._fh, fieldnames=self._keys,
+                                              extrasaction="ignore")
+            else:
+                self._fh = open(self.path, "w", newline="")
 
     def write(self, row: Dict[str, float]):
         if self.comm.rank != 0:

@@ -5,13 +5,17 @@ contributors prepare (explicit projections…), Newton starts from the previous 
 (predictor), and on success the geometry (or the displacement), the cumulative equivalent strain,
 the history and the outputs are updated. A failed Newton solve is retried with ``dt`` halved, at
 most ``max_cutbacks`` times, then :class:`IncrementError` names the time; everything written so far
-stays on disk.
+stays on disk. A converged increment whose geometry update would invert a cell is treated as a
+failed one (:class:`MeshInversionError` if it persists); the mesh quality is a history column.
+Checkpoints (every n increments and at a failed increment) let a killed run be resumed
+(:meth:`Simulation.resume`, :mod:`fxcontact.checkpoint`).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import os
 import time
 from dataclasses import dataclass
 from typing import Callable, Dict, List, Optional
@@ -32,7 +36,7 @@ from fxcontact.petsc import NonlinearProblem
 from fxcontact.solver import NewtonSolver, SolveInfo, SolverOptions
 from fxcontact.spaces import MixedSpace, facets_with_tags, set_function_value, velocity_bc
 
-__all__ = ["Simulation", "IncrementError", "IncrementResult"]
+__all__ = ["Simulation", "IncrementError", "MeshInversionError", "OutputError", "IncrementResult"]
 
 log = logging.getLogger(__name__)
 
@@ -45,6 +49,18 @@ class IncrementError(RuntimeError):
                          f"{message}. Results up to t = {t:.6g} are written.")
         self.t = t
         self.dt = dt
+
+
+class MeshInversionError(IncrementError):
+    """An element would invert (signed volume ≤ 0) even after the allowed cut-backs."""
+
+
+class OutputError(OSError):
+    """Writing the outputs (CSV history, VTK series) failed, e.g. on a full disk."""
+
+
+#: message prefix of an increment rejected because an element would invert
+_INVERSION = "element inverted"
 
 
 @dataclass
@@ -94,16 +110,31 @@ class Simulation:
         output_every: write the VTK series every n increments.
         progress: show a tqdm progress bar (rank 0 only), unless the console was set up quiet
             (:func:`fxcontact.console.configure_logging`).
+        checkpoint_every: write a checkpoint every n accepted increments (and when an increment
+            fails for good) into ``output_dir/checkpoints/`` (0: never); see :meth:`resume`.
+        checkpoint_keep: how many of the newest checkpoints are kept.
+        check_inversion: reject an increment whose geometry update would invert an element
+            (updated Lagrangian): it is cut back like a failed Newton solve and, if it persists,
+            stops with a :class:`MeshInversionError` naming the cell, the time and the increment.
     """
 
     def __init__(self, space: MixedSpace, material: Material,
                  solver_options: Optional[SolverOptions] = None, kinematics=None,
                  extra_residual: Optional[Callable] = None, output_dir: Optional[str] = None,
-                 name: str = "result", output_every: int = 1, progress: bool = True):
+                 name: str = "result", output_every: int = 1, progress: bool = True,
+                 checkpoint_every: int = 0, checkpoint_keep: int = 2,
+                 check_inversion: bool = True):
         if not isinstance(material, Material):
             raise ValueError(f"material must be a fxcontact material, got {material!r}")
         if output_every < 1:
             raise ValueError("output_every must be >= 1")
+        if not (isinstance(checkpoint_every, (int, np.integer)) and checkpoint_every >= 0):
+            raise ValueError(f"checkpoint_every must be an integer >= 0, got {checkpoint_every!r}")
+        if checkpoint_every and output_dir is None:
+            raise ValueError("checkpoint_every needs an output_dir (checkpoints are written to "
+                             "output_dir/checkpoints)")
+        if not (isinstance(checkpoint_keep, (int, np.integer)) and checkpoint_keep >= 1):
+            raise ValueError(f"checkpoint_keep must be an integer >= 1, got {checkpoint_keep!r}")
         self.space = space
         self.mesh = space.mesh
         self.comm = space.mesh.comm
@@ -139,6 +170,13 @@ class Simulation:
         self._writer = None
         self._history_writer = None
         self._reactions: Dict[str, np.ndarray] = {}
+        self.checkpoint_every = int(checkpoint_every)
+        self.checkpoint_keep = int(checkpoint_keep)
+        self.check_inversion = bool(check_inversion)
+        self._resumed: Optional[dict] = None
+        self._resume_step: Optional[float] = None
+        self._ckpt_keys = None
+        self._init_mesh_health()
 
     # ------------------------------------------------------------------------ set-up
     def _p1_vertex_dofs(self) -> np.ndarray:
@@ -217,10 +255,7 @@ class Simulation:
         self._mean_rate_form = compat.form(epsd * sp.dx)
         self._built = True
         if self.output_dir is not None:
-            from fxcontact.io import HistoryWriter, SeriesWriter
-            self._writer = SeriesWriter(self.comm, self.output_dir, self.name)
-            self._history_writer = HistoryWriter(self.comm, self.output_dir, self.name)
-            self._write_fields()
+            self._open_writers()
 
     def _strain_rate_expr(self, v):
         e = ufl.sym(ufl.grad(v))
@@ -306,6 +341,13 @@ class Simulation:
     def _set_bc_values(self, t: float):
         for b in self._bcs:
             set_function_value(b.g, _time_value(b.value, t), b.gdim)
+        # a user function that returns NaN/inf would poison Newton: say which and when
+        bad = [k for k, b in enumerate(self._bcs) if not np.all(np.isfinite(b.g.x.array))]
+        bad = sorted(set(k for ks in self.comm.allgather(bad) for k in ks))
+        if bad:
+            raise ValueError(f"velocity boundary condition(s) #{bad} (numbered in the order they "
+                             f"were added) give non-finite values (NaN/inf) at t = {t:.6g}: "
+                             f"check the value function")
 
     def _try_increment(self, dt: float) -> SolveInfo:
         t_new = self.t + dt
@@ -416,7 +458,7 @@ class Simulation:
                     info = self._try_increment(trial)
                 finally:
                     self.solver.set_line_search(self.solver_options.line_search)
-            if info.converged:
+            if info.converged and self._accept_geometry(trial, info):
                 row = self._commit(trial, info)
                 row["cutbacks"] = k
                 # Newton iterations of the accepted attempt plus those of the failed attempts
@@ -434,14 +476,14 @@ class Simulation:
         earlier = [m for m in dict.fromkeys(msgs[:-1]) if m != msgs[-1]] if msgs else []
         if earlier:
             msg += f" (earlier attempts: {' | '.join(earlier)})"
-        raise IncrementError(self.t, trial * 2, msg)
+        raise self._increment_failure(trial * 2, msg)
 
     def _record(self, row):
+        row.update(self.mesh_health())
         self.history.append(row)
-        if self._history_writer is not None:
-            self._history_writer.write(row)
-        if self._writer is not None and self.increment % self.output_every == 0:
-            self._write_fields()
+        self._write_outputs(row)
+        if self.checkpoint_every and self.increment % self.checkpoint_every == 0:
+            self.write_checkpoint()
 
     def _update_output_fields(self):
         sp = self.space
@@ -494,6 +536,9 @@ class Simulation:
                                   "[{elapsed}<{remaining}{postfix}]")
         n0, t0, wall0 = len(self.history), self.t, time.perf_counter()
         cur = dt
+        if self._resume_step is not None:  # the step a resumed run would have taken next
+            cur = min(dt, self._resume_step)
+            self._resume_step = None
         eps = 1e-9 * dt
         try:
             while self.t < t_end - eps:
@@ -527,3 +572,288 @@ class Simulation:
         if self._history_writer is not None:
             self._history_writer.close()
             self._history_writer = None
+
+    # ------------------------------------------------------------------------ outputs
+    def _open_writers(self):
+        from fxcontact.io import HistoryWriter, SeriesWriter
+        resumed = self._resumed is not None
+        self._writer = SeriesWriter(self.comm, self.output_dir, self.name,
+                                    resume_time=self.t if resumed else None)
+        self._history_writer = HistoryWriter(self.comm, self.output_dir, self.name,
+                                             rows=self.history if resumed else None)
+        if not resumed:
+            self._write_fields()
+
+    def _write_outputs(self, row):
+        """CSV row and VTK step of an accepted increment; a failed write (full disk…) stops the
+        run on every rank with an :class:`OutputError`, the files written so far untouched."""
+        err = None
+        try:
+            if self._history_writer is not None:
+                self._history_writer.write(row)
+            if self._writer is not None and self.increment % self.output_every == 0:
+                self._write_fields()
+        except OSError as e:
+            err = f"{type(e).__name__}: {e}"
+        errs = [e for e in self.comm.allgather(err) if e]
+        if errs:
+            where = os.path.join(self.output_dir, self.name) if self.output_dir else self.name
+            raise OutputError(
+                f"writing the outputs of increment {self.increment} (t = {self.t:.6g}) failed "
+                f"({errs[0]}); what was written before is intact ({where}_history.csv, "
+                f"{where}.pvd). Free disk space and resume from the last checkpoint")
+
+    # ------------------------------------------------------------------------ mesh health
+    def _init_mesh_health(self):
+        """Owned cells' vertices and their signed measures on the initial geometry."""
+        tdim = self.mesh.topology.dim
+        nown = self.mesh.topology.index_map(tdim).size_local
+        self._c2v_owned = compat.cell_vertices(self.mesh)[:nown]
+        vol0, _ = self._cell_measures(self.space.vertex_positions())
+        msg = None
+        if np.any(vol0 == 0.0):
+            i = int(np.flatnonzero(vol0 == 0.0)[0])
+            c = self.space.vertex_positions()[self._c2v_owned[i]].mean(axis=0)
+            msg = (f"the mesh has {int(np.sum(vol0 == 0.0))} degenerate (zero-volume) cell(s), "
+                   f"e.g. with centroid {np.array2string(c, precision=4)}")
+        msgs = [m for m in self.comm.allgather(msg) if m]   # raised on every rank
+        if msgs:
+            raise ValueError(msgs[0])
+        self._vol0 = vol0
+
+    def _cell_measures(self, X: np.ndarray):
+        """Signed measure and shape quality of the owned cells for the vertex positions X
+        (:func:`fxcontact.mesh_health.simplex_measures`)."""
+        from fxcontact.mesh_health import simplex_measures
+        return simplex_measures(X[self._c2v_owned])
+
+    def _health(self, X: np.ndarray):
+        """(min signed quality, min volume ratio, local index of the worst cell) (local)."""
+        vol, q = self._cell_measures(X)
+        ratio = vol / self._vol0
+        qs = np.sign(ratio) * q
+        if len(ratio) == 0:
+            return math.inf, math.inf, -1
+        i = int(np.argmin(ratio))
+        return float(np.min(qs)), float(ratio[i]), i
+
+    def mesh_health(self) -> Dict[str, float]:
+        """Mesh quality of the current configuration (collective): ``min_quality`` (shape
+        quality, negative for an inverted cell) and ``min_volume_ratio`` (signed cell volume
+        over its initial volume) — history columns of every increment."""
+        q, r, _ = self._health(self.vertex_positions())
+        q = self.comm.allreduce(q, op=MPI.MIN)
+        r = self.comm.allreduce(r, op=MPI.MIN)
+        return {"min_quality": q, "min_volume_ratio": r}
+
+    def _accept_geometry(self, dt: float, info: SolveInfo) -> bool:
+        """Check the geometry the converged increment would give before accepting it: an
+        inverted cell marks the attempt failed (cut-back) with a message saying where and when."""
+        if not self.check_inversion or self.u is not None:
+            return True
+        sp = self.space
+        self.w.x.scatter_forward()
+        x_t = self.vertex_positions()
+        X = self.kinematics.positions(x_t, self.w.x.array[sp.vertex_dofs], dt)
+        _, r, i = self._health(X)
+        # the cell is located by its centroid at the start of the increment (the last output)
+        worst = self.comm.allgather((r, None if i < 0 else x_t[self._c2v_owned[i]].mean(axis=0)))
+        r_min, c = min(worst, key=lambda a: a[0])
+        if r_min > 0.0:
+            return True
+        info.converged = False
+        info.message = (f"{_INVERSION}: the cell with centroid {np.array2string(c, precision=4)} "
+                        f"would turn inside out (signed volume / initial volume = {r_min:.3g}) at "
+                        f"t = {self.t + dt:.6g} (increment {self.increment + 1}, dt = {dt:.3g}); "
+                        f"the velocity field is too distorted for this step: reduce dt or remesh")
+        log.warning("t = %.6g: %s", self.t, info.message)
+        return False
+
+    def _increment_failure(self, dt: float, msg: str) -> IncrementError:
+        """The error of an increment that failed for good; a checkpoint of the last accepted
+        state is written first (when checkpoints are on) so the run can be resumed from it."""
+        if self.checkpoint_every:
+            path = self._checkpoint_path()
+            try:
+                if not os.path.isdir(path):
+                    self.write_checkpoint()
+            except OSError as e:
+                log.warning("checkpoint at the failed increment not written: %s", e)
+        cls = MeshInversionError if msg.startswith(_INVERSION) else IncrementError
+        return cls(self.t, dt, msg)
+
+    # ------------------------------------------------------------------------ checkpoints
+    @property
+    def checkpoint_dir(self) -> str:
+        if self.output_dir is None:
+            raise ValueError("checkpoints need an output_dir")
+        return os.path.join(self.output_dir, "checkpoints")
+
+    def _checkpoint_path(self, increment: Optional[int] = None) -> str:
+        inc = self.increment if increment is None else increment
+        return os.path.join(self.checkpoint_dir, f"{self.name}_{inc:06d}")
+
+    def _checkpoint_keys(self):
+        """Partition-independent keys of the saved arrays (computed once)."""
+        if self._ckpt_keys is None:
+            from fxcontact.checkpoint import dof_keys, vertex_keys
+            sp, msh = self.space, self.mesh
+            n = len(self.w.x.array)
+            leaves = [(k, sp.W.sub(0).sub(k)) for k in range(sp.gdim)] + [(sp.gdim, sp.W.sub(1))]
+            wk = dof_keys(msh, leaves, n)
+            ck = dof_keys(msh, [(0, sp.DG0)], len(self.strain.x.array))
+            xk = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)[:, None]
+            tdim = msh.topology.dim
+            own = (sp.num_owned_dofs, msh.topology.index_map(tdim).size_local,
+                   msh.geometry.index_map().size_local)
+            self._ckpt_keys = dict(w=wk, c=ck, x=xk, own=own, v=vertex_keys(msh))
+        return self._ckpt_keys
+
+    def _setup_signature(self) -> dict:
+        sp = self.space
+        return {"element": sp.element, "gdim": sp.gdim, "dofs": sp.global_dofs(),
+                "material": type(self.material).__name__,
+                "small_strain": bool(self.material.small_strain),
+                "contributors": [type(c).__name__ for c in self.contributors]}
+
+    def write_checkpoint(self, path: Optional[str] = None) -> str:
+        """Write a checkpoint of the current (accepted) state (collective); returns its path.
+
+        Default path: ``output_dir/checkpoints/<name>_<increment>``; older ones beyond
+        ``checkpoint_keep`` are removed.
+        """
+        from fxcontact import __version__
+        from fxcontact import checkpoint as ck
+        self._build()
+        keys = self._checkpoint_keys()
+        now, ncown, nxown = keys["own"]
+        sp = self.space
+        arrays = {"w_key": keys["w"][:now], "w_prev": self.w_prev.x.array[:now],
+                  "c_key": keys["c"][:ncown], "strain": self.strain.x.array[:ncown],
+                  "strain_rate": self.strain_rate.x.array[:ncown],
+                  "x_key": keys["x"][:nxown], "x": self.mesh.geometry.x[:nxown]}
+        if self.u is not None:
+            uW = np.zeros(len(self.w.x.array))
+            uW[sp.V_to_W] = self.u.x.array
+            arrays["u"] = uW[:now]
+        states = []
+        for i, c in enumerate(self.contributors):
+            st = {}
+            if hasattr(c, "checkpoint_state"):
+                for k, val in c.checkpoint_state().items():
+                    if isinstance(val, ck.PerVertex):
+                        arrays[f"c{i}.{k}.key"] = keys["v"][np.asarray(val.vertices)][:, None]
+                        arrays[f"c{i}.{k}.val"] = np.asarray(val.values)
+                        st[k] = {"per_vertex": True}
+                    else:
+                        st[k] = {"value": val.tolist() if isinstance(val, np.ndarray) else val,
+                                 "array": isinstance(val, np.ndarray)}
+            elif not getattr(self, "_warned_stateless", False):
+                log.warning("contributor %s has no checkpoint_state(): it is assumed to keep "
+                            "no state between increments", type(c).__name__)
+            states.append(st)
+        self._warned_stateless = True
+        last = self.history[-1] if self.history else None
+        manifest = {"format": ck.FORMAT_VERSION, "fxcontact": __version__, "name": self.name,
+                    "t": self.t, "increment": self.increment, "history": self.history,
+                    "next_step": (2.0 * last["dt"] if last is not None and last.get("cutbacks")
+                                  else None),
+                    "mesh": ck.mesh_fingerprint(self.mesh, self._x_ref),
+                    "setup": self._setup_signature(), "contributors": states}
+        path = path or self._checkpoint_path()
+        if self.comm.rank == 0:
+            os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+        try:
+            ck.write(self.comm, path, manifest, arrays)
+        except OSError as e:
+            prev = ck.latest_checkpoint(os.path.dirname(os.path.abspath(path)), self.name)
+            raise OutputError(f"{e} (increment {self.increment}, t = {self.t:.6g}); the previous "
+                              f"checkpoint {prev} is intact") from e
+        if self.output_dir is not None and path == self._checkpoint_path():
+            ck.prune(self.comm, self.checkpoint_dir, self.name, self.checkpoint_keep)
+        self.comm.barrier()
+        log.info("checkpoint written: %s", path)
+        return path
+
+    def resume(self, path: Optional[str] = None) -> str:
+        """Restore the state of a checkpoint, before :meth:`run` (collective).
+
+        Set the simulation up exactly as for the first run (same mesh, space, material, BCs and
+        contributors, added in the same order), then call ``resume()``; ``run(t_end, dt)``
+        continues from the checkpoint's time. ``path``: a checkpoint directory, or a directory
+        of checkpoints (the newest is taken); default: the newest one of this run in
+        ``output_dir/checkpoints``. The CSV history and the VTK series are continued (rows and
+        steps after the checkpoint, from a run that was killed, are dropped). Works on any
+        number of ranks. Raises :class:`~fxcontact.checkpoint.CheckpointError` for a missing
+        checkpoint, another format or package version, another mesh or another set-up.
+        """
+        from fxcontact import __version__
+        from fxcontact import checkpoint as ck
+        from fxcontact.checkpoint import CheckpointError
+        if self._built:
+            raise RuntimeError("resume() must be called after the set-up and before the first "
+                               "step()/run()")
+        if path is None:
+            path = ck.latest_checkpoint(self.checkpoint_dir, self.name)
+            if path is None:
+                raise CheckpointError(f"no checkpoint of run '{self.name}' in "
+                                      f"{self.checkpoint_dir}")
+        elif not os.path.isfile(os.path.join(path, "manifest.json")) and \
+                ck.latest_checkpoint(path) is not None:
+            path = ck.latest_checkpoint(path)
+        man = ck.read_manifest(path)
+        if man.get("format") != ck.FORMAT_VERSION or man.get("fxcontact") != __version__:
+            raise CheckpointError(
+                f"checkpoint {path} was written by another version (checkpoint format "
+                f"{man.get('format')}, fxcontact {man.get('fxcontact')}; this is format "
+                f"{ck.FORMAT_VERSION}, fxcontact {__version__}): restart the run from t = 0")
+        fp = ck.mesh_fingerprint(self.mesh, self._x_ref)
+        if man.get("mesh") != fp:
+            raise CheckpointError(
+                f"checkpoint {path} was written for a different mesh ({man.get('mesh')}; this "
+                f"mesh: {fp}): build the same initial mesh as the checkpointed run")
+        sig = self._setup_signature()
+        if man.get("setup") != sig:
+            diff = {k: (man["setup"].get(k), v) for k, v in sig.items()
+                    if man.get("setup", {}).get(k) != v}
+            raise CheckpointError(f"checkpoint {path} was written for a different set-up "
+                                  f"(checkpoint vs this run: {diff})")
+        arrays = ck.read_arrays(path, int(man["nranks"]))
+        keys = self._checkpoint_keys()
+        sp = self.space
+        tw = ck.KeyTable(arrays["w_key"], arrays["w_prev"])
+        self.w_prev.x.array[:] = tw.lookup(keys["w"], "the solution")
+        self.w.x.array[:] = self.w_prev.x.array
+        tc = ck.KeyTable(arrays["c_key"], np.c_[arrays["strain"], arrays["strain_rate"]])
+        sc = tc.lookup(keys["c"], "the strain")
+        self.strain.x.array[:] = sc[:, 0]
+        self.strain_rate.x.array[:] = sc[:, 1]
+        tx = ck.KeyTable(arrays["x_key"], arrays["x"])
+        self.mesh.geometry.x[:] = tx.lookup(keys["x"], "the geometry")
+        if self.u is not None:
+            tu = ck.KeyTable(arrays["w_key"], arrays["u"])
+            self.u.x.array[:] = tu.lookup(keys["w"], "the displacement")[sp.V_to_W]
+        for i, (c, st) in enumerate(zip(self.contributors, man["contributors"])):
+            if not st:
+                continue
+            if not hasattr(c, "restore_state"):
+                raise CheckpointError(f"checkpoint {path} holds a state for contributor "
+                                      f"{type(c).__name__} #{i}, which cannot restore it")
+            state = {}
+            for k, e in st.items():
+                if e.get("per_vertex"):
+                    table = ck.KeyTable(arrays[f"c{i}.{k}.key"], arrays[f"c{i}.{k}.val"])
+                    state[k] = ck.VertexLookup(table, keys["v"][:, None],
+                                               f"{type(c).__name__}.{k}")
+                else:
+                    state[k] = np.asarray(e["value"]) if e.get("array") else e["value"]
+            c.restore_state(state)
+        self.t = float(man["t"])
+        self.increment = int(man["increment"])
+        self.history = [dict(r) for r in man["history"]]
+        self._resume_step = man.get("next_step")
+        self._resumed = man
+        self._build()
+        log.info("resumed %s from %s: t = %.6g, increment %d", self.name, path, self.t,
+                 self.increment)
+        return path

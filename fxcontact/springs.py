@@ -89,3 +89,16 @@ class NodalSprings:
 
     def stable(self) -> bool:
         return True
+
+    def checkpoint_state(self) -> dict:
+        """Springs keep no state between increments: their parameters are saved so that a
+        resumed run with other springs is refused."""
+        return {"stiffness": self.k, "cubic": self.c, "reference_velocity": self.v0}
+
+    def restore_state(self, state: dict):
+        from fxcontact.checkpoint import CheckpointError
+        if not (state["stiffness"] == self.k and state["cubic"] == self.c
+                and np.array_equal(state["reference_velocity"], self.v0)):
+            raise CheckpointError(f"the checkpoint's springs (k = {state['stiffness']}, c = "
+                                  f"{state['cubic']}, v0 = {state['reference_velocity']}) are not "
+                                  f"these (k = {self.k}, c = {self.c}, v0 = {self.v0})")

@@ -629,6 +629,34 @@ class NodalContact:
                 + (f" and {n_feature} switch facets" if n_feature else "")
                 + " at every iteration: reduce dt (cut-back)")
 
+    # ------------------------------------------------------------------ checkpoint
+    def checkpoint_state(self) -> dict:
+        """What a resumed run needs (:mod:`fxcontact.checkpoint`): the penalty resolved from β
+        at the first increment, the representative strain rate, the slip regularisation and the
+        nodal pressures of the last converged increment (explicit friction). The tools are
+        immutable and move as functions of time: restoring t restores their positions."""
+        from fxcontact.checkpoint import PerVertex
+        return {"name": self.name, "scheme": self.scheme,
+                "tools": [t.name for t in self.tools],
+                "penalty": self._penalty, "strain_rate": self.strain_rate,
+                "slip_velocity": self.slip_velocity,
+                "p_prev": PerVertex(self.boundary.vertices, self._p_prev)}
+
+    def restore_state(self, state: dict):
+        from fxcontact.checkpoint import CheckpointError
+        mine = {"name": self.name, "scheme": self.scheme, "tools": [t.name for t in self.tools]}
+        theirs = {k: state.get(k) for k in mine}
+        if theirs != mine:
+            raise CheckpointError(f"the checkpoint's contact {theirs} is not this contact {mine}")
+        if self._penalty is None and self.gap_stiffness is None:  # resolved from beta
+            self._penalty = state["penalty"]
+            self.rho = self._penalty
+        if self.strain_rate is None:
+            self.strain_rate = state["strain_rate"]
+        if self._slip_velocity_user is None:
+            self.slip_velocity = state["slip_velocity"]
+        self._p_prev = np.asarray(state["p_prev"].at(self.boundary.vertices), dtype=np.float64)
+
     # ------------------------------------------------------------------ diagnostics / output
     def pressures(self) -> np.ndarray:
         """(N,) nodal contact pressures ρ[h]₊ of the last evaluation."""

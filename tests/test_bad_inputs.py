@@ -1,0 +1,373 @@
+"""A catalogue of bad inputs across the API: each gives the stated error class with a message that
+says what is wrong, on every rank, and nothing written before the error is lost or corrupted.
+
+``CASES`` are errors at set-up; the tests after it are errors during a run (NaN from a user BC
+function, Newton failure after all cut-backs, a full disk, a checkpoint that does not match, a
+tool that starts buried). README.md lists every case id in its table of bad inputs (checked
+below).
+"""
+
+import csv
+import os
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+import dolfinx
+
+import fxcontact as fx
+from fxcontact.checkpoint import CheckpointError, latest_checkpoint
+from fxcontact.io import HistoryWriter, SeriesWriter, read_pvd
+from fxcontact.simulation import IncrementError, OutputError
+
+from helpers import box_mesh, shared_tmpdir
+
+ROOT = Path(__file__).resolve().parents[1]
+COMM = MPI.COMM_WORLD
+TAGS = {"x0": 1, "y0": 2, "z0": 3, "z1": 4}
+
+
+def _cube():
+    """A 2×2×2 unit cube with tagged faces x0, y0, z0 (1–3) and the top z1 (4)."""
+    msh = box_mesh(COMM, n=(2, 2, 2))
+    loc = dolfinx.mesh.locate_entities_boundary
+    where = {1: (0, 0.0), 2: (1, 0.0), 3: (2, 0.0), 4: (2, 1.0)}
+    fs = {t: loc(msh, 2, (lambda c, v: (lambda x: np.isclose(x[c], v)))(c, v))
+          for t, (c, v) in where.items()}
+    idx = np.concatenate(list(fs.values()))
+    val = np.concatenate([np.full(len(f), t, np.int32) for t, f in fs.items()])
+    idx, first = np.unique(idx, return_index=True)   # an edge facet keeps one tag
+    ft = dolfinx.mesh.meshtags(msh, 2, idx.astype(np.int32), val[first])
+    space = fx.MixedSpace(msh)
+    return dict(msh=msh, ft=ft, space=space, top=fx.ContactBoundary(space, ft, TAGS["z1"]))
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    """The cube for the set-up errors (nothing moves it)."""
+    return _cube()
+
+
+@pytest.fixture
+def cube():
+    """A fresh cube for each run (an updated-Lagrangian run moves its mesh)."""
+    return _cube()
+
+
+def _sim(c, **kw):
+    return fx.Simulation(c["space"], fx.NortonHoff(1.0, 0.2), progress=False, **kw)
+
+
+def _die(z=1.0):
+    return fx.Plane((0, 0, z), (0, 0, -1), velocity=(0, 0, -0.1), name="die")
+
+
+_TET = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+_TET_T = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+
+
+def _degenerate_mesh(c):
+    msh = box_mesh(COMM, n=(2, 2, 2))
+    x = msh.geometry.x
+    x[np.isclose(x[:, 2], 1.0), 2] = 0.5
+    fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(1.0, 0.2), progress=False)
+
+
+def _add_bc_after_start(c):
+    s = _sim(c)
+    s.add_velocity_bc(s.facets(c["ft"], TAGS["z0"]), 0.0, 2)
+    s._build()
+    s.add_velocity_bc(s.facets(c["ft"], TAGS["z1"]), -0.1, 2)
+
+
+def _run_time_backwards(c):
+    s = _sim(c)
+    s.add_velocity_bc(s.facets(c["ft"], TAGS["z0"]), 0.0, 2)
+    s.t = 1.0
+    s.run(0.5, 0.1)
+
+
+#: (case id, what is done, error class, key words of the message (regex))
+CASES = [
+    # material and solver parameters
+    ("norton-hoff-K<=0", lambda c: fx.NortonHoff(K=0.0, m=0.2), ValueError, "K"),
+    ("norton-hoff-m-out-of-range", lambda c: fx.NortonHoff(K=1.0, m=1.5), ValueError, "m"),
+    ("norton-hoff-regularization<=0", lambda c: fx.NortonHoff(1.0, 0.2, regularization=0.0),
+     ValueError, "regularization"),
+    ("elastic-E<=0", lambda c: fx.LinearElastic(-5.0, 0.3), ValueError, "E"),
+    ("elastic-nu=0.5", lambda c: fx.LinearElastic(1.0, 0.5), ValueError, "nu"),
+    ("solver-rtol<0", lambda c: fx.SolverOptions(rtol=-1.0), ValueError, "rtol.*>= 0"),
+    ("solver-max_it<1", lambda c: fx.SolverOptions(max_it=0), ValueError, "max_it.*>= 1"),
+    ("solver-unknown-line-search", lambda c: fx.SolverOptions(line_search="wolfe"), ValueError,
+     "unknown line search 'wolfe'"),
+    ("solver-unknown-linear-solver", lambda c: fx.SolverOptions(linear_solver="superlu9"),
+     ValueError, "unknown linear solver"),
+    ("space-unknown-element", lambda c: fx.MixedSpace(c["msh"], element="P3"), ValueError,
+     "unknown element 'P3'"),
+    ("space-mini-quadrature<6", lambda c: fx.MixedSpace(c["msh"], quadrature_degree=4),
+     ValueError, "MINI needs quadrature_degree >= 6"),
+    ("simulation-material-not-a-material", lambda c: fx.Simulation(c["space"], "steel"),
+     ValueError, "material must be a fxcontact material"),
+    ("simulation-output_every<1", lambda c: _sim(c, output_every=0), ValueError,
+     "output_every must be >= 1"),
+    ("simulation-checkpoint_every<0", lambda c: _sim(c, checkpoint_every=-1), ValueError,
+     "checkpoint_every must be an integer >= 0"),
+    ("simulation-checkpoints-without-output_dir", lambda c: _sim(c, checkpoint_every=5),
+     ValueError, "checkpoint_every needs an output_dir"),
+    # meshes and boundaries
+    ("mesh-missing-tag", lambda c: fx.facets_with_tags(c["msh"], c["ft"], 7), ValueError,
+     r"boundary tag 7 is not present.*tags present: \[1, 2, 3, 4\]"),
+    ("mesh-degenerate-cell", _degenerate_mesh, ValueError, "degenerate .*zero-volume"),
+    ("contact-tags-missing", lambda c: fx.ContactBoundary(c["space"], c["ft"]), ValueError,
+     "facet_tags given without tags"),
+    ("contact-taylor-hood", lambda c: fx.ContactBoundary(
+        fx.MixedSpace(c["msh"], element="taylor-hood"), c["ft"], 4), ValueError,
+     "P1 velocity trace"),
+    ("bc-component-out-of-range", lambda c: _sim(c).add_velocity_bc(
+        fx.facets_with_tags(c["msh"], c["ft"], 3), 0.0, component=3), ValueError,
+     r"component must be in \[0, 3\)"),
+    ("bc-vector-of-wrong-shape", lambda c: _sim(c).add_velocity_bc(
+        fx.facets_with_tags(c["msh"], c["ft"], 3), (0.0, 1.0)), ValueError,
+     r"vector value must have shape \(3,\)"),
+    ("bc-added-after-start", _add_bc_after_start, RuntimeError, "already set up"),
+    # tools
+    ("plane-zero-normal", lambda c: fx.Plane((0, 0, 0), (0, 0, 0)), ValueError, "non-zero"),
+    ("sphere-negative-radius", lambda c: fx.Sphere((0, 0, 0), -1.0), ValueError,
+     "radius must be a positive finite number"),
+    ("cylinder-nan-point", lambda c: fx.Cylinder((0, np.nan, 0), (0, 0, 1), 1.0), ValueError,
+     "finite 3-vector"),
+    ("cone-half-angle-out-of-range", lambda c: fx.Cone((0, 0, 0), (0, 0, 1), 2.0), ValueError,
+     "half_angle"),
+    ("profile-zero-length-segment", lambda c: fx.RevolvedProfile(
+        [(0, 1), (1, 1), (1, 1), (2, 2)], inside=False), ValueError, "zero length"),
+    ("profile-below-axis", lambda c: fx.RevolvedProfile([(0, 1), (1, -1)], inside=False),
+     ValueError, "< 0"),
+    ("profile-self-intersecting", lambda c: fx.RevolvedProfile(
+        [(0, 2), (3, 2), (3, 3), (1, 1), (5, 1)], inside=False), ValueError,
+     r"intersects itself: segment 0 \(line\) and segment 2"),
+    ("facets-non-manifold", lambda c: fx.FacetedTool(
+        np.r_[_TET, [[1, 1, 1]]], np.r_[_TET_T, [[1, 2, 4]]]), ValueError,
+     "non-manifold edges"),
+    ("facets-inside-out", lambda c: fx.FacetedTool(_TET, _TET_T[:, ::-1]), ValueError,
+     "normals point into the tool"),
+    ("facets-inconsistent-orientation", lambda c: fx.FacetedTool(
+        _TET, np.r_[_TET_T[:3], _TET_T[3:, ::-1]]), ValueError, "inconsistent orientation"),
+    ("facets-degenerate-triangle", lambda c: fx.FacetedTool(
+        np.r_[_TET, [[0.5, 0, 0]]], np.r_[_TET_T, [[0, 1, 4]]]), ValueError,
+     "degenerate .*zero-area"),
+    ("facets-nan-vertex", lambda c: fx.FacetedTool(np.r_[_TET[:3], [[0, 0, np.nan]]], _TET_T),
+     ValueError, "NaN/inf coordinates"),
+    # contact and friction parameters
+    ("contact-unknown-scheme", lambda c: fx.NodalContact(c["top"], _die(), scheme="exact"),
+     ValueError, "unknown contact scheme 'exact'"),
+    ("contact-penalty<=0", lambda c: fx.NodalContact(c["top"], _die(), penalty=-1.0),
+     ValueError, "penalty must be finite and > 0"),
+    ("contact-no-tool", lambda c: fx.NodalContact(c["top"], []), ValueError,
+     "non-empty sequence of Tools"),
+    ("friction-coulomb-mu<0", lambda c: fx.Coulomb(-0.1), ValueError, "mu"),
+    ("friction-tresca-mbar>1", lambda c: fx.Tresca(1.5), ValueError, "mbar"),
+    ("friction-unknown-tool", lambda c: fx.NodalContact(
+        c["top"], _die(), penalty=1.0, friction={"roll": fx.Coulomb(0.3)}), ValueError,
+     "friction given for tool 'roll'"),
+    ("friction-slip-velocity<=0", lambda c: fx.NodalContact(
+        c["top"], _die(), penalty=1.0, friction=fx.Coulomb(0.3), slip_velocity=0.0),
+     ValueError, "slip_velocity"),
+    ("springs-negative-stiffness", lambda c: fx.NodalSprings(c["top"], -1.0), ValueError,
+     "stiffness must be finite and >= 0"),
+    # time stepping
+    ("step-dt<=0", lambda c: _sim(c).step(0.0), ValueError, "dt must be a finite number > 0"),
+    ("step-dt-nan", lambda c: _sim(c).step(float("nan")), ValueError, "dt must be a finite"),
+    ("step-max_cutbacks<0", lambda c: _sim(c).step(0.1, max_cutbacks=-1), ValueError,
+     "max_cutbacks must be >= 0"),
+    ("run-t_end-before-t", _run_time_backwards, ValueError, "t_end must be > current time 1.0"),
+    ("run-dt<=0", lambda c: _sim(c).run(1.0, -0.1), ValueError, "dt must be a finite"),
+]
+
+
+@pytest.mark.parametrize("case,make,exc,words", CASES, ids=[c[0] for c in CASES])
+def test_bad_input(ctx, case, make, exc, words):
+    with pytest.raises(exc, match=words) as e:
+        make(ctx)
+    assert type(e.value) is exc or issubclass(type(e.value), exc)
+
+
+def test_catalogue_is_large_and_listed_in_the_readme():
+    ids = [c[0] for c in CASES] + RUN_TIME_CASES
+    assert len(ids) >= 30 and len(set(ids)) == len(ids)
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    missing = [i for i in ids if f"`{i}`" not in readme]
+    assert not missing, f"README table lacks {missing}"
+
+
+# ----------------------------------------------------------------------------- during a run
+RUN_TIME_CASES = ["bc-function-returns-nan", "newton-fails-after-all-cutbacks",
+                  "disk-full-history", "disk-full-vtk", "disk-full-checkpoint",
+                  "checkpoint-of-another-mesh",
+                  "tool-starts-buried", "friction-needs-shear-limit"]
+
+
+def _pressed(c, out, top=-0.1, **kw):
+    s = fx.Simulation(c["space"], fx.NortonHoff(1.0, 0.2), progress=False, output_dir=out,
+                      name="p", **kw)
+    for tag, comp in (("x0", 0), ("y0", 1), ("z0", 2)):
+        s.add_velocity_bc(s.facets(c["ft"], TAGS[tag]), 0.0, comp)
+    s.add_velocity_bc(s.facets(c["ft"], TAGS["z1"]), top, 2)
+    return s
+
+
+def _outputs_intact(out, n_rows, times):
+    """The CSV holds exactly the rows 1..n_rows (parsable numbers), the .pvd the given times and
+    every file it references exists."""
+    COMM.barrier()
+    if COMM.rank == 0:
+        with open(os.path.join(out, "p_history.csv"), newline="") as fh:
+            rows = list(csv.DictReader(fh))
+        assert [int(r["increment"]) for r in rows] == list(range(1, n_rows + 1))
+        assert all(np.isfinite(float(r["volume"])) for r in rows)
+        pvd = read_pvd(os.path.join(out, "p.pvd"))
+        assert [t for t, _ in pvd] == pytest.approx(times, abs=1e-12)
+        assert all(os.path.exists(os.path.join(out, f)) for _, f in pvd)
+    COMM.barrier()
+
+
+@pytest.fixture
+def out():
+    d = shared_tmpdir("fxc_bad_")
+    yield d
+    COMM.barrier()
+    if COMM.rank == 0:
+        shutil.rmtree(d, ignore_errors=True)
+
+
+def test_bc_function_returns_nan(cube, out):
+    s = _pressed(cube, out, top=lambda t: -0.1 if t < 0.15 else float("nan"))
+    with pytest.raises(ValueError, match=r"condition\(s\) #\[3\].*non-finite.*t = 0.2"):
+        s.run(0.4, 0.1)
+    _outputs_intact(out, 1, [0.0, 0.1])
+
+
+class _RefuseAfter:
+    """A contributor that refuses every iterate from t = t0 on (a Newton solve that cannot
+    succeed, whatever the cut-backs)."""
+
+    def __init__(self, t0):
+        self.t0, self.t = t0, 0.0
+
+    def begin_increment(self, sim, t, dt, x):
+        self.t = t
+
+    def evaluate(self, w, jacobian):
+        if self.t >= self.t0 - 1e-12:
+            raise fx.ContributorError("refused")
+        return fx.NodalTerms.empty(3)
+
+    def stable(self):
+        return True
+
+
+def test_newton_fails_after_all_cutbacks(cube, out):
+    s = _pressed(cube, out, checkpoint_every=10)
+    s.add_contributor(_RefuseAfter(0.2))
+    with pytest.raises(IncrementError, match=r"t = 0.2 failed.*refused.*Results up to t = 0.2"):
+        s.run(0.5, 0.1, max_cutbacks=2)
+    _outputs_intact(out, 2, [0.0, 0.1, 0.2])
+    # a checkpoint of the last accepted state was written at the failure
+    assert latest_checkpoint(os.path.join(out, "checkpoints"), "p").endswith("p_000002")
+
+
+def test_disk_full_history(cube, out, monkeypatch):
+    write = HistoryWriter.write
+    calls = []
+
+    def failing(self, row):     # rank 0 writes the CSV: the error must reach every rank
+        calls.append(1)
+        if len(calls) == 2 and self.comm.rank == 0:
+            raise OSError(28, "No space left on device")
+        write(self, row)
+
+    monkeypatch.setattr(HistoryWriter, "write", failing)
+    s = _pressed(cube, out)
+    with pytest.raises(OutputError, match=r"increment 2 .*No space left on device.*intact"):
+        s.run(0.4, 0.1)
+    _outputs_intact(out, 1, [0.0, 0.1])
+
+
+def test_disk_full_vtk(cube, out, monkeypatch):
+    write = SeriesWriter.write
+    calls = []
+
+    def failing(self, functions, t):
+        calls.append(1)
+        if len(calls) == 3:      # the initial state and increment 1 are written
+            raise OSError(28, "No space left on device")
+        write(self, functions, t)
+
+    monkeypatch.setattr(SeriesWriter, "write", failing)
+    s = _pressed(cube, out)
+    with pytest.raises(OutputError, match=r"increment 2 .*No space left on device"):
+        s.run(0.4, 0.1)
+    _outputs_intact(out, 2, [0.0, 0.1])
+
+
+def test_disk_full_checkpoint(cube, out, monkeypatch):
+    import fxcontact.checkpoint as ck
+    savez = np.savez
+    calls = []
+
+    def failing(fh, **arrays):   # the third checkpoint fails on the last rank
+        calls.append(1)
+        if len(calls) == 3 and COMM.rank == COMM.size - 1:
+            raise OSError(28, "No space left on device")
+        savez(fh, **arrays)
+
+    monkeypatch.setattr(ck.np, "savez", failing)
+    s = _pressed(cube, out, checkpoint_every=1, checkpoint_keep=5)
+    with pytest.raises(OutputError, match=r"cannot write checkpoint .*p_000003.*No space left"
+                       r".*increment 3.*previous checkpoint .*p_000002 is intact"):
+        s.run(0.5, 0.1)
+    monkeypatch.undo()
+    _outputs_intact(out, 3, [0.0, 0.1, 0.2, 0.3])
+    assert latest_checkpoint(os.path.join(out, "checkpoints"), "p").endswith("p_000002")
+    s2 = _pressed(_cube(), out)      # the same initial mesh
+    s2.resume()
+    assert s2.increment == 2
+    s2.close()
+
+
+def test_checkpoint_of_another_mesh(cube, out):
+    s = _pressed(cube, out, checkpoint_every=1)
+    s.run(0.1, 0.1)
+    path = latest_checkpoint(os.path.join(out, "checkpoints"), "p")
+    manifest = Path(path, "manifest.json").read_bytes()
+    msh = box_mesh(COMM, n=(2, 2, 2), perturb=0.1)        # same sizes, moved interior nodes
+    other = fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(1.0, 0.2), progress=False,
+                          output_dir=out, name="p")
+    with pytest.raises(CheckpointError, match="different mesh"):
+        other.resume(path)
+    # the refused checkpoint and the outputs are untouched
+    assert Path(path, "manifest.json").read_bytes() == manifest
+    _outputs_intact(out, 1, [0.0, 0.1])
+
+
+def test_tool_starts_buried(cube, out):
+    s = _pressed(cube, out)
+    s.add_contributor(fx.NodalContact(fx.ContactBoundary(cube["space"], cube["ft"], TAGS["z1"]),
+                                      _die(z=0.6), penalty=10.0))
+    with pytest.raises(ValueError, match=r"buried in tool 'die' deeper than the limit"):
+        s.run(0.2, 0.1)
+    _outputs_intact(out, 0, [0.0])
+
+
+def test_friction_needs_shear_limit(cube, out):
+    s = fx.Simulation(cube["space"], fx.LinearElastic(100.0, 0.3), progress=False,
+                      output_dir=out, name="p")
+    s.add_velocity_bc(s.facets(cube["ft"], TAGS["z0"]), 0.0)
+    s.add_contributor(fx.NodalContact(fx.ContactBoundary(cube["space"], cube["ft"], TAGS["z1"]),
+                                      _die(), penalty=10.0, friction=fx.Tresca(0.5)))
+    with pytest.raises(ValueError, match=r"shear flow stress k .*give shear_limit="):
+        s.run(0.2, 0.1)
+    _outputs_intact(out, 0, [0.0])
