@@ -366,7 +366,8 @@ class _LinearSolverFailsOnce:
     ``mode="nan"``: NaN Jacobian blocks at every vertex (the factorisation fails, and a kept
     factor makes every later solve raise a MUMPS error); ``mode="mumps_memory"``: MUMPS gets
     1 MB of working memory (ICNTL(23)) for the first attempt only (error -9 or -19; a kept
-    failed factor is never refactorised, so every retry fails at iteration 0)."""
+    failed factor is never refactorised, so every retry fails at iteration 0);
+    ``mode="nan_residual"``: a NaN residual in the first attempt."""
 
     KEY = "fxc_mat_mumps_icntl_23"
 
@@ -385,18 +386,22 @@ class _LinearSolverFailsOnce:
 
     def evaluate(self, w, jacobian):
         from fxcontact.petsc import NodalTerms
-        if self.mode == "nan" and self.attempts == 1 and jacobian:
+        if self.mode in ("nan", "nan_residual") and self.attempts == 1:
             sp = self.sim.space
             dofs = sp.vertex_dofs[np.all(sp.vertex_dofs < sp.num_owned_dofs, axis=1)]
-            return NodalTerms(dofs.astype(np.int32), np.zeros(dofs.shape),
-                              np.full((len(dofs), 3, 3), np.nan))
+            if self.mode == "nan" and jacobian:
+                return NodalTerms(dofs.astype(np.int32), np.zeros(dofs.shape),
+                                  np.full((len(dofs), 3, 3), np.nan))
+            if self.mode == "nan_residual":
+                return NodalTerms(dofs.astype(np.int32), np.full(dofs.shape, np.nan),
+                                  np.zeros((len(dofs), 3, 3)) if jacobian else None)
         return NodalTerms.empty(3)
 
     def stable(self):
         return True
 
 
-@pytest.mark.parametrize("mode", ["nan", "mumps_memory"])
+@pytest.mark.parametrize("mode", ["nan", "mumps_memory", "nan_residual"])
 def test_cutback_after_linear_solver_failure_succeeds(mode):
     """After a linear-solver failure (DIVERGED_LINEAR_SOLVE) the cut-back attempt starts from a
     fresh factorisation and converges, to the same velocity as a run that never failed."""
