@@ -9,6 +9,12 @@ residual norm repeating with a period of 2 to 4 iterations, twice over — never
 stopped at once (instead of running to ``max_it``) with a message naming what switches (nodes
 entering and leaving contact, or nodes switching between the facets of a faceted tool), so that
 the cut-back starts early and a final failure says why.
+
+After a failed solve (no convergence, a linear-solver failure, a NaN residual, an error raised
+inside a callback) the SNES with its KSP/PC and work vectors is rebuilt
+(:meth:`NewtonSolver.reset`): a failed MUMPS factorisation would otherwise stay in the PC (its
+numeric phase is skipped at every later set-up), and every cut-back attempt would fail at
+iteration 0.
 """
 
 from __future__ import annotations
