@@ -181,16 +181,17 @@ class NewtonSolver:
         self.snes = snes
 
     def reset(self):
-        """Rebuild the SNES, its KSP/PC (factorisation) and work vectors, and clear the Jacobian.
+        """Rebuild the SNES, its KSP/PC (factorisation), residual and work vectors (collective).
 
         Called after every failed solve, so that nothing of a failed attempt reaches the next
         one: a failed MUMPS factorisation is otherwise kept by the PC (its numeric phase is then
         skipped at every later setup, so every retry fails at iteration 0), and an error raised
-        inside a callback can leave SNES work vectors locked (collective)."""
-        old = self.snes
+        inside a callback can leave SNES work vectors locked. (The Jacobian matrix is kept: it
+        is zeroed at every assembly.)"""
+        old_snes, old_b = self.snes, self.b
         self._create_snes()
-        old.destroy()
-        self.A.zeroEntries()
+        old_snes.destroy()
+        old_b.destroy()
         self.resets += 1
 
     def _converged(self, snes, it, norms):
