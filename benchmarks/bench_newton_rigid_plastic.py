@@ -14,7 +14,8 @@ Variants (``--variants``; each is a set of options of the library, nothing else 
 * ``reg1e-3``: regularisation ε̇₀ = 1e-3 × the die's mean strain rate (THEORY §14.2);
 * ``beta1e2``, ``beta1e1``: penalty β = 1e2 / 1e1 (THEORY §2.5 scales ρ with the secant
   viscosity; the tangent along the flow is m times smaller);
-* ``maxit100``: today's defaults with ``max_it = 100`` (no cut-back needed).
+* ``maxit100``: today's defaults with ``max_it = 100`` (no cut-back needed);
+* ``beta1e1+reg1e-3``, ``beta1e1+reg1e-2``: β = 1e1 and ε̇₀ = 1e-3 / 1e-2 × the mean rate.
 
 Run from the repository root::
 
@@ -49,6 +50,8 @@ VARIANTS = {
     "beta1e2": ({"beta": 1e2}, {}),
     "beta1e1": ({"beta": 1e1}, {}),
     "maxit100": ({}, {"max_it": 100}),
+    "beta1e1+reg1e-3": ({"beta": 1e1, "regularization": 1e-3 * RATE}, {}),
+    "beta1e1+reg1e-2": ({"beta": 1e1, "regularization": 1e-2 * RATE}, {}),
 }
 
 

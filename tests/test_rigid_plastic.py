@@ -66,11 +66,13 @@ def test_die_gap_gradient_and_projection():
 
 
 def test_drawing_m0016_converges_without_cutback_within_classical_bounds():
-    """m = 0.016 drawing, penalty scaled to the power law's tangent (β = 10: the tangent along
-    the flow is m η, not η): every increment converges without cut-back; the drawing force lies
-    between the ideal-work lower bound and Avitzur's upper bound. Measured (1 and 2 ranks):
-    25, 9, 13 Newton iterations (the first from the rigid start-up guess)."""
-    sim, its = _run(max_it=60, max_cutbacks=0, beta=10.0)
+    """m = 0.016 drawing with the settings that help Newton (benchmarks/README): penalty
+    β = 10 (the tangent along the flow is m η, not η) and ε̇₀ = 1e-2 × the die's mean strain
+    rate. With the default max_it = 30 every increment converges without cut-back, and the
+    drawing force lies between the ideal-work lower bound and Avitzur's upper bound.
+    Measured (1 rank): 12, 8, 11 Newton iterations (the first from the rigid start-up guess)."""
+    rate = drawing.mean_strain_rate(R0, REDUCTION, ALPHA, SPEED * (1.0 - REDUCTION))
+    sim, its = _run(max_it=30, max_cutbacks=0, beta=10.0, regularization=1e-2 * rate)
     F = 4.0 * sim.history[-1]["front_z"]
     lower, upper = _drawing_bounds()
     if MPI.COMM_WORLD.rank == 0:
@@ -78,17 +80,17 @@ def test_drawing_m0016_converges_without_cutback_within_classical_bounds():
               f"bounds [{lower:.0f}, {upper:.0f}] N")
     assert all(r["cutbacks"] == 0 for r in sim.history)
     assert lower < F < upper
-    assert np.mean(its) <= 20 and np.mean(its[1:]) <= 15
+    assert np.mean(its) <= 14 and max(its[1:]) <= 12
 
 
 @pytest.mark.xfail(strict=True, reason=(
     "goal of the issue not reached: mean <= 6 Newton iterations per increment at m = 0.016 "
-    "with the default penalty (beta = 1e3) and max_it = 30. Measured: 60, 31, 40, 21 "
-    "iterations at 2.5k dofs (69, 30, 52 at 7k dofs); with beta = 10: 25, 9, 13. The slow "
-    "phase is contact nodes grazing the die: the full Newton step pushes them deep into it "
-    "(the power-law tangent along the flow is m times the secant one) and the line search "
-    "takes 1-10 % steps; neither the regularisation, a secant (Picard) start nor a line search "
-    "on the potential changes it"))
+    "with the default penalty (beta = 1e3), regularisation (1e-6 1/s) and max_it = 30. "
+    "Measured: 60, 31, 40, 21 iterations at 2.5k dofs without the cap (69, 30, 52 at 7k dofs); "
+    "beta = 10: 25, 9, 13; beta = 10 and a regularisation of 1e-2 x the mean strain rate: "
+    "12, 8, 11. The slow phase is contact nodes grazing the die: the full Newton step pushes "
+    "them deep into it (the power-law tangent along the flow is m times the secant one) and "
+    "the line search takes 1-10 % steps (the potential along the step is minimal there too)"))
 def test_drawing_m0016_default_penalty_mean_six_newton_iterations():
     from fxcontact.simulation import IncrementError
 
