@@ -60,6 +60,15 @@ class NortonHoff(Material):
         K: consistency [MPa·s^m], > 0.
         m: strain-rate sensitivity, 0 < m ≤ 1 (m = 1 is a Newtonian fluid of viscosity K).
         regularization: ε̇₀ [1/s], > 0; choose 1e-3–1e-4 × the characteristic strain rate.
+
+    Nearly rigid-plastic materials (m ≲ 0.05) with contact: the tangent along the flow is
+    ``2 m η`` (THEORY §1.1), so a contact penalty sized on the secant viscosity η
+    (``NodalContact(beta=...)``, THEORY §2.5) is 1/m times stiffer than the material in that
+    direction; Newton then stalls on nodes grazing the tool
+    (``benchmarks/bench_newton_rigid_plastic.py``, drawing at m = 0.016: β = 10 instead of 1e3
+    cuts the Newton iterations by 2.5–6×; ε̇₀ alone has little effect, but with β = 10,
+    ε̇₀ = 1e-3 × the process strain rate instead of the default brings the increments to 6–10
+    iterations). The default ε̇₀ = 1e-6 1/s is absolute: scale it to the process.
     """
 
     K: float

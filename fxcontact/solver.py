@@ -9,6 +9,12 @@ residual norm repeating with a period of 2 to 4 iterations, twice over — never
 stopped at once (instead of running to ``max_it``) with a message naming what switches (nodes
 entering and leaving contact, or nodes switching between the facets of a faceted tool), so that
 the cut-back starts early and a final failure says why.
+
+After a failed solve (no convergence, a linear-solver failure, a NaN residual, an error raised
+inside a callback) the SNES with its KSP/PC and work vectors is rebuilt
+(:meth:`NewtonSolver.reset`): a failed MUMPS factorisation would otherwise stay in the PC (its
+numeric phase is skipped at every later set-up), and every cut-back attempt would fail at
+iteration 0.
 """
 
 from __future__ import annotations
@@ -135,43 +141,70 @@ class NewtonSolver:
                  fieldsplit_is=None):
         self.problem = problem
         self.options = options or SolverOptions()
-        comm = problem.comm
-        self.comm = comm
-        self.b = problem.create_vector()
+        self.comm = problem.comm
+        if self.options.uses_fieldsplit and fieldsplit_is is None:
+            raise ValueError("the field-split linear solver needs the velocity/pressure ISs")
+        self._fieldsplit_is = fieldsplit_is
         self.A = problem.create_matrix()
-        snes = PETSc.SNES().create(comm)
-        snes.setOptionsPrefix(self.options.prefix)
+        self.b = None
+        self.snes = None
+        self._create_snes()
+        self._norms: List[float] = []
+        self._f0 = None
+        self._states: list = []
+        self._cycle_message = ""
+        #: number of times the SNES/KSP/PC objects were rebuilt after a failed solve
+        self.resets = 0
+        PETSc.Log.begin()
+        self._ev = [PETSc.Log.Event("KSPSolve"), PETSc.Log.Event("PCSetUp")]
+
+    def _write_options(self):
+        """Write this solver's options under its prefix (those of an earlier solver under the
+        same prefix that this one does not set are removed: e.g. a field-split option left over
+        when this solver uses MUMPS); options the user set (command line, PETSc.Options) are
+        left alone unless the presets override them."""
         opts = PETSc.Options()
         all_opts = {"snes_type": "newtonls", "snes_linesearch_type": self.options.line_search,
                     "snes_max_it": self.options.max_it, "snes_max_funcs": 100000}
         all_opts.update(self.options.linear_options())
         p = self.options.prefix
-        # options written by an earlier solver under this prefix must not leak into this one
-        # (e.g. a field-split option left over when this solver uses MUMPS); options the user
-        # set (command line, PETSc.Options) are left alone unless the presets override them
         for key in _WRITTEN_OPTIONS.pop(p, set()):
             if key not in all_opts:
                 opts.delValue(p + key)
         for k, v in all_opts.items():
             opts[p + k] = v
         _WRITTEN_OPTIONS[p] = set(all_opts)
-        snes.setFunction(problem.residual, self.b)
-        snes.setJacobian(problem.jacobian, self.A, self.A)
+
+    def _create_snes(self):
+        """(Re)build the SNES with its KSP/PC and residual vector from this solver's options."""
+        self._write_options()
+        self.b = self.problem.create_vector()
+        snes = PETSc.SNES().create(self.comm)
+        snes.setOptionsPrefix(self.options.prefix)
+        snes.setFunction(self.problem.residual, self.b)
+        snes.setJacobian(self.problem.jacobian, self.A, self.A)
         snes.setConvergenceTest(self._converged)
         snes.setFromOptions()
         ksp = snes.getKSP()
         if self.options.uses_fieldsplit:
-            if fieldsplit_is is None:
-                raise ValueError("the field-split linear solver needs the velocity/pressure ISs")
-            ksp.getPC().setFieldSplitIS(("u", fieldsplit_is[0]), ("p", fieldsplit_is[1]))
+            ksp.getPC().setFieldSplitIS(("u", self._fieldsplit_is[0]),
+                                        ("p", self._fieldsplit_is[1]))
         ksp.setFromOptions()
         self.snes = snes
-        self._norms: List[float] = []
-        self._f0 = None
-        self._states: list = []
-        self._cycle_message = ""
-        PETSc.Log.begin()
-        self._ev = [PETSc.Log.Event("KSPSolve"), PETSc.Log.Event("PCSetUp")]
+
+    def reset(self):
+        """Rebuild the SNES, its KSP/PC (factorisation), residual and work vectors (collective).
+
+        Called after every failed solve, so that nothing of a failed attempt reaches the next
+        one: a failed MUMPS factorisation is otherwise kept by the PC (its numeric phase is then
+        skipped at every later setup, so every retry fails at iteration 0), and an error raised
+        inside a callback can leave SNES work vectors locked. (The Jacobian matrix is kept: it
+        is zeroed at every assembly.)"""
+        old_snes, old_b = self.snes, self.b
+        self._create_snes()
+        old_snes.destroy()
+        old_b.destroy()
+        self.resets += 1
 
     def _converged(self, snes, it, norms):
         xnorm, snorm, fnorm = norms
@@ -266,7 +299,8 @@ class NewtonSolver:
             msg = ""
         except Exception as e:  # a contributor error raised through PETSc (collective)
             reason, its = -100, self.snes.getIterationNumber()
-            msg = prob.error or str(e)
+            msg = prob.error or (f"PETSc error inside the Newton solve ({e}; see the PETSc "
+                                 f"traceback on stderr)")
         wall = time.perf_counter() - t0
         if prob.error and not msg:
             msg = prob.error
@@ -277,6 +311,9 @@ class NewtonSolver:
             x.copy(w.vector)
             w.x.scatter_forward()
         x.destroy()
+        if not converged:
+            # a failed attempt must not poison the next one (factorisation, locked vectors)
+            self.reset()
         lin = self._linear_time() - lin0
         times = {"assembly": prob.timers.get("assembly"), "contact": prob.timers.get("contact"),
                  "linear_solve": lin}

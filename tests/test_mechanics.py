@@ -384,3 +384,64 @@ def test_cycle_detection_ignores_converging_and_changing_sequences():
     for k in range(30):
         c.fp = ((k % 2,),)
         assert detect(c, (1.0 + 1e-4 * k) * (3.0 if k % 2 else 4.0)) == 0
+
+
+class _LinearSolverFailsOnce:
+    """Contributor that makes the first attempt's linear solve fail, then adds nothing.
+
+    ``mode="nan"``: NaN Jacobian blocks at every vertex (the factorisation fails, and a kept
+    factor makes every later solve raise a MUMPS error); ``mode="mumps_memory"``: MUMPS gets
+    1 MB of working memory (ICNTL(23)) for the first attempt only (error -9 or -19; a kept
+    failed factor is never refactorised, so every retry fails at iteration 0);
+    ``mode="nan_residual"``: a NaN residual in the first attempt."""
+
+    KEY = "fxc_mat_mumps_icntl_23"
+
+    def __init__(self, mode):
+        self.mode, self.attempts = mode, 0
+
+    def begin_increment(self, sim, t, dt, x):
+        from petsc4py import PETSc
+        self.attempts += 1
+        self.sim = sim
+        if self.mode == "mumps_memory":
+            if self.attempts == 1:
+                PETSc.Options()[self.KEY] = 1
+            else:
+                PETSc.Options().delValue(self.KEY)
+
+    def evaluate(self, w, jacobian):
+        from fxcontact.petsc import NodalTerms
+        if self.mode in ("nan", "nan_residual") and self.attempts == 1:
+            sp = self.sim.space
+            dofs = sp.vertex_dofs[np.all(sp.vertex_dofs < sp.num_owned_dofs, axis=1)]
+            if self.mode == "nan" and jacobian:
+                return NodalTerms(dofs.astype(np.int32), np.zeros(dofs.shape),
+                                  np.full((len(dofs), 3, 3), np.nan))
+            if self.mode == "nan_residual":
+                return NodalTerms(dofs.astype(np.int32), np.full(dofs.shape, np.nan),
+                                  np.zeros((len(dofs), 3, 3)) if jacobian else None)
+        return NodalTerms.empty(3)
+
+    def stable(self):
+        return True
+
+
+@pytest.mark.parametrize("mode", ["nan", "mumps_memory", "nan_residual"])
+def test_cutback_after_linear_solver_failure_succeeds(mode):
+    """After a linear-solver failure (DIVERGED_LINEAR_SOLVE) the cut-back attempt starts from a
+    fresh factorisation and converges, to the same velocity as a run that never failed."""
+    from petsc4py import PETSc
+
+    c = _LinearSolverFailsOnce(mode)
+    try:
+        sim = _pressed_cube(10, c)
+        res = sim.step(0.1, max_cutbacks=2)
+    finally:
+        PETSc.Options().delValue(_LinearSolverFailsOnce.KEY)
+    assert res.row["cutbacks"] == 1 and c.attempts == 2
+    assert sim.solver.resets == 1
+    ref = _pressed_cube(10, _UnsettledAboveDt(1.0))
+    ref.step(0.05)
+    assert res.row["newton_iterations"] == ref.history[-1]["newton_iterations"]
+    assert np.allclose(sim.w.x.array, ref.w.x.array, rtol=0, atol=1e-10)

@@ -1,0 +1,101 @@
+"""Newton on a nearly rigid-plastic Norton–Hoff material (m = 0.016): drawing through a smooth
+conical die (``benchmarks/drawing_case.py``), against the classical bounds of the drawing stress
+(THEORY §14.2); the die's gap gradient by finite differences."""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from helpers import _load_file
+
+drawing = _load_file("drawing_case", Path(__file__).resolve().parents[1] / "benchmarks" /
+                     "drawing_case.py")
+
+R0, REDUCTION, ALPHA, SPEED, K, M = 5.0, 0.15, math.radians(10.0), 10.0, 445.0, 0.016
+#: test size: 2.5k dofs, a pull of 0.25 mm (a fifth of the element size at the die) per increment
+CASE = dict(R0=R0, reduction=REDUCTION, half_angle_deg=10.0, h=2.5, h_die=1.25, K=K, m=M,
+            speed=SPEED)
+DT, N_INC = 0.025, 3
+
+
+def _drawing_bounds():
+    """Drawing force [N] from the ideal work (lower bound) and Avitzur's frictionless upper
+    bound (THEORY §14.2), with the flow stress at the die's mean strain rate."""
+    rate = drawing.mean_strain_rate(R0, REDUCTION, ALPHA, SPEED * (1.0 - REDUCTION))
+    sigma0 = math.sqrt(3.0) * K * (math.sqrt(3.0) * rate) ** M
+    lnR = -0.5 * math.log(1.0 - REDUCTION)
+    s2, c = math.sin(ALPHA) ** 2, math.cos(ALPHA)
+    q = math.sqrt(11.0 / 12.0)
+    f = (1.0 - c * math.sqrt(1.0 - q * q * s2)
+         + math.log((1.0 + q) / (q * c + math.sqrt(1.0 - q * q * s2))) / math.sqrt(132.0)) / s2
+    area_f = math.pi * R0**2 * (1.0 - REDUCTION)
+    ideal = 2.0 * sigma0 * lnR * area_f
+    avitzur = sigma0 * (2.0 * f * lnR + 2.0 / math.sqrt(3.0) * (ALPHA / s2 - 1.0 / math.tan(ALPHA)))
+    return ideal, avitzur * area_f
+
+
+def _run(max_it, max_cutbacks, **kw):
+    from fxcontact.solver import SolverOptions
+
+    sim, _, _ = drawing.drawing_simulation(MPI.COMM_WORLD, solver_options=SolverOptions(
+        max_it=max_it), **{**CASE, **kw})
+    for _ in range(N_INC):
+        sim.step(DT, max_cutbacks=max_cutbacks)
+    its = [r["newton_iterations_all"] for r in sim.history]
+    return sim, its
+
+
+def test_die_gap_gradient_and_projection():
+    """The die's normal is the gradient of its gap (central differences) and the closest point
+    lies on the surface, for points around the cone, the fillet and the bearing."""
+    die = drawing.DrawingDie(4.6, ALPHA, 0.0, 4.0)
+    rng = np.random.default_rng(3)
+    x = np.c_[rng.uniform(3.5, 5.5, 200), rng.uniform(0.0, 2.0, 200), rng.uniform(-5, 3, 200)]
+    pr = die.project(x, 0.0, hessian=False)
+    e = 1e-6
+    grad = np.array([(die.project(x + e * d, 0.0, False).gap
+                      - die.project(x - e * d, 0.0, False).gap) / (2 * e) for d in np.eye(3)]).T
+    assert np.max(np.abs(grad - pr.normal)) < 1e-7
+    assert np.max(np.abs(die.project(pr.point, 0.0, False).gap)) < 1e-12
+    # free space is inside: the axis side of the bearing and of the cone
+    assert die.project(np.array([[4.0, 0, 1.0], [4.0, 0, -3.0]]), 0.0, False).gap.min() > 0
+    assert np.allclose(die.radius([1.0, 0.0]), 4.6)
+
+
+def test_drawing_m0016_converges_without_cutback_within_classical_bounds():
+    """m = 0.016 drawing with the settings that help Newton (benchmarks/README): penalty
+    β = 10 (the tangent along the flow is m η, not η) and ε̇₀ = 1e-2 × the die's mean strain
+    rate. With the default max_it = 30 every increment converges without cut-back, and the
+    drawing force lies between the ideal-work lower bound and Avitzur's upper bound.
+    Measured (1 rank): 12, 8, 11 Newton iterations (the first from the rigid start-up guess)."""
+    rate = drawing.mean_strain_rate(R0, REDUCTION, ALPHA, SPEED * (1.0 - REDUCTION))
+    sim, its = _run(max_it=30, max_cutbacks=0, beta=10.0, regularization=1e-2 * rate)
+    F = 4.0 * sim.history[-1]["front_z"]
+    lower, upper = _drawing_bounds()
+    if MPI.COMM_WORLD.rank == 0:
+        print(f"Newton iterations {its} (mean {np.mean(its):.1f}), force {F:.0f} N, "
+              f"bounds [{lower:.0f}, {upper:.0f}] N")
+    assert all(r["cutbacks"] == 0 for r in sim.history)
+    assert lower < F < upper
+    assert np.mean(its) <= 14 and max(its[1:]) <= 12
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "goal of the issue not reached: mean <= 6 Newton iterations per increment at m = 0.016 "
+    "with the default penalty (beta = 1e3), regularisation (1e-6 1/s) and max_it = 30. "
+    "Measured: 60, 31, 40, 21 iterations at 2.5k dofs without the cap (69, 30, 52 at 7k dofs); "
+    "beta = 10: 25, 9, 13; beta = 10 and a regularisation of 1e-2 x the mean strain rate: "
+    "12, 8, 11. The slow phase is contact nodes grazing the die: the full Newton step pushes "
+    "them deep into it (the power-law tangent along the flow is m times the secant one) and "
+    "the line search takes 1-10 % steps (the potential along the step is minimal there too)"))
+def test_drawing_m0016_default_penalty_mean_six_newton_iterations():
+    from fxcontact.simulation import IncrementError
+
+    try:
+        _, its = _run(max_it=30, max_cutbacks=0)
+    except IncrementError as e:
+        pytest.fail(f"increment failed: {e}")
+    assert np.mean(its) <= 6
