@@ -32,7 +32,10 @@ from fxcontact.petsc import NonlinearProblem
 from fxcontact.solver import NewtonSolver, SolveInfo, SolverOptions
 from fxcontact.spaces import MixedSpace, facets_with_tags, set_function_value, velocity_bc
 
-__all__ = ["Simulation", "IncrementError", "IncrementResult"]
+__all__ = ["Simulation", "IncrementError", "IncrementResult", "VOLUME_CORRECTIONS"]
+
+#: incompressibility corrections of the accumulated volume error (``Simulation``)
+VOLUME_CORRECTIONS = ("global", "none")
 
 log = logging.getLogger(__name__)
 
@@ -94,16 +97,28 @@ class Simulation:
         output_every: write the VTK series every n increments.
         progress: show a tqdm progress bar (rank 0 only), unless the console was set up quiet
             (:func:`fxcontact.console.configure_logging`).
+        volume_correction: updated-Lagrangian runs only (ignored for small-strain materials).
+            The geometry update ``x += dt v`` of an incompressible flow changes the volume at
+            second order in dt (``det(I + dt ∇v) = 1 + O(dt²)``), and the error accumulates
+            over the increments. With ``"global"`` (default) the incompressibility equation is
+            written ``div v + ln(V / V⁰) / dt = 0`` with the current and initial volumes of the
+            body: the volume lost or gained so far is given back in the next increment, so the
+            error stays at one increment's O(dt²) and no longer accumulates (THEORY §1.5).
+            ``"none"``: the plain ``div v = 0``.
     """
 
     def __init__(self, space: MixedSpace, material: Material,
                  solver_options: Optional[SolverOptions] = None, kinematics=None,
                  extra_residual: Optional[Callable] = None, output_dir: Optional[str] = None,
-                 name: str = "result", output_every: int = 1, progress: bool = True):
+                 name: str = "result", output_every: int = 1, progress: bool = True,
+                 volume_correction: str = "global"):
         if not isinstance(material, Material):
             raise ValueError(f"material must be a fxcontact material, got {material!r}")
         if output_every < 1:
             raise ValueError("output_every must be >= 1")
+        if volume_correction not in VOLUME_CORRECTIONS:
+            raise ValueError(f"unknown volume_correction {volume_correction!r}; choose one of "
+                             f"{VOLUME_CORRECTIONS}")
         self.space = space
         self.mesh = space.mesh
         self.comm = space.mesh.comm
@@ -115,6 +130,7 @@ class Simulation:
         self.name = name
         self.output_every = int(output_every)
         self.progress = progress
+        self.volume_correction = "none" if material.small_strain else volume_correction
         self.t = 0.0
         self.increment = 0
         self._bcs: List[_BC] = []
@@ -190,6 +206,9 @@ class Simulation:
         F = self.material.residual(v, p, wt, q, sp.dx, self.dt_c, self.u)
         if self.extra_residual is not None:
             F = F + self.extra_residual(v, p, wt, q)
+        vc = self._volume_correction_term(q)
+        if vc is not None:
+            F = F + vc
         self.F_ufl = F
         self.problem = NonlinearProblem(F, self.w, [b.bc for b in self._bcs],
                                         contributors=self.contributors)
@@ -203,6 +222,8 @@ class Simulation:
             F0 = lin_mat.residual(v, p, wt, q, sp.dx, self.dt_c, self.u)
             if self.extra_residual is not None:
                 F0 = F0 + self.extra_residual(v, p, wt, q)
+            if vc is not None:
+                F0 = F0 + vc
             opts = SolverOptions(**{**self.solver_options.__dict__, "prefix":
                                     self.solver_options.prefix + "startup_"})
             self._startup = NewtonSolver(NonlinearProblem(F0, self.w, [b.bc for b in self._bcs]),
@@ -215,12 +236,28 @@ class Simulation:
         self._volume_form = compat.form(dolfinx.fem.Constant(self.mesh, 1.0) * sp.dx)
         self._div_form = compat.form(ufl.div(v) * sp.dx)
         self._mean_rate_form = compat.form(epsd * sp.dx)
+        if self._log_volume is not None:
+            self._restore_form = compat.form(-self._log_volume / self.dt_c * sp.dx)
         self._built = True
+        self._volume_initial = self.volume()
         if self.output_dir is not None:
             from fxcontact.io import HistoryWriter, SeriesWriter
             self._writer = SeriesWriter(self.comm, self.output_dir, self.name)
             self._history_writer = HistoryWriter(self.comm, self.output_dir, self.name)
             self._write_fields()
+
+    def _volume_correction_term(self, q):
+        """``-q ln(V/V⁰)/dt dx`` added to the incompressibility equation ``-q div v dx``
+        (None without correction); ``ln(V/V⁰)`` is updated after each geometry update."""
+        self._log_volume = None
+        if self.volume_correction == "none":
+            return None
+        self._log_volume = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
+        return -q * self._log_volume / self.dt_c * self.space.dx
+
+    def _update_volume_correction(self):
+        if self._log_volume is not None:
+            self._log_volume.value = math.log(self.volume() / self._volume_initial)
 
     def _strain_rate_expr(self, v):
         e = ufl.sym(ufl.grad(v))
@@ -343,11 +380,14 @@ class Simulation:
         self.strain.x.array[:] += dt * rate
         reactions = {name: self.reaction_force(f) for name, f in self._reactions.items()}
         div_v = self.divergence_integral()
+        restore = (self.comm.allreduce(dolfinx.fem.assemble_scalar(self._restore_form),
+                                       op=MPI.SUM) if self._log_volume is not None else 0.0)
         # geometry / displacement update with the same map as the contact condition
         X = self.kinematics.positions(x_t, v_vert, dt)
         if self.u is None:
             g = self.mesh.geometry.x
             g[sp.vertex_geometry, : sp.gdim] = X
+            self._update_volume_correction()
         else:
             self.u.x.array[:] += dt * w.x.array[sp.V_to_W]
             self.u.x.scatter_forward()
@@ -360,7 +400,10 @@ class Simulation:
         for k in ("assembly", "linear_solve", "contact", "other", "total"):
             row[f"wall_{k}"] = info.times.get(k, 0.0)
         row["volume"] = self.volume()
+        row["volume_change"] = row["volume"] / self._volume_initial - 1.0
         row["div_v"] = div_v
+        # the volume rate asked for by the correction (∫ div v equals it, to the solver tol.)
+        row["volume_restore_rate"] = restore
         for name, F in reactions.items():
             for k, c in enumerate("xyz"[: sp.gdim]):
                 row[f"{name}_{c}"] = F[k]
