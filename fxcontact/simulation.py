@@ -155,6 +155,8 @@ class Simulation:
         self._writer = None
         self._history_writer = None
         self._reactions: Dict[str, np.ndarray] = {}
+        self._symmetry = None
+        self._plane_bcs: List = []
 
     # ------------------------------------------------------------------------ set-up
     def _p1_vertex_dofs(self) -> np.ndarray:
@@ -186,6 +188,34 @@ class Simulation:
         configuration of the increment (before the geometry update)."""
         self._reactions[name] = np.asarray(facets, dtype=np.int32)
 
+    def add_symmetry_plane(self, facets: np.ndarray, normal, name: str = "symmetry"):
+        """Symmetry plane through ``facets``: the normal velocity ``v·n`` vanishes there.
+
+        A normal along a coordinate axis gives a velocity condition on that component (as
+        :meth:`add_velocity_bc`); any other normal (the 120° plane of a one-third model) is
+        imposed exactly by a projection of the Newton system
+        (:class:`~fxcontact.symmetry.SymmetryPlanes`, THEORY §1.6), including at vertices on
+        two planes (a sector's axis: only the axial velocity stays free) and at vertices that
+        also carry velocity conditions. The force the plane exerts on the body is recorded in
+        the history columns ``{name}_x``, ``{name}_y``, ``{name}_z``.
+
+        Raises ValueError if the facets do not lie on one plane of normal ``normal``.
+        """
+        self._check_not_built()
+        from fxcontact.symmetry import SymmetryPlanes, _unit_normal
+        n = _unit_normal(normal, self.space.gdim)
+        axis = np.flatnonzero(np.abs(n) > 1e-12)
+        if self._symmetry is None:
+            self._symmetry = SymmetryPlanes(self.space)
+        if name in self._reactions or name in self._symmetry.names:
+            raise ValueError(f"a reaction or symmetry plane named '{name}' already exists")
+        if len(axis) == 1:  # a coordinate plane: a velocity condition, reaction from here
+            self._symmetry.add(name, facets, n, via_bc=True)
+            bc = self.add_velocity_bc(facets, 0.0, component=int(axis[0]))
+            self._plane_bcs.append(bc)
+        else:
+            self._symmetry.add(name, facets, n)
+
     def add_contributor(self, contributor):
         """Register a nodal contributor (``evaluate``, ``stable``; optional ``begin_increment``,
         ``end_increment``, ``diagnostics``, ``output_fields``)."""
@@ -210,8 +240,18 @@ class Simulation:
         if vc is not None:
             F = F + vc
         self.F_ufl = F
+        cons = [self._symmetry] if self._symmetry is not None and len(self._symmetry) else []
+        self._constraints = cons
+        if cons:  # dofs of the velocity conditions that are not symmetry planes
+            imap = sp.W.dofmap.index_map
+            other = np.zeros((imap.size_local + imap.num_ghosts) * sp.W.dofmap.index_map_bs,
+                             dtype=bool)
+            for b in self._bcs:
+                if not any(b.bc is pb for pb in self._plane_bcs):
+                    other[b.bc.dof_indices()[0]] = True
+            self._symmetry.set_prescribed(other)
         self.problem = NonlinearProblem(F, self.w, [b.bc for b in self._bcs],
-                                        contributors=self.contributors)
+                                        contributors=self.contributors, constraints=cons)
         fs_is = self.fieldsplit_is() if self.solver_options.uses_fieldsplit else None
         self.solver = NewtonSolver(self.problem, self.solver_options, fs_is)
         # start-up problem: the linearised material without contributors gives the first guess
@@ -226,8 +266,8 @@ class Simulation:
                 F0 = F0 + vc
             opts = SolverOptions(**{**self.solver_options.__dict__, "prefix":
                                     self.solver_options.prefix + "startup_"})
-            self._startup = NewtonSolver(NonlinearProblem(F0, self.w, [b.bc for b in self._bcs]),
-                                         opts, fs_is)
+            self._startup = NewtonSolver(NonlinearProblem(F0, self.w, [b.bc for b in self._bcs],
+                                                          constraints=cons), opts, fs_is)
         # cell averages of the strain rate, volume
         q0 = ufl.TestFunction(sp.DG0)
         epsd = self._strain_rate_expr(v)
@@ -352,6 +392,8 @@ class Simulation:
         self.w.x.array[:] = self.w_prev.x.array
         dolfinx.fem.petsc.set_bc(self.w.vector, self.problem.bcs)
         self.w.x.scatter_forward()
+        for c in self._constraints:
+            c.project(self.w)
         if self._startup is not None and not np.any(self.w_prev.x.array):
             self.comm.barrier()
             info0 = self._startup.solve()
@@ -404,6 +446,10 @@ class Simulation:
         row["div_v"] = div_v
         # the volume rate asked for by the correction (∫ div v equals it, to the solver tol.)
         row["volume_restore_rate"] = restore
+        for c in self._constraints:
+            reactions.update(c.forces())
+            if c.active:
+                row["symmetry_violation"] = c.max_violation(w)
         for name, F in reactions.items():
             for k, c in enumerate("xyz"[: sp.gdim]):
                 row[f"{name}_{c}"] = F[k]
