@@ -71,7 +71,7 @@ class SymmetryPlanes:
         self._prescribed = None
         self._ready = False
         self._P = None
-        self._C = None
+        self._C = {}
         self._force_local = None
 
     def __len__(self) -> int:
@@ -242,11 +242,15 @@ class SymmetryPlanes:
             return
         if self._P is None:
             self._P = self._projector(A)
-            self._C = A.ptap(self._P)
+        # one product matrix per Jacobian (the start-up and the main problem have their own):
+        # PETSc's reused product remembers the matrix it was built from
+        C = self._C.get(A.handle)
+        if C is None:
+            C = self._C[A.handle] = A.ptap(self._P)
         else:
-            A.ptap(self._P, self._C)
+            A.ptap(self._P, C)
         A.zeroEntries()
-        A.axpy(1.0, self._C, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        A.axpy(1.0, C, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
         if len(self.dofs):
             rows = self._global(self.dofs)
             for i in range(len(rows)):
@@ -302,10 +306,10 @@ class SymmetryPlanes:
         return self.comm.allreduce(loc, op=MPI.MAX)
 
     def destroy(self):
-        for m in (self._P, self._C):
+        for m in [self._P, *self._C.values()]:
             if m is not None:
                 m.destroy()
-        self._P = self._C = None
+        self._P, self._C = None, {}
 
 
 def _unit_normal(normal, gdim: int) -> np.ndarray:
