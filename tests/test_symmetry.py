@@ -196,3 +196,93 @@ def test_bad_plane():
         planes.add("p", ft.indices[ft.values == TAGS["sym1"]], (0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="length 3"):
         planes.add("p", ft.indices[ft.values == TAGS["sym1"]], (1.0, 0.0))
+
+
+def test_projected_jacobian_and_residual():
+    """The projected Jacobian is P A P + Q Qᵀ (mat-vec against the raw Jacobian and the
+    vertex blocks), the tangent of the projected residual along directions that keep the
+    constraints (central finite differences), and the projected residual vanishes in the
+    constrained directions once the predictor is projected (two inclined planes, the axis
+    included)."""
+    import dolfinx.fem.petsc
+    from petsc4py import PETSc
+
+    comm = MPI.COMM_WORLD
+    msh, ft, normals = sector_mesh(comm, 4, 30.0)
+    space = MixedSpace(msh)
+    sim = Simulation(space, NortonHoff(K=50.0, m=0.3, regularization=1e-2), progress=False)
+    fac = lambda name: sim.facets(ft, TAGS[name])  # noqa: E731
+    sim.add_velocity_bc(fac("bottom"), 0.0, 2)
+    sim.add_velocity_bc(fac("top"), -V_DIE, 2)
+    sim.add_symmetry_plane(fac("sym0"), normals["sym0"], name="plane0")
+    sim.add_symmetry_plane(fac("sym1"), normals["sym1"], name="plane1")
+    sim._build()
+    planes, prob, w = sim._symmetry, sim.problem, sim.w
+    assert planes.inclined == ["plane0", "plane1"]
+    n_axis = comm.allreduce(int(np.sum([np.linalg.matrix_rank(q) == 2 for q in planes._QQ])))
+    assert n_axis > 0                                    # vertices on both planes
+    rng = np.random.default_rng(comm.rank)
+    nown = space.num_owned_dofs
+    w.x.array[:nown] = rng.normal(size=nown)
+    w.x.scatter_forward()
+    dolfinx.fem.petsc.set_bc(w.vector, prob.bcs)
+    w.x.scatter_forward()
+    planes.project(w)
+    assert planes.max_violation(w) < 1e-13
+    A = prob.assemble_jacobian()
+    A0 = prob.create_matrix()
+    dolfinx.fem.petsc.assemble_matrix(A0, prob.a, bcs=prob.bcs)
+    A0.assemble()
+
+    def project(vec, keep_q=False):
+        """vec ← P vec, or Q Qᵀ vec with keep_q (owned rows)."""
+        arr = vec.getArray()
+        d = planes.dofs
+        x = arr[d].copy() if len(d) else np.zeros((0, 3))
+        qx = np.einsum("nde,ne->nd", planes._QQ, x)
+        if keep_q:
+            arr[:] = 0.0
+            arr[d] = qx
+        else:
+            arr[d] = x - qx
+
+    x = A.createVecRight()
+    x.setArray(rng.normal(size=x.getLocalSize()))
+    y, px, t, qx = x.duplicate(), x.duplicate(), x.duplicate(), x.duplicate()
+    A.mult(x, y)
+    x.copy(px)
+    project(px)
+    A0.mult(px, t)
+    project(t)
+    x.copy(qx)
+    project(qx, keep_q=True)
+    t.axpy(1.0, qx)
+    t.axpy(-1.0, y)
+    assert t.norm() <= 1e-12 * y.norm()
+    # finite differences along a direction that keeps the constraints and the BCs
+    d = x.copy()
+    project(d)
+    d.getArray()[prob.bc_marker[:nown]] = 0.0
+    w0 = w.vector.copy()
+    eps = 1e-6
+    r = []
+    for s in (1.0, -1.0):
+        w0.copy(w.vector)
+        w.vector.axpy(s * eps, d)
+        w.x.scatter_forward()
+        r.append(prob.assemble_residual().copy())
+    fd = (r[0] - r[1]) / (2 * eps)
+    w0.copy(w.vector)
+    w.x.scatter_forward()
+    A = prob.assemble_jacobian(A)
+    Ad = d.duplicate()
+    A.mult(d, Ad)
+    assert (fd - Ad).norm() <= 1e-6 * Ad.norm(), ((fd - Ad).norm(), Ad.norm())
+    # constrained rows of the residual hold the (zero) violation
+    b = prob.assemble_residual()
+    q = b.copy()
+    project(q, keep_q=True)
+    assert q.norm() <= 1e-12 * b.norm()
+    for v in (A0, x, y, px, t, qx, d, w0, Ad, b, q, *r):
+        v.destroy()
+    assert isinstance(A, PETSc.Mat)
