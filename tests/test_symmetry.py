@@ -123,9 +123,20 @@ def _gather(comm, x0, x1):
     return {tuple(k): v for k, v in zip(np.round(a, 6), b)}
 
 
+_RUNS = {}
+
+
+def upset_world(n_pieces, start_deg=0.0):
+    """upset() on COMM_WORLD, computed once per module."""
+    key = (n_pieces, start_deg)
+    if key not in _RUNS:
+        _RUNS[key] = upset(MPI.COMM_WORLD, n_pieces, start_deg)
+    return _RUNS[key]
+
+
 @pytest.fixture(scope="module")
 def full():
-    return upset(MPI.COMM_WORLD, 12)
+    return upset_world(12)
 
 
 @pytest.mark.parametrize("n_pieces,start", [(3, 0.0), (4, 0.0), (4, 30.0)],
@@ -137,7 +148,7 @@ def test_sector_equals_full(full, n_pieces, start):
     conditions."""
     comm = MPI.COMM_WORLD
     F_full, x0f, x1f, _ = full
-    F, x0, x1, sim = upset(comm, n_pieces, start)
+    F, x0, x1, sim = upset_world(n_pieces, start)
     for a, b in zip(F, F_full):
         assert abs(a - b) <= 1e-7 * abs(b), (a, b)
     ref = _gather(comm, x0f, x1f)
@@ -169,7 +180,7 @@ def test_sector_equals_full(full, n_pieces, start):
 def test_inclined_parallel_matches_serial():
     """The third with two inclined planes: the same answer on COMM_WORLD and COMM_SELF."""
     comm = MPI.COMM_WORLD
-    Fw, x0w, x1w, sw = upset(comm, 4, 30.0)
+    Fw, x0w, x1w, sw = upset_world(4, 30.0)
     Fs, x0s, x1s, ss = upset(MPI.COMM_SELF, 4, 30.0)
     for a, b in zip(Fw, Fs):
         assert abs(a - b) <= 1e-8 * abs(b)
