@@ -104,7 +104,9 @@ class Simulation:
             written ``div v + ln(V / V⁰) / dt = 0`` with the current and initial volumes of the
             body: the volume lost or gained so far is given back in the next increment, so the
             error stays at one increment's O(dt²) and no longer accumulates (THEORY §1.5).
-            ``"none"``: the plain ``div v = 0``.
+            ``"none"``: the plain ``div v = 0``. History columns: ``volume_change``
+            (``V/V⁰ − 1``) and ``volume_restore_rate`` (``−V ln(V/V⁰)/dt``, which ``div_v``,
+            the integral of ``div v``, equals to the solver tolerance).
     """
 
     def __init__(self, space: MixedSpace, material: Material,

@@ -33,10 +33,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import ufl
 import dolfinx
 import dolfinx.fem
-import dolfinx.fem.petsc
 
 from fxcontact import compat
 
