@@ -35,6 +35,8 @@ _API = {
     "PerVertex": ("checkpoint", "per-vertex contributor state saved in a checkpoint"),
     "latest_checkpoint": ("checkpoint", "the newest complete checkpoint in a directory"),
     "simplex_measures": ("mesh_health", "signed volume and shape quality of simplices"),
+    "VOLUME_CORRECTIONS": ("simulation", "corrections of the accumulated volume error (§1.5)"),
+    "SymmetryPlanes": ("symmetry", "symmetry planes of any orientation, imposed exactly (§1.6)"),
     "MixedSpace": ("spaces", "MINI (or Taylor-Hood) velocity-pressure space, vertex maps (§1.3)"),
     "facets_with_tags": ("spaces", "facet indices carrying given tags"),
     # materials
@@ -80,6 +82,9 @@ _API = {
     "gmsh_session": ("meshing", "context manager: a clean gmsh model"),
     "BILLET_TAGS": ("meshing", "facet tags of cylinder_billet"),
     "BLOCK_TAGS": ("meshing", "facet tags of block"),
+    "drawing_bar": ("meshing", "gmsh round bar with a drawn nose, whole or a sector, with tags"),
+    "DRAWING_BAR_TAGS": ("meshing", "facet tags of drawing_bar"),
+    "sector_plane_normals": ("meshing", "outward normals of a sector's symmetry planes"),
     # solver and assembly
     "SolverOptions": ("solver", "Newton and linear solver settings"),
     "NewtonSolver": ("solver", "SNES Newton with a stable-active-set test (§3.6)"),

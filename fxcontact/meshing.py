@@ -15,14 +15,19 @@ from mpi4py import MPI
 
 from fxcontact import compat
 
-__all__ = ["cylinder_billet", "block", "gmsh_session", "BILLET_TAGS", "BLOCK_TAGS",
-           "GMSH_MESH_DEFAULTS"]
+__all__ = ["cylinder_billet", "block", "drawing_bar", "sector_plane_normals", "gmsh_session",
+           "BILLET_TAGS", "BLOCK_TAGS", "DRAWING_BAR_TAGS", "GMSH_MESH_DEFAULTS"]
 
 log = logging.getLogger(__name__)
 
 #: facet tags of :func:`cylinder_billet`
 BILLET_TAGS: Dict[str, int] = {"bottom": 1, "top": 2, "lateral": 3, "symmetry_x": 4,
                                "symmetry_y": 5}
+#: facet tags of :func:`drawing_bar`: ``back`` (z = 0), ``front`` (z = length, the pulled end
+#: of the nose), ``lateral`` (bar, conical transition and nose surfaces), ``symmetry_0`` (the
+#: half-plane θ = 0, i.e. y = 0, x ≥ 0) and ``symmetry_1`` (the half-plane θ = sector) of a sector
+DRAWING_BAR_TAGS: Dict[str, int] = {"back": 1, "front": 2, "lateral": 3, "symmetry_0": 4,
+                                    "symmetry_1": 5}
 #: facet tags of :func:`block`
 BLOCK_TAGS: Dict[str, int] = {"xmin": 1, "xmax": 2, "ymin": 3, "ymax": 4, "zmin": 5, "zmax": 6}
 
@@ -178,3 +183,136 @@ def block(comm: MPI.Comm, lower, upper, h: float, refine_box=None, h_fine: float
                 gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
             gmsh.model.mesh.generate(dim)
         return _finish(gmsh, comm, dim)
+
+
+def sector_plane_normals(sector: float) -> Dict[str, np.ndarray]:
+    """Outward unit normals of the two symmetry half-planes of a sector ``0 ≤ θ ≤ sector``
+    (degrees) about the z axis: ``{"symmetry_0": (0, −1, 0), "symmetry_1": (−sin φ, cos φ, 0)}``
+    (the tags of :data:`DRAWING_BAR_TAGS`)."""
+    phi = np.radians(_sector_degrees(sector))
+    n1 = np.array([-np.sin(phi), np.cos(phi), 0.0])
+    n1[np.abs(n1) < 1e-15] = 0.0
+    return {"symmetry_0": np.array([0.0, -1.0, 0.0]), "symmetry_1": n1}
+
+
+def _sector_degrees(sector) -> float:
+    try:
+        a = float(sector)
+    except (TypeError, ValueError):
+        raise ValueError(f"sector must be an angle in degrees or None, got {sector!r}") from None
+    if not (np.isfinite(a) and 0.0 < a < 360.0):
+        raise ValueError(f"sector must be an angle in degrees with 0 < sector < 360 (None for "
+                         f"the whole bar), got {sector!r}")
+    return a
+
+
+def drawing_bar(comm: MPI.Comm, radius: float, length: float, h: float,
+                nose_length: float = 0.0, nose_radius: float = None,
+                nose_angle: float = 45.0, sector: float = None, h_nose: float = None):
+    """Round bar along z with a drawn nose, whole or a sector about the axis: the workpiece of
+    wire or bar drawing (with ``nose_length = 0``, a plain cylinder: an upsetting billet).
+
+    The bar occupies ``0 ≤ z ≤ length``: the full radius from the back face ``z = 0``, then a
+    conical transition of semi-angle ``nose_angle`` down to ``nose_radius``, and the nose (the
+    reduced front end that is passed through the die exit and gripped) of radius
+    ``nose_radius`` over its last ``nose_length``, ending at the front face ``z = length``
+    (the pulled face). Drawing moves the bar towards +z.
+
+    Args:
+        comm: communicator (the model is built on rank 0 and distributed).
+        radius: bar radius R₀ > 0.
+        length: total length > 0 (back face to front face).
+        h: element size.
+        nose_length: axial length of the nose (0: no nose, a plain cylinder).
+        nose_radius: nose radius, ``0 < nose_radius < radius`` (required with a nose).
+        nose_angle: semi-angle of the conical transition, degrees in (0, 90]; the transition is
+            ``(radius − nose_radius) / tan(nose_angle)`` long (90: a step).
+        sector: None for the whole bar, or an angle φ in degrees (0 < φ < 360): the sector
+            ``0 ≤ θ ≤ φ`` about the z axis (θ from +x towards +y), e.g. 120 for one third,
+            90 for a quarter, with the symmetry faces ``symmetry_0`` (θ = 0) and
+            ``symmetry_1`` (θ = φ); their outward normals are :func:`sector_plane_normals`.
+            A half bar (180) has one symmetry face, the plane y = 0, tagged ``symmetry_0``.
+        h_nose: element size in the nose and transition (default ``h``).
+
+    Returns:
+        ``(mesh, cell_tags, facet_tags)`` with facet tags :data:`DRAWING_BAR_TAGS`.
+    """
+    for name, v in (("radius", radius), ("length", length), ("h", h)):
+        if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v)
+                and v > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+    if not (np.isfinite(nose_length) and nose_length >= 0):
+        raise ValueError(f"nose_length must be finite and >= 0, got {nose_length!r}")
+    phi = None if sector is None else _sector_degrees(sector)
+    h_nose = h if h_nose is None else float(h_nose)
+    if not h_nose > 0:
+        raise ValueError(f"h_nose must be > 0, got {h_nose!r}")
+    L_tr = 0.0
+    if nose_length > 0:
+        if nose_radius is None or not (np.isfinite(nose_radius) and 0 < nose_radius < radius):
+            raise ValueError(f"nose_radius must satisfy 0 < nose_radius < radius ({radius}), "
+                             f"got {nose_radius!r}")
+        if not (np.isfinite(nose_angle) and 0 < nose_angle <= 90):
+            raise ValueError(f"nose_angle must be in (0, 90] degrees, got {nose_angle!r}")
+        if nose_angle < 90:
+            L_tr = (radius - nose_radius) / np.tan(np.radians(nose_angle))
+        if nose_length + L_tr >= length:
+            raise ValueError(f"the nose ({nose_length}) and its transition ({L_tr:.6g}) must be "
+                             f"shorter than the bar ({length})")
+    elif nose_radius is not None:
+        raise ValueError("nose_radius needs nose_length > 0")
+    ang = 2 * np.pi if phi is None else np.radians(phi)
+    z_body = length - nose_length - L_tr
+    with gmsh_session("drawing_bar") as gmsh:
+        if comm.rank == 0:
+            occ = gmsh.model.occ
+            parts = [(3, occ.addCylinder(0, 0, 0, 0, 0, z_body, radius, angle=ang))]
+            if nose_length > 0:
+                if L_tr > 0:
+                    parts.append((3, occ.addCone(0, 0, z_body, 0, 0, L_tr, radius, nose_radius,
+                                                 angle=ang)))
+                parts.append((3, occ.addCylinder(0, 0, z_body + L_tr, 0, 0, nose_length,
+                                                 nose_radius, angle=ang)))
+            if len(parts) > 1:
+                occ.fuse(parts[:1], parts[1:])
+            occ.synchronize()
+            vols = gmsh.model.getEntities(3)
+            gmsh.model.addPhysicalGroup(3, [v[1] for v in vols], 1)
+            groups = {k: [] for k in DRAWING_BAR_TAGS}
+            eps = 1e-6 * max(radius, length)
+            n1 = None if phi is None else sector_plane_normals(phi)["symmetry_1"]
+            for dim, tag in gmsh.model.getEntities(2):
+                c = np.array(occ.getCenterOfMass(dim, tag))
+                if abs(c[2]) < eps:
+                    groups["back"].append(tag)
+                elif abs(c[2] - length) < eps:
+                    groups["front"].append(tag)
+                elif phi is not None and abs(c[1]) < eps and (c[0] > 0 or phi == 180.0):
+                    groups["symmetry_0"].append(tag)
+                elif phi is not None and abs(c @ n1) < eps and \
+                        c[0] * np.cos(ang) + c[1] * np.sin(ang) > 0:
+                    groups["symmetry_1"].append(tag)
+                else:
+                    groups["lateral"].append(tag)
+            for name, tags in groups.items():
+                if tags:
+                    gmsh.model.addPhysicalGroup(2, tags, DRAWING_BAR_TAGS[name])
+            gmsh.option.setNumber("Mesh.CharacteristicLengthMax", max(h, h_nose))
+            gmsh.option.setNumber("Mesh.CharacteristicLengthMin", 0.5 * min(h, h_nose))
+            if h_nose != h and nose_length > 0:
+                f = gmsh.model.mesh.field
+                bx = f.add("Box")
+                f.setNumber(bx, "VIn", h_nose)
+                f.setNumber(bx, "VOut", h)
+                f.setNumber(bx, "XMin", -2 * radius)
+                f.setNumber(bx, "XMax", 2 * radius)
+                f.setNumber(bx, "YMin", -2 * radius)
+                f.setNumber(bx, "YMax", 2 * radius)
+                f.setNumber(bx, "ZMin", z_body)
+                f.setNumber(bx, "ZMax", 2 * length)
+                f.setNumber(bx, "Thickness", 2 * max(h, h_nose))
+                f.setAsBackgroundMesh(bx)
+                gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+                gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+            gmsh.model.mesh.generate(3)
+        return _finish(gmsh, comm, 3)

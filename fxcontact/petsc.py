@@ -122,9 +122,14 @@ class NonlinearProblem:
         contributors: objects with ``evaluate(w, jacobian: bool) -> NodalTerms`` called with the
             current iterate (after the ghost update) before every residual/Jacobian assembly.
         jit_params: passed to the form compiler.
+        constraints: linear constraints that project the Newton system after the assembly
+            (:class:`~fxcontact.symmetry.SymmetryPlanes`: ``setup(bc_marker)``,
+            ``record_residual(b)`` before and ``apply_residual(b, w)`` after ``set_bc``,
+            ``apply_jacobian(A)`` after the final assembly).
     """
 
-    def __init__(self, F, w, bcs=(), J=None, contributors: Sequence = (), jit_params=None):
+    def __init__(self, F, w, bcs=(), J=None, contributors: Sequence = (), jit_params=None,
+                 constraints: Sequence = ()):
         import ufl
         self.w = w
         self.bcs = list(bcs)
@@ -140,6 +145,9 @@ class NonlinearProblem:
         self.bc_marker = np.zeros(n_local * V.dofmap.index_map_bs, dtype=bool)
         for bc in self.bcs:
             self.bc_marker[bc.dof_indices()[0]] = True
+        self.constraints = list(constraints)
+        for c in self.constraints:
+            c.setup(self.bc_marker)
         self.error: Optional[str] = None
         self._cache_terms: Optional[List[NodalTerms]] = None
 
@@ -191,7 +199,11 @@ class NonlinearProblem:
             for t in terms:
                 add_nodal_residual(b, t)
         with self.timers("assembly"):
+            for c in self.constraints:
+                c.record_residual(b)
             dolfinx.fem.petsc.set_bc(b, self.bcs, self.w.vector, -1.0)
+            for c in self.constraints:
+                c.apply_residual(b, self.w)
 
     def jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat):
         """SNES Jacobian callback."""
@@ -205,6 +217,8 @@ class NonlinearProblem:
         with self.timers("assembly"):
             dolfinx.fem.petsc.assemble_matrix(A, self.a, bcs=self.bcs)
             A.assemble()
+            for c in self.constraints:
+                c.apply_jacobian(A)
         if terms is None:
             raise ContributorError(self.error)
 

@@ -36,7 +36,11 @@ from fxcontact.petsc import NonlinearProblem
 from fxcontact.solver import NewtonSolver, SolveInfo, SolverOptions
 from fxcontact.spaces import MixedSpace, facets_with_tags, set_function_value, velocity_bc
 
-__all__ = ["Simulation", "IncrementError", "MeshInversionError", "OutputError", "IncrementResult"]
+__all__ = ["Simulation", "IncrementError", "MeshInversionError", "OutputError", "IncrementResult",
+           "VOLUME_CORRECTIONS"]
+
+#: incompressibility corrections of the accumulated volume error (``Simulation``)
+VOLUME_CORRECTIONS = ("global", "none")
 
 log = logging.getLogger(__name__)
 
@@ -116,6 +120,16 @@ class Simulation:
         check_inversion: reject an increment whose geometry update would invert an element
             (updated Lagrangian): it is cut back like a failed Newton solve and, if it persists,
             stops with a :class:`MeshInversionError` naming the cell, the time and the increment.
+        volume_correction: updated-Lagrangian runs only (ignored for small-strain materials).
+            The geometry update ``x += dt v`` of an incompressible flow changes the volume at
+            second order in dt (``det(I + dt ∇v) = 1 + O(dt²)``), and the error accumulates
+            over the increments. With ``"global"`` (default) the incompressibility equation is
+            written ``div v + ln(V / V⁰) / dt = 0`` with the current and initial volumes of the
+            body: the volume lost or gained so far is given back in the next increment, so the
+            error stays at one increment's O(dt²) and no longer accumulates (THEORY §1.5).
+            ``"none"``: the plain ``div v = 0``. History columns: ``volume_change``
+            (``V/V⁰ − 1``) and ``volume_restore_rate`` (``−V ln(V/V⁰)/dt``, which ``div_v``,
+            the integral of ``div v``, equals to the solver tolerance).
     """
 
     def __init__(self, space: MixedSpace, material: Material,
@@ -123,7 +137,7 @@ class Simulation:
                  extra_residual: Optional[Callable] = None, output_dir: Optional[str] = None,
                  name: str = "result", output_every: int = 1, progress: bool = True,
                  checkpoint_every: int = 0, checkpoint_keep: int = 2,
-                 check_inversion: bool = True):
+                 check_inversion: bool = True, volume_correction: str = "global"):
         if not isinstance(material, Material):
             raise ValueError(f"material must be a fxcontact material, got {material!r}")
         if output_every < 1:
@@ -135,6 +149,9 @@ class Simulation:
                              "output_dir/checkpoints)")
         if not (isinstance(checkpoint_keep, (int, np.integer)) and checkpoint_keep >= 1):
             raise ValueError(f"checkpoint_keep must be an integer >= 1, got {checkpoint_keep!r}")
+        if volume_correction not in VOLUME_CORRECTIONS:
+            raise ValueError(f"unknown volume_correction {volume_correction!r}; choose one of "
+                             f"{VOLUME_CORRECTIONS}")
         self.space = space
         self.mesh = space.mesh
         self.comm = space.mesh.comm
@@ -146,6 +163,7 @@ class Simulation:
         self.name = name
         self.output_every = int(output_every)
         self.progress = progress
+        self.volume_correction = "none" if material.small_strain else volume_correction
         self.t = 0.0
         self.increment = 0
         self._bcs: List[_BC] = []
@@ -177,6 +195,8 @@ class Simulation:
         self._resume_step: Optional[float] = None
         self._ckpt_keys = None
         self._init_mesh_health()
+        self._symmetry = None
+        self._plane_bcs: List = []
 
     # ------------------------------------------------------------------------ set-up
     def _p1_vertex_dofs(self) -> np.ndarray:
@@ -208,6 +228,34 @@ class Simulation:
         configuration of the increment (before the geometry update)."""
         self._reactions[name] = np.asarray(facets, dtype=np.int32)
 
+    def add_symmetry_plane(self, facets: np.ndarray, normal, name: str = "symmetry"):
+        """Symmetry plane through ``facets``: the normal velocity ``v·n`` vanishes there.
+
+        A normal along a coordinate axis gives a velocity condition on that component (as
+        :meth:`add_velocity_bc`); any other normal (the 120° plane of a one-third model) is
+        imposed exactly by a projection of the Newton system
+        (:class:`~fxcontact.symmetry.SymmetryPlanes`, THEORY §1.6), including at vertices on
+        two planes (a sector's axis: only the axial velocity stays free) and at vertices that
+        also carry velocity conditions. The force the plane exerts on the body is recorded in
+        the history columns ``{name}_x``, ``{name}_y``, ``{name}_z``.
+
+        Raises ValueError if the facets do not lie on one plane of normal ``normal``.
+        """
+        self._check_not_built()
+        from fxcontact.symmetry import SymmetryPlanes, _unit_normal
+        n = _unit_normal(normal, self.space.gdim)
+        axis = np.flatnonzero(np.abs(n) > 1e-12)
+        if self._symmetry is None:
+            self._symmetry = SymmetryPlanes(self.space)
+        if name in self._reactions or name in self._symmetry.names:
+            raise ValueError(f"a reaction or symmetry plane named '{name}' already exists")
+        if len(axis) == 1:  # a coordinate plane: a velocity condition, reaction from here
+            self._symmetry.add(name, facets, n, via_bc=True)
+            bc = self.add_velocity_bc(facets, 0.0, component=int(axis[0]))
+            self._plane_bcs.append(bc)
+        else:
+            self._symmetry.add(name, facets, n)
+
     def add_contributor(self, contributor):
         """Register a nodal contributor (``evaluate``, ``stable``; optional ``begin_increment``,
         ``end_increment``, ``diagnostics``, ``output_fields``)."""
@@ -228,9 +276,22 @@ class Simulation:
         F = self.material.residual(v, p, wt, q, sp.dx, self.dt_c, self.u)
         if self.extra_residual is not None:
             F = F + self.extra_residual(v, p, wt, q)
+        vc = self._volume_correction_term(q)
+        if vc is not None:
+            F = F + vc
         self.F_ufl = F
+        cons = [self._symmetry] if self._symmetry is not None and len(self._symmetry) else []
+        self._constraints = cons
+        if cons:  # dofs of the velocity conditions that are not symmetry planes
+            imap = sp.W.dofmap.index_map
+            other = np.zeros((imap.size_local + imap.num_ghosts) * sp.W.dofmap.index_map_bs,
+                             dtype=bool)
+            for b in self._bcs:
+                if not any(b.bc is pb for pb in self._plane_bcs):
+                    other[b.bc.dof_indices()[0]] = True
+            self._symmetry.set_prescribed(other)
         self.problem = NonlinearProblem(F, self.w, [b.bc for b in self._bcs],
-                                        contributors=self.contributors)
+                                        contributors=self.contributors, constraints=cons)
         fs_is = self.fieldsplit_is() if self.solver_options.uses_fieldsplit else None
         self.solver = NewtonSolver(self.problem, self.solver_options, fs_is)
         # start-up problem: the linearised material without contributors gives the first guess
@@ -241,10 +302,12 @@ class Simulation:
             F0 = lin_mat.residual(v, p, wt, q, sp.dx, self.dt_c, self.u)
             if self.extra_residual is not None:
                 F0 = F0 + self.extra_residual(v, p, wt, q)
+            if vc is not None:
+                F0 = F0 + vc
             opts = SolverOptions(**{**self.solver_options.__dict__, "prefix":
                                     self.solver_options.prefix + "startup_"})
-            self._startup = NewtonSolver(NonlinearProblem(F0, self.w, [b.bc for b in self._bcs]),
-                                         opts, fs_is)
+            self._startup = NewtonSolver(NonlinearProblem(F0, self.w, [b.bc for b in self._bcs],
+                                                          constraints=cons), opts, fs_is)
         # cell averages of the strain rate, volume
         q0 = ufl.TestFunction(sp.DG0)
         epsd = self._strain_rate_expr(v)
@@ -253,9 +316,25 @@ class Simulation:
         self._volume_form = compat.form(dolfinx.fem.Constant(self.mesh, 1.0) * sp.dx)
         self._div_form = compat.form(ufl.div(v) * sp.dx)
         self._mean_rate_form = compat.form(epsd * sp.dx)
+        if self._log_volume is not None:
+            self._restore_form = compat.form(-self._log_volume / self.dt_c * sp.dx)
         self._built = True
+        self._volume_initial = self.volume()
         if self.output_dir is not None:
             self._open_writers()
+
+    def _volume_correction_term(self, q):
+        """``-q ln(V/V⁰)/dt dx`` added to the incompressibility equation ``-q div v dx``
+        (None without correction); ``ln(V/V⁰)`` is updated after each geometry update."""
+        self._log_volume = None
+        if self.volume_correction == "none":
+            return None
+        self._log_volume = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(0.0))
+        return -q * self._log_volume / self.dt_c * self.space.dx
+
+    def _update_volume_correction(self):
+        if self._log_volume is not None:
+            self._log_volume.value = math.log(self.volume() / self._volume_initial)
 
     def _strain_rate_expr(self, v):
         e = ufl.sym(ufl.grad(v))
@@ -357,6 +436,8 @@ class Simulation:
         self.w.x.array[:] = self.w_prev.x.array
         dolfinx.fem.petsc.set_bc(self.w.vector, self.problem.bcs)
         self.w.x.scatter_forward()
+        for c in self._constraints:
+            c.project(self.w)
         if self._startup is not None and not np.any(self.w_prev.x.array):
             self.comm.barrier()
             info0 = self._startup.solve()
@@ -385,11 +466,14 @@ class Simulation:
         self.strain.x.array[:] += dt * rate
         reactions = {name: self.reaction_force(f) for name, f in self._reactions.items()}
         div_v = self.divergence_integral()
+        restore = (self.comm.allreduce(dolfinx.fem.assemble_scalar(self._restore_form),
+                                       op=MPI.SUM) if self._log_volume is not None else 0.0)
         # geometry / displacement update with the same map as the contact condition
         X = self.kinematics.positions(x_t, v_vert, dt)
         if self.u is None:
             g = self.mesh.geometry.x
             g[sp.vertex_geometry, : sp.gdim] = X
+            self._update_volume_correction()
         else:
             self.u.x.array[:] += dt * w.x.array[sp.V_to_W]
             self.u.x.scatter_forward()
@@ -402,7 +486,14 @@ class Simulation:
         for k in ("assembly", "linear_solve", "contact", "other", "total"):
             row[f"wall_{k}"] = info.times.get(k, 0.0)
         row["volume"] = self.volume()
+        row["volume_change"] = row["volume"] / self._volume_initial - 1.0
         row["div_v"] = div_v
+        # the volume rate asked for by the correction (∫ div v equals it, to the solver tol.)
+        row["volume_restore_rate"] = restore
+        for c in self._constraints:
+            reactions.update(c.forces())
+            if c.active:
+                row["symmetry_violation"] = c.max_violation(w)
         for name, F in reactions.items():
             for k, c in enumerate("xyz"[: sp.gdim]):
                 row[f"{name}_{c}"] = F[k]

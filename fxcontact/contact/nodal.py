@@ -359,19 +359,22 @@ class NodalContact:
             return self._penalty
         if isinstance(sim.material, NortonHoff):
             if self.strain_rate is None:
-                # representative strain rate: mean of the first increment's initial guess
+                # representative strain rate: mean of the first increment's initial guess;
+                # the start-up solve does not see the tools, so a body driven by velocity
+                # conditions against static tools (drawing) moves rigidly in it: then the
+                # speed of the body relative to the tools over the body's size
                 rate = sim.mean_strain_rate()
-                if not rate > 1e-12:
-                    # rigid initial guess: tool speed over the body's size
-                    speed = max(float(np.max(np.linalg.norm(
-                        tool.velocity(_pad3(self.x_t), self.t), axis=1), initial=0.0))
-                        for tool in self.tools)
-                    speed = self.boundary.comm.allreduce(speed, op=MPI.MAX)
-                    size = sim.volume() ** (1.0 / self.gdim)
-                    rate = speed / size
+                v = self.boundary.velocities(sim.w)
+                speed = max(float(np.max(np.linalg.norm(
+                    v - tool.velocity(_pad3(self.x_t), self.t)[:, : self.gdim], axis=1),
+                    initial=0.0)) for tool in self.tools)
+                speed = self.boundary.comm.allreduce(speed, op=MPI.MAX)
+                rate_kin = speed / sim.volume() ** (1.0 / self.gdim)
+                if not rate > 1e-6 * rate_kin:
+                    rate = rate_kin
                 if not rate > 0:
                     raise ValueError("cannot estimate a representative strain rate for the "
-                                     "penalty (rigid initial velocity and static tools): give "
+                                     "penalty (the body and the tools are at rest): give "
                                      "strain_rate= or penalty=")
                 self.strain_rate = rate
                 log.info("%s: representative strain rate %.4g 1/s", self.name, rate)

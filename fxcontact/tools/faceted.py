@@ -1132,6 +1132,45 @@ class FacetedTool(Tool):
         kwargs.setdefault("name", os.path.basename(path))
         return cls(V, T, **kwargs)
 
+    @classmethod
+    def from_revolved(cls, tool, n_theta: int, sector=None, ds: Optional[float] = None,
+                      max_angle: float = math.radians(10.0), extension: float = 0.0,
+                      **kwargs) -> "FacetedTool":
+        """Triangulate a :class:`~fxcontact.tools.revolved.RevolvedProfile` (a die, a roll)
+        and build the faceted tool in one call, with the analytic tool's motion.
+
+        Args:
+            tool: the analytic surface of revolution.
+            n_theta, ds, max_angle, extension: as in
+                :func:`~fxcontact.tools.revolved.faceted_revolved`.
+            sector: None (whole turn) or ``(θ0, θ1)`` in **degrees** about the tool's axis
+                (measured from ``tool.e_fixed``, +x for an axis along z), e.g. ``(0, 120)``
+                for the die of a one-third model; the triangulation is mirror-symmetric about
+                the sector's mid-plane.
+            kwargs: passed to the constructor (``mode``, ``normals``, ``crease_angle``, ...;
+                ``name`` defaults to the tool's). The motion is the analytic tool's.
+        """
+        from fxcontact.tools.revolved import RevolvedProfile, faceted_revolved
+
+        if not isinstance(tool, RevolvedProfile):
+            raise ValueError(f"tool must be a RevolvedProfile, got {type(tool).__name__}")
+        for key in ("velocity", "angular_velocity", "axis_point", "axis"):
+            if key in kwargs:
+                raise ValueError(f"{key} comes from the revolved tool's motion; do not pass it")
+        if sector is not None:
+            try:
+                a0, a1 = (float(v) for v in sector)
+            except (TypeError, ValueError):
+                raise ValueError(f"sector must be (theta0, theta1) in degrees, got "
+                                 f"{sector!r}") from None
+            sector = (math.radians(a0), math.radians(a1))
+        V, T = faceted_revolved(tool, n_theta, sector=sector, ds=ds, max_angle=max_angle,
+                                extension=extension)
+        kwargs.setdefault("name", tool.name)
+        out = cls(V, T, **kwargs)
+        out.motion = tool.motion
+        return out
+
     # -- properties ----------------------------------------------------------------------
 
     @property
