@@ -40,17 +40,29 @@ import dolfinx.fem
 
 from fxcontact import compat
 from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.friction import (LAW_COULOMB, LAW_NONE, LAW_NORTON, LAW_TRESCA,
+                                        FrictionLaw, Frictionless, friction_kernel,
+                                        friction_kernel_numpy)
 from fxcontact.contact.penalty import penalty_kernel, penalty_kernel_numpy
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic, NortonHoff
 from fxcontact.petsc import ContributorError, NodalTerms
-from fxcontact.tools.base import Tool
+from fxcontact.tools.base import Tool, unit_vector
 
-__all__ = ["NodalContact", "SCHEMES", "penalty_from_beta"]
+__all__ = ["NodalContact", "SCHEMES", "FRICTION_MODES", "penalty_from_beta"]
 
 log = logging.getLogger(__name__)
 
 SCHEMES = ("explicit", "quasi-implicit", "implicit", "implicit-exact")
+
+FRICTION_MODES = ("implicit", "explicit")
+
+#: default slip-speed regularisation v₀ relative to the characteristic speed of the process
+#: (THEORY §9: 1e-3 – 1e-2 of the typical sliding speed)
+DEFAULT_SLIP_VELOCITY_REL = 1e-3
+
+#: a node sticks if its slip speed |Δv_t| is below this many v₀ (diagnostics only)
+STICK_FACTOR = 3.0
 
 #: β used when neither ``penalty`` nor ``beta`` is given (THEORY §2.5 recommends 1e2–1e4).
 DEFAULT_BETA = 1e3
@@ -105,16 +117,35 @@ class NodalContact:
         gap_stiffness: alternative to ``penalty``/``beta``: a stiffness k [stress/length] on the
             end-of-increment gap, ρ = k·dt at each increment, so that the penalty penetration
             p/k does not depend on the time step.
+        friction: friction law(s) (:mod:`fxcontact.contact.friction`): one law for every tool,
+            or a dict ``{tool or tool name: law}`` (tools left out are frictionless), or a
+            sequence aligned with ``tools``. Default: frictionless.
+        friction_mode: ``"implicit"`` (p_n and the status of the current iterate, consistent
+            non-symmetric Jacobian on the Coulomb branch; default with the implicit schemes)
+            or ``"explicit"`` (p_n and the status of the previous converged increment,
+            symmetric Jacobian; default with the explicit and quasi-implicit schemes).
+        slip_velocity: regularisation v₀ of the slip speed s = √(|Δv_t|² + v₀²) [length/time].
+            Default: ``DEFAULT_SLIP_VELOCITY_REL`` (1e-3) × the characteristic speed of the
+            process, taken at the first increment as the largest of the tools' surface speeds
+            at the contact nodes and the body's boundary speeds (predictor).
         name: label used in history columns.
-        backend: "numba" or "numpy" (reference twin of the kernel, for testing).
+        backend: "numba" or "numpy" (reference twin of the kernels, for testing).
+
+    Friction (THEORY §9) acts on the nodes in contact, against the velocity relative to the
+    tool's material point at the projection (tools that translate and rotate about their own
+    axis). The shear flow stress k of Tresca limits and the consistency K of viscoplastic
+    friction come from the Norton–Hoff material (k = K (√3 ε̄̇)^m with the nodal strain rate of
+    the increment's predictor, regularised like the material); other materials need
+    ``shear_limit``/``K`` in the law.
     """
 
     def __init__(self, boundary: ContactBoundary, tools, scheme: str = "implicit",
                  penalty: Optional[float] = None, beta: Optional[float] = None,
                  element_size: Optional[float] = None, strain_rate: Optional[float] = None,
                  sticky_gap: float = 0.0, max_initial_penetration: Optional[float] = None,
-                 gap_stiffness: Optional[float] = None, name: str = "contact",
-                 backend: str = "numba"):
+                 gap_stiffness: Optional[float] = None, friction=None,
+                 friction_mode: Optional[str] = None, slip_velocity: Optional[float] = None,
+                 name: str = "contact", backend: str = "numba"):
         if scheme not in SCHEMES:
             raise ValueError(f"unknown contact scheme {scheme!r}; choose one of {SCHEMES}")
         tools = [tools] if isinstance(tools, Tool) else list(tools)
@@ -147,6 +178,18 @@ class NodalContact:
         self.strain_rate = strain_rate
         self.sticky_gap = float(sticky_gap)
         self.kernel = penalty_kernel if backend == "numba" else penalty_kernel_numpy
+        self.friction_kernel = friction_kernel if backend == "numba" else friction_kernel_numpy
+        self.friction = self._friction_per_tool(friction, tools)
+        self.has_friction = any(law.code != LAW_NONE for law in self.friction)
+        if friction_mode is None:
+            friction_mode = "implicit" if scheme in ("implicit", "implicit-exact") else "explicit"
+        if friction_mode not in FRICTION_MODES:
+            raise ValueError(f"unknown friction_mode {friction_mode!r}; choose one of "
+                             f"{FRICTION_MODES}")
+        self.friction_mode = friction_mode
+        if slip_velocity is not None and not (math.isfinite(slip_velocity) and slip_velocity > 0):
+            raise ValueError(f"slip_velocity (v0) must be finite and > 0, got {slip_velocity!r}")
+        self.slip_velocity = None if slip_velocity is None else float(slip_velocity)
         comm = boundary.comm
         if element_size is None:
             a = boundary.areas
@@ -175,6 +218,124 @@ class NodalContact:
         self._fallbacks = 0
         self._fallbacks_all = 0
         self._fields = None
+        self._r = np.zeros((n, self.gdim))
+        # friction state: pressures of the previous converged increment (explicit friction),
+        # per-node shear flow stress and consistency, last evaluation's friction terms
+        self._p_prev = np.zeros(n)
+        self._k_node = np.zeros(n)
+        self._K_node = np.zeros(n)
+        self._rf = np.zeros((n, self.gdim))
+        self._tau = np.zeros((n, self.gdim))
+        self._dvt = np.zeros((n, self.gdim))
+        self._branch = np.zeros(n, dtype=np.int8)
+        self._point = np.zeros((n, 3))
+        self._rate_forms = None
+
+    # ------------------------------------------------------------------ friction set-up
+    @staticmethod
+    def _friction_per_tool(friction, tools) -> List[FrictionLaw]:
+        """One law per tool from a law, a {tool or name: law} dict or a sequence."""
+        def check(law, where):
+            if not isinstance(law, FrictionLaw):
+                raise ValueError(f"friction {where} must be a friction law (Coulomb, Tresca, "
+                                 f"Norton, Frictionless), got {law!r}")
+            return law
+        if friction is None:
+            return [Frictionless() for _ in tools]
+        if isinstance(friction, FrictionLaw):
+            return [friction for _ in tools]
+        if isinstance(friction, dict):
+            names = [t.name for t in tools]
+            out = [Frictionless() for _ in tools]
+            for key, law in friction.items():
+                if isinstance(key, Tool):
+                    idx = [k for k, t in enumerate(tools) if t is key]
+                    label = key.name
+                elif isinstance(key, str):
+                    idx = [k for k, nm in enumerate(names) if nm == key]
+                    label = key
+                else:
+                    raise ValueError(f"friction keys must be tools or tool names, got {key!r}")
+                if not idx:
+                    raise ValueError(f"friction given for tool '{label}', which is not one of "
+                                     f"this contact's tools {names}")
+                if len(idx) > 1:
+                    raise ValueError(f"friction key '{label}' matches several tools: give the "
+                                     f"tools distinct names")
+                out[idx[0]] = check(law, f"for tool '{label}'")
+            return out
+        if isinstance(friction, (list, tuple)):
+            if len(friction) != len(tools):
+                raise ValueError(f"friction sequence has {len(friction)} laws for "
+                                 f"{len(tools)} tools")
+            return [check(law, f"[{k}]") for k, law in enumerate(friction)]
+        raise ValueError(f"friction must be a friction law, a dict or a sequence, "
+                         f"got {friction!r}")
+
+    def _vertex_strain_rate(self, sim) -> np.ndarray:
+        """Equivalent strain rate of the current ``sim.w`` at the contact vertices: volume
+        average over the adjacent cells (lumped P1 projection; collective)."""
+        import ufl
+        import dolfinx.fem.petsc
+        from petsc4py import PETSc
+        if self._rate_forms is None:
+            Q1 = compat.function_space(sim.mesh, ("Lagrange", 1))
+            q = ufl.TestFunction(Q1)
+            v = ufl.split(sim.w)[0]
+            e = ufl.sym(ufl.grad(v))
+            de = e - ufl.tr(e) / self.gdim * ufl.Identity(self.gdim)
+            rate = ufl.sqrt(2.0 / 3.0 * ufl.inner(de, de))
+            dx = sim.space.dx
+            self._rate_forms = (compat.form(rate * q * dx), compat.form(q * dx),
+                                self.boundary.q1_dofs(Q1))
+        f_rate, f_vol, q1 = self._rate_forms
+        vals = []
+        for f in (f_rate, f_vol):
+            b = dolfinx.fem.petsc.assemble_vector(f)
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            vals.append(b.getArray(readonly=True)[q1].copy() if len(q1) else np.zeros(0))
+            b.destroy()
+        return vals[0] / vals[1]
+
+    def _begin_friction(self, sim, t: float, dt: float):
+        """Material data at the nodes and the slip regularisation (collective)."""
+        mat = sim.material
+        for law, tool in zip(self.friction, self.tools):
+            if law.needs_shear_limit and law.shear_limit is None and \
+                    not isinstance(mat, NortonHoff):
+                raise ValueError(f"friction on tool '{tool.name}' needs the shear flow stress k "
+                                 f"of the body, which a {type(mat).__name__} material does not "
+                                 f"define: give shear_limit= in the friction law")
+            if law.needs_consistency and law.K is None and not isinstance(mat, NortonHoff):
+                raise ValueError(f"viscoplastic friction on tool '{tool.name}' needs the "
+                                 f"consistency K, which a {type(mat).__name__} material does not "
+                                 f"define: give K= in the Norton law")
+        need_k = any(law.needs_shear_limit and law.shear_limit is None for law in self.friction)
+        need_K = any(law.needs_consistency and law.K is None for law in self.friction)
+        if isinstance(mat, NortonHoff) and need_K:
+            self._K_node = np.full(len(self.boundary), mat.K)
+        if isinstance(mat, NortonHoff) and need_k:
+            rate = self._vertex_strain_rate(sim)
+            z = np.sqrt(3.0 * rate**2 + 3.0 * mat.regularization**2)
+            self._k_node = mat.K * z**mat.m
+        if self.slip_velocity is None:
+            pr, tool_idx = self._project_all(self.x_t, t, hessian=False)
+            speed = 0.0
+            for k, tool in enumerate(self.tools):
+                sel = tool_idx == k
+                if np.any(sel):
+                    speed = max(speed, float(np.max(np.linalg.norm(
+                        tool.velocity(pr.point[sel], t), axis=1))))
+            v = self.boundary.velocities(sim.w)
+            if len(v):
+                speed = max(speed, float(np.max(np.linalg.norm(v, axis=1))))
+            speed = self.boundary.comm.allreduce(speed, op=MPI.MAX)
+            if not speed > 0:
+                raise ValueError(f"{self.name}: cannot estimate a characteristic speed for the "
+                                 f"slip regularisation (static tools and a body at rest): give "
+                                 f"slip_velocity=")
+            self.slip_velocity = DEFAULT_SLIP_VELOCITY_REL * speed
+            log.info("%s: slip regularisation v0 = %.4g", self.name, self.slip_velocity)
 
     # ------------------------------------------------------------------ set-up per increment
     def _resolve_penalty(self, sim, dt):
@@ -262,12 +423,8 @@ class NodalContact:
         if self.scheme == "explicit":
             self._fixed = pr0
             self._fixed_tool = tool0
-            vt = np.zeros((len(self.x_t), 3))
-            for k, tool in enumerate(self.tools):
-                sel = tool0 == k
-                if np.any(sel):
-                    vt[sel] = tool.velocity(pr0.point[sel], t)
-            self._v_ref = vt[:, : self.gdim]
+            self._v_ref = self._tool_velocities(pr0.point, tool0, t)
+            self._v_tool_fixed = self._v_ref
         elif self.scheme == "quasi-implicit":
             v_hat = sim.w_prev.x.array[b.dofs]
             x_pred = self.kin.positions(self.x_t, v_hat, dt)
@@ -275,6 +432,18 @@ class NodalContact:
             self._fixed = pr
             self._fixed_tool = tool_idx
             self._v_ref = v_hat.copy()
+            self._v_tool_fixed = self._tool_velocities(pr.point, tool_idx, t + dt)
+        if self.has_friction:
+            self._begin_friction(sim, t, dt)
+
+    def _tool_velocities(self, points: np.ndarray, tool_idx: np.ndarray, t: float):
+        """(N, gdim) material velocity of each node's tool at its projection point."""
+        vt = np.zeros((len(points), 3))
+        for k, tool in enumerate(self.tools):
+            sel = tool_idx == k
+            if np.any(sel):
+                vt[sel] = tool.velocity(points[sel], t)
+        return vt[:, : self.gdim]
 
     def begin_solve(self):
         self._status_prev = None
@@ -289,6 +458,7 @@ class NodalContact:
             pr = self._fixed
             nrm = pr.normal[:, :d]
             h = -pr.gap / dt - np.einsum("ni,ni->n", v - self._v_ref, nrm)
+            self._cur_proj = pr
             return h, -nrm, empty, self._fixed_tool, pr.feature, pr.flag
         # exact tangent once the active set has settled (see the module docstring)
         exact = self.scheme == "implicit-exact" and self._settled
@@ -308,6 +478,7 @@ class NodalContact:
                 # Gauss–Newton: keep ∇h exact, drop the curvature of d (but J is exact)
                 Hh = empty
         self._last_proj = pr
+        self._cur_proj = pr
         return h, g, Hh, tool_idx, pr.feature, pr.flag
 
     def evaluate(self, w, jacobian: bool) -> NodalTerms:
@@ -331,11 +502,58 @@ class NodalContact:
             tangent_active = active | (self._ever_active & (h * self.dt > -self.sticky_gap))
         else:
             tangent_active = active
-        r, K = self.kernel(b.areas, self.rho, h, np.ascontiguousarray(g), np.ascontiguousarray(Hh),
+        g = np.ascontiguousarray(g)
+        r, K = self.kernel(b.areas, self.rho, h, g, np.ascontiguousarray(Hh),
                            tangent_active, jacobian)
         self._h, self._tool, self._feature = h, tool_idx, feature
+        self._point = self._cur_proj.point
         self._r = r
+        if self.has_friction:
+            rf, Kf = self._friction_terms(v, h, g, tool_idx, jacobian)
+            self._rf = rf
+            r = r + rf
+            if jacobian:
+                K = K + Kf
         return NodalTerms(b.dofs, r, K if jacobian else None)
+
+    def _friction_terms(self, v, h, g, tool_idx, jacobian: bool):
+        """Friction residual entries and Jacobian blocks at the current iterate (THEORY §9)."""
+        d = self.gdim
+        pr = self._cur_proj
+        nrm = np.ascontiguousarray(pr.normal[:, :d])
+        if self.scheme in ("explicit", "quasi-implicit"):
+            v_tool = self._v_tool_fixed
+        else:
+            v_tool = self._tool_velocities(pr.point, tool_idx, self.t + self.dt)
+        dv = np.ascontiguousarray(v - v_tool)
+        laws = self.friction
+        code = np.array([law.code for law in laws], dtype=np.int64)[tool_idx]
+        mu = np.array([getattr(law, "mu", 0.0) for law in laws])[tool_idx]
+        mbar = np.array([law.mbar if getattr(law, "mbar", None) is not None else np.nan
+                         for law in laws])[tool_idx]
+        k_user = np.array([law.shear_limit if getattr(law, "shear_limit", None) is not None
+                           else np.nan for law in laws])[tool_idx]
+        k = np.where(np.isnan(k_user), self._k_node, k_user)
+        tau_max = np.where(np.isnan(mbar), np.inf, mbar * k)
+        alpha = np.array([getattr(law, "alpha_f", 0.0) for law in laws])[tool_idx]
+        K_user = np.array([law.K if getattr(law, "K", None) is not None else np.nan
+                           for law in laws])[tool_idx]
+        visc = alpha * np.where(np.isnan(K_user), self._K_node, K_user)
+        q = np.array([getattr(law, "q", 1.0) for law in laws])[tool_idx]
+        if self.friction_mode == "implicit":
+            active = h > 0
+            pn = self.rho * np.maximum(h, 0.0)
+            dpn = np.ascontiguousarray(self.rho * active[:, None] * g)
+        else:
+            pn = self._p_prev
+            active = pn > 0
+            dpn = np.zeros((0, d))
+        rf, Kf, tau, branch = self.friction_kernel(
+            self.boundary.areas, code, mu, tau_max, visc, q, pn, dpn, dv, nrm,
+            float(self.slip_velocity), active, jacobian)
+        self._tau, self._branch = tau, branch
+        self._dvt = dv - np.einsum("ni,ni->n", dv, nrm)[:, None] * nrm
+        return rf, Kf
 
     def stable(self) -> bool:
         """True if the active set (and tools/features for implicit schemes) did not change since
@@ -389,6 +607,8 @@ class NodalContact:
         x_new = sim.vertex_positions()[b.vertices]
         pr, _ = self._project_all(x_new, self.t + dt, hessian=False)
         self._true_pen = float(np.max(-pr.gap, initial=-np.inf))
+        # contact pressures of the converged increment: the explicit friction of the next one
+        self._p_prev = self.pressures().copy()
 
     def diagnostics(self) -> Dict[str, float]:
         comm = self.boundary.comm
@@ -407,19 +627,51 @@ class NodalContact:
                f"{self.name}_fallbacks": comm.allreduce(self._fallbacks, op=MPI.SUM),
                f"{self.name}_fallbacks_all": comm.allreduce(self._fallbacks_all, op=MPI.SUM)}
         for k, tool in enumerate(self.tools):
-            sel = self._tool == k
-            # force on the tool = −(force on the body) = Σ r_n
-            F = comm.allreduce(np.sum(self._r[sel], axis=0) if np.any(sel)
-                               else np.zeros(self.gdim), op=MPI.SUM)
+            F = self.tool_force(k)
             for j, c in enumerate("xyz"[: self.gdim]):
                 out[f"{tool.name}_force_{c}"] = float(F[j])
+            if self.has_friction:
+                Ff = self.tool_force(k, friction_only=True)
+                for j, c in enumerate("xyz"[: self.gdim]):
+                    out[f"{tool.name}_friction_{c}"] = float(Ff[j])
+                out[f"{tool.name}_torque"] = self.tool_torque(k)
+        if self.has_friction:
+            on = self._branch > 0
+            slip = np.linalg.norm(self._dvt, axis=1)
+            stick = on & (slip < STICK_FACTOR * self.slip_velocity)
+            out[f"{self.name}_stick"] = comm.allreduce(int(np.sum(stick)), op=MPI.SUM)
+            out[f"{self.name}_slip"] = comm.allreduce(int(np.sum(on & ~stick)), op=MPI.SUM)
+            # power dissipated by friction Σ S τ·(−Δv_t) = Σ r_f·Δv_t ≥ 0
+            out[f"{self.name}_friction_power"] = comm.allreduce(
+                float(np.sum(self._rf * self._dvt)), op=MPI.SUM)
+            out[f"{self.name}_slip_velocity"] = float(self.slip_velocity)
         return out
 
-    def tool_force(self, k: int = 0) -> np.ndarray:
-        """Force on tool k (gdim,) from the last evaluation, summed over ranks."""
+    def tool_force(self, k: int = 0, friction_only: bool = False) -> np.ndarray:
+        """Force on tool k (gdim,) from the last evaluation, summed over ranks: contact plus
+        friction (= −the force on the body), or the friction part only."""
         sel = self._tool == k
+        r = self._rf if friction_only else self._r + self._rf
         return self.boundary.comm.allreduce(
-            np.sum(self._r[sel], axis=0) if np.any(sel) else np.zeros(self.gdim), op=MPI.SUM)
+            np.sum(r[sel], axis=0) if np.any(sel) else np.zeros(self.gdim), op=MPI.SUM)
+
+    def tool_torque(self, k: int = 0) -> float:
+        """Torque on tool k about its own (rotation) axis from the last evaluation, summed over
+        ranks: w · Σ (P_n − a) × f_n with f_n the nodal force on the tool (contact + friction)
+        at the projection point P_n. For a roll this is the driving torque (sign: the torque
+        the body exerts on the tool, right-hand rule about the axis)."""
+        tool = self.tools[k]
+        sel = self._tool == k
+        t = self.t if self.scheme == "explicit" else self.t + self.dt
+        w = unit_vector(tool.motion.axis, "tool axis")
+        a = tool.motion.axis_point_at(t)
+        M = 0.0
+        if np.any(sel):
+            f = np.zeros((int(np.sum(sel)), 3))
+            f[:, : self.gdim] = (self._r + self._rf)[sel]
+            arm = self._point[sel] - a
+            M = float(np.sum(np.cross(arm, f) @ w))
+        return self.boundary.comm.allreduce(M, op=MPI.SUM)
 
     def output_fields(self):
         if self._fields is None:
@@ -428,14 +680,23 @@ class NodalContact:
             p = dolfinx.fem.Function(Q1, name=f"{self.name}_pressure")
             s = dolfinx.fem.Function(Q1, name=f"{self.name}_status")
             self._fields = (p, s)
+            if self.has_friction:
+                V1 = compat.vector_function_space(b.space.mesh, "Lagrange", 1)
+                self._fields += (dolfinx.fem.Function(V1, name=f"{self.name}_friction_stress"),)
         return list(self._fields)
 
     def update_output_fields(self):
-        p, s = self.output_fields()
+        fields = self.output_fields()
+        p, s = fields[:2]
         q = self.boundary.q1_dofs(p.function_space)
         p.x.array[:] = 0.0
         s.x.array[:] = 0.0
         p.x.array[q] = self.pressures()
         s.x.array[q] = (self._h > 0).astype(float)
-        p.x.scatter_forward()
-        s.x.scatter_forward()
+        if self.has_friction:
+            f = fields[2]
+            f.x.array[:] = 0.0
+            qv = self.boundary.q1_dofs(f.function_space)   # block dofs of the vertices
+            f.x.array.reshape(-1, self.gdim)[qv] = self._tau
+        for fn in fields:
+            fn.x.scatter_forward()

@@ -1,0 +1,264 @@
+"""Friction at contact nodes (THEORY §9): laws, and the nodal kernel with its numpy twin.
+
+Slip velocity and regularised slip speed of a contact node, with ``n`` the tool normal at the
+node's projection (frozen within a Newton iteration) and ``P_t = I − n ⊗ n``::
+
+    Δv_t = P_t (v_n − v_tool(P)),     s = √(|Δv_t|² + v₀²)
+
+``v_tool(P)`` is the tool's material velocity at the projection point (translation plus rotation
+about its own axis). Laws (``τ`` = tangential stress on the workpiece, ``k`` = shear flow stress
+σ₀/√3 at the node, ``K`` = Norton–Hoff consistency)::
+
+    Coulomb(μ, m̄)   τ = −min(μ p_n, m̄ k) Δv_t / s      (Coulomb limited by Tresca)
+    Tresca(m̄)       τ = −m̄ k Δv_t / s
+    Norton(α_f, q)  τ = −α_f K s^(q−1) Δv_t            (viscoplastic friction)
+
+Below the slip speed ``v₀`` every law becomes viscous, which approximates sticking. Nodal
+residual ``r = −S τ`` (the gradient of the nodal friction potential for a fixed threshold) and
+its 3×3 Jacobian block (THEORY §9)::
+
+    Norton:             K = S α_f K s^(q−1) [P_t + (q−1) Δv_t⊗Δv_t / s²]
+    threshold τ_lim:    K = S τ_lim (P_t − Δv_t⊗Δv_t / s²) / s
+    implicit Coulomb:   K += S (Δv_t / s) ⊗ μ ∂p_n/∂v     (on the Coulomb branch only)
+
+The last term is non-symmetric: it appears with *implicit* friction (``p_n = ρ[h]₊`` of the
+current iterate) when the Coulomb branch is active. With *explicit* friction ``p_n`` and the
+contact status come from the previous converged increment, the threshold is fixed and the
+Jacobian symmetric. The dependence of ``n`` and ``v_tool(P)`` on the iterate through the
+projection is neglected (frozen per iteration), as is that of ``k`` (evaluated once per
+increment from the predictor's strain rate).
+
+Parameter ranges (checked, ``ValueError`` otherwise): ``μ ≥ 0`` (``μ`` up to 1 and beyond is
+allowed: industrial hot rolling uses μ = 1), ``0 ≤ m̄ ≤ 1`` (m̄ = 1 is full sticking friction
+``τ = k``), ``α_f ≥ 0``, ``0 < q ≤ 1``, shear limits and ``K`` finite and > 0.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+import numba
+import numpy as np
+
+__all__ = ["FrictionLaw", "Frictionless", "Coulomb", "Tresca", "Norton", "friction_kernel",
+           "friction_kernel_numpy", "LAW_NONE", "LAW_COULOMB", "LAW_TRESCA", "LAW_NORTON"]
+
+LAW_NONE, LAW_COULOMB, LAW_TRESCA, LAW_NORTON = 0, 1, 2, 3
+
+
+def _finite(name: str, value, lo: float = -math.inf, hi: float = math.inf,
+            lo_open: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    ok = math.isfinite(v) and (v > lo if lo_open else v >= lo) and v <= hi
+    if not ok:
+        lo_s = "(" if lo_open else "["
+        raise ValueError(f"{name} must be finite and in {lo_s}{lo:g}, {hi:g}], got {value!r}")
+    return v
+
+
+def _optional_positive(name: str, value) -> Optional[float]:
+    if value is None:
+        return None
+    return _finite(name, value, 0.0, lo_open=True)
+
+
+class FrictionLaw:
+    """Base class of the friction laws (one law per tool–body pair)."""
+
+    code: int = LAW_NONE
+
+    #: True if the law needs the shear flow stress k of the body (Tresca limit)
+    needs_shear_limit: bool = False
+    #: True if the law needs the body's consistency K (viscoplastic friction)
+    needs_consistency: bool = False
+
+
+@dataclass(frozen=True)
+class Frictionless(FrictionLaw):
+    """No tangential stress (the default)."""
+
+    code = LAW_NONE
+
+
+@dataclass(frozen=True)
+class Coulomb(FrictionLaw):
+    """Coulomb friction limited by Tresca: ``τ = min(μ p_n, m̄ k)`` along −Δv_t/s.
+
+    Args:
+        mu: Coulomb coefficient μ ≥ 0.
+        mbar: Tresca factor m̄ in [0, 1] limiting the shear stress to m̄ k; None: pure Coulomb.
+        shear_limit: k [stress], the body's shear flow stress. Default: from the Norton–Hoff
+            material at the node (k = K (√3 ε̄̇)^m); required for other materials when ``mbar``
+            is given.
+    """
+
+    mu: float
+    mbar: Optional[float] = None
+    shear_limit: Optional[float] = None
+    code = LAW_COULOMB
+
+    def __post_init__(self):
+        object.__setattr__(self, "mu", _finite("Coulomb mu", self.mu, 0.0))
+        if self.mbar is not None:
+            object.__setattr__(self, "mbar", _finite("Coulomb mbar (Tresca limit)", self.mbar,
+                                                     0.0, 1.0))
+        object.__setattr__(self, "shear_limit",
+                           _optional_positive("shear_limit", self.shear_limit))
+
+    @property
+    def needs_shear_limit(self) -> bool:
+        return self.mbar is not None
+
+
+@dataclass(frozen=True)
+class Tresca(FrictionLaw):
+    """Tresca (friction factor) law: ``τ = m̄ k`` along −Δv_t/s.
+
+    Args:
+        mbar: friction factor m̄ in [0, 1] (1: the shear flow stress, full sticking friction).
+        shear_limit: k [stress]; default from the Norton–Hoff material at the node; required
+            for other materials.
+    """
+
+    mbar: float
+    shear_limit: Optional[float] = None
+    code = LAW_TRESCA
+    needs_shear_limit = True
+
+    def __post_init__(self):
+        object.__setattr__(self, "mbar", _finite("Tresca mbar", self.mbar, 0.0, 1.0))
+        object.__setattr__(self, "shear_limit",
+                           _optional_positive("shear_limit", self.shear_limit))
+
+
+@dataclass(frozen=True)
+class Norton(FrictionLaw):
+    """Viscoplastic (Norton) friction: ``τ = −α_f K s^(q−1) Δv_t``.
+
+    Args:
+        alpha_f: friction coefficient α_f ≥ 0.
+        q: slip-rate sensitivity, 0 < q ≤ 1 (often q = m of the material).
+        K: consistency [stress·time^q/length^q]; default the Norton–Hoff material's K; required
+            for other materials.
+    """
+
+    alpha_f: float
+    q: float
+    K: Optional[float] = None
+    code = LAW_NORTON
+    needs_consistency = True
+
+    def __post_init__(self):
+        object.__setattr__(self, "alpha_f", _finite("Norton alpha_f", self.alpha_f, 0.0))
+        object.__setattr__(self, "q", _finite("Norton q", self.q, 0.0, 1.0, lo_open=True))
+        object.__setattr__(self, "K", _optional_positive("Norton K", self.K))
+
+
+# --------------------------------------------------------------------------------------------
+# nodal kernel
+# --------------------------------------------------------------------------------------------
+
+@numba.njit(cache=True)
+def friction_kernel(S, law, mu, tau_max, visc, q, pn, dpn, dv, nrm, v0, active, jacobian):
+    """Nodal friction residual, Jacobian blocks, stress and branch.
+
+    Args:
+        S: (N,) nodal areas.
+        law: (N,) int law code per node (``LAW_*``).
+        mu: (N,) Coulomb coefficients.
+        tau_max: (N,) Tresca thresholds m̄k (``inf``: pure Coulomb).
+        visc: (N,) α_f K of viscoplastic friction.
+        q: (N,) slip-rate sensitivities.
+        pn: (N,) contact pressures entering Coulomb.
+        dpn: (N, d) ∂p_n/∂v (implicit friction), or shape (0, d) (explicit: p_n fixed).
+        dv: (N, d) velocity relative to the tool's material point.
+        nrm: (N, d) unit tool normals.
+        v0: slip-speed regularisation (> 0).
+        active: (N,) bool, nodes that carry friction (in contact).
+        jacobian: whether to compute the blocks.
+
+    Returns:
+        r (N, d) residual entries, K (N, d, d) blocks (or (0, d, d)), tau (N, d) tangential
+        stress on the body, branch (N,) int8: 0 none, 1 Coulomb, 2 Tresca limit, 3 Norton.
+    """
+    n, d = dv.shape
+    r = np.zeros((n, d))
+    K = np.zeros((n if jacobian else 0, d, d))
+    tau = np.zeros((n, d))
+    branch = np.zeros(n, dtype=np.int8)
+    has_dp = dpn.shape[0] == n
+    dvt = np.zeros(d)
+    for i in range(n):
+        if not active[i] or law[i] == 0:
+            continue
+        vn = 0.0
+        for a in range(d):
+            vn += dv[i, a] * nrm[i, a]
+        s2 = v0 * v0
+        for a in range(d):
+            dvt[a] = dv[i, a] - vn * nrm[i, a]
+            s2 += dvt[a] * dvt[a]
+        s = math.sqrt(s2)
+        coulomb = False
+        if law[i] == 3:
+            c = visc[i] * s ** (q[i] - 1.0)          # τ = −c Δv_t
+            e = (q[i] - 1.0) / s2                     # K = S c (P_t + e Δv_t⊗Δv_t)
+            branch[i] = 3
+        else:
+            if law[i] == 1 and mu[i] * pn[i] < tau_max[i]:
+                tl = mu[i] * pn[i]
+                coulomb = True
+                branch[i] = 1
+            else:
+                tl = tau_max[i]
+                branch[i] = 2
+            c = tl / s
+            e = -1.0 / s2
+        for a in range(d):
+            tau[i, a] = -c * dvt[a]
+            r[i, a] = S[i] * c * dvt[a]
+        if jacobian:
+            sc = S[i] * c
+            for a in range(d):
+                for b in range(d):
+                    pt = (1.0 if a == b else 0.0) - nrm[i, a] * nrm[i, b]
+                    K[i, a, b] = sc * (pt + e * dvt[a] * dvt[b])
+            if coulomb and has_dp:
+                for a in range(d):
+                    for b in range(d):
+                        K[i, a, b] += S[i] * dvt[a] / s * mu[i] * dpn[i, b]
+    return r, K, tau, branch
+
+
+def friction_kernel_numpy(S, law, mu, tau_max, visc, q, pn, dpn, dv, nrm, v0, active, jacobian):
+    """Reference implementation of :func:`friction_kernel`, for testing only."""
+    n, d = dv.shape
+    on = active & (law != LAW_NONE)
+    vn = np.einsum("ni,ni->n", dv, nrm)
+    dvt = dv - vn[:, None] * nrm
+    s2 = np.einsum("ni,ni->n", dvt, dvt) + v0**2
+    s = np.sqrt(s2)
+    norton = law == LAW_NORTON
+    coul = (law == LAW_COULOMB) & (mu * pn < tau_max)
+    branch = np.where(norton, 3, np.where(coul, 1, 2)).astype(np.int8)
+    branch[~on] = 0
+    tl = np.where(coul, mu * pn, tau_max)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = np.where(norton, visc * s ** (q - 1.0), tl / s)
+    e = np.where(norton, (q - 1.0) / s2, -1.0 / s2)
+    c = np.where(on, c, 0.0)
+    tau = -c[:, None] * dvt
+    r = (S * c)[:, None] * dvt
+    if not jacobian:
+        return r, np.zeros((0, d, d)), tau, branch
+    Pt = np.eye(d)[None] - nrm[:, :, None] * nrm[:, None, :]
+    K = (S * c)[:, None, None] * (Pt + e[:, None, None] * dvt[:, :, None] * dvt[:, None, :])
+    if dpn.shape[0] == n:
+        sel = on & coul
+        K[sel] += (S * mu / s)[sel, None, None] * dvt[sel, :, None] * dpn[sel, None, :]
+    return r, K, tau, branch
