@@ -11,15 +11,38 @@
 #
 # A hot billet (radius R, height H) is compressed between two flat dies. The material is
 # incompressible Norton–Hoff viscoplastic, ``s = 2K (√3 ε̄̇)^(m-1) ε̇``, discretised with MINI
-# (P1+bubble / P1). The dies are written here as velocity boundary conditions on the end faces:
-# with ``sticking`` dies the end faces cannot spread and the free surface bulges (barrelling);
-# with ``sliding`` dies the deformation stays homogeneous. A quarter of the billet is modelled
-# (symmetry planes x = 0 and y = 0). The geometry is updated (updated Lagrangian) after each
-# increment, and the cumulative equivalent strain is accumulated per cell.
+# (P1+bubble / P1). A quarter of the billet is modelled (symmetry planes x = 0 and y = 0). The
+# geometry is updated (updated Lagrangian) after each increment, and the cumulative equivalent
+# strain is accumulated per cell. Four kinds of dies:
+#
+# * ``sticking`` and ``sliding`` (default ``sticking``): the dies are velocity boundary
+#   conditions on the end faces; sticking end faces cannot spread and the free surface bulges
+#   (barrelling); with sliding dies the deformation stays homogeneous.
+# * ``tresca`` and ``coulomb``: the dies are rigid :class:`~fxcontact.tools.analytic.Plane`
+#   tools (the upper one moving down, the lower one the static plane z = 0) with nodal penalty
+#   contact (implicit scheme) and friction (THEORY §9) on the end faces, frictionless contact
+#   on the lateral surface (which can fold over onto a die; in the same contact as the end
+#   faces, the lumped area of an edge node would include its share of the lateral surface and
+#   inflate its friction force): Tresca ``τ = m̄ k`` (``mbar``) or Coulomb ``τ = μ p_n``
+#   (``mu``, not limited by Tresca), with k = σ₀/√3 of the Norton–Hoff law at the node's strain
+#   rate. The body is held by the two dies only (no velocity condition in z).
+#
+# **Mean die pressure** (every kind of die). ``p̄ = F/A_h`` with F the die force and
+# ``A_h = V/h`` the end-face area of the homogeneous billet of the same volume V and height
+# h (``π R_h²``, R_h = R√(H/h)): ``p̄ v A_h = F v`` is the die power per unit area of
+# the upper-bound field, so ``p̄/σ₀`` is the number to put next to the upper bound. It is
+# divided by the flow stress ``σ₀ = √3 K (√3 ε̄̇)^m`` at the mean strain rate ε̄̇ = v/h
+# (THEORY §14.1) and compared with (THEORY §14.5) the upper bound ``1 + m̄ d/(3√3 h)``
+# (d = 2R_h; m̄ = 1 for sticking dies, 0 for sliding ones) and, for Coulomb dies, the slab
+# estimate ``2(eˣ − x − 1)/x²``, x = 2μR_h/h. The force, heights and strain rate are taken at
+# the start of each increment, the geometry the increment's equilibrium is written on. The
+# pressure on the actual end face (``F/(π r_end²)``, r_end the largest radius of the nodes on
+# the upper die, which is smaller than R_h when the billet barrels) is reported too.
 #
 # Run: ``python demos/demo_upsetting.py`` (serial) or ``mpirun -n 2 python demos/...``.
-# ``--size`` sets the element size (the one knob); outputs go to ``results/upsetting``:
-# a VTK series (``upsetting.pvd``, open it in ParaView), the CSV history and a PNG.
+# ``--size`` sets the element size, ``--dies`` the kind of dies (``--mbar``, ``--mu``); outputs
+# go to ``results/upsetting``: a VTK series (``upsetting.pvd``, open it in ParaView), the CSV
+# history and a PNG.
 
 # %%
 from __future__ import annotations
@@ -30,16 +53,26 @@ import os
 import numpy as np
 from mpi4py import MPI
 
+from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.friction import Coulomb, Tresca
+from fxcontact.contact.nodal import NodalContact
+from fxcontact.forming import flow_stress, upsetting_slab_coulomb, upsetting_upper_bound
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import BILLET_TAGS, cylinder_billet
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace
+from fxcontact.tools.analytic import Plane
+
+#: kinds of dies: velocity boundary conditions, or Plane tools with friction
+DIES = ("sticking", "sliding", "tresca", "coulomb")
+#: length of the start-up increment of the dies with friction, as a fraction of dt
+STARTUP = 0.05
 
 
 # %%
 def run(radius=10.0, height=15.0, h=2.5, K=50.0, m=0.15, die_speed=5.0, reduction=0.3,
-        n_steps=15, dies="sticking", output_dir="results/upsetting", picture=True,
-        progress=True, comm=MPI.COMM_WORLD) -> dict:
+        n_steps=15, dies="sticking", mbar=0.3, mu=0.1, output_dir="results/upsetting",
+        picture=True, progress=True, comm=MPI.COMM_WORLD) -> dict:
     """Upset the billet by ``reduction`` of its height in ``n_steps`` increments.
 
     Args:
@@ -47,13 +80,24 @@ def run(radius=10.0, height=15.0, h=2.5, K=50.0, m=0.15, die_speed=5.0, reductio
         K [MPa·s^m], m: Norton–Hoff parameters.
         die_speed: closing speed of the upper die [mm/s] (the lower die is fixed).
         reduction: final height reduction (fraction of the initial height).
-        dies: ``"sticking"`` (no radial velocity on the end faces) or ``"sliding"``.
+        dies: one of :data:`DIES`: ``"sticking"`` (no radial velocity on the end faces),
+            ``"sliding"`` (free radial velocity), ``"tresca"`` (Plane dies with Tresca friction
+            ``mbar``) or ``"coulomb"`` (Plane dies with Coulomb friction ``mu``).
+        mbar: Tresca friction factor m̄ in [0, 1] (``dies="tresca"``).
+        mu: Coulomb coefficient μ ≥ 0 (``dies="coulomb"``).
     Returns:
         dict with the history, the final height, the maximum radius at mid-height and on the
-        end faces (barrelling), the final die force and the paths of the outputs.
+        end faces (barrelling), the final die force (on the body, full billet; < 0), and per
+        increment (arrays) ``reduction`` (at the start of the increment), ``p_mean`` (p̄/σ₀ on the
+        homogeneous end face, see the notes), ``p_face`` (p̄/σ₀ on the actual end face),
+        ``sigma0`` [MPa], ``upper_bound`` (p̄/σ₀ of the Tresca upper bound; NaN for Coulomb
+        dies), ``slab`` (Coulomb slab estimate; NaN for the other dies); the paths of the
+        outputs.
     """
-    if dies not in ("sticking", "sliding"):
-        raise ValueError(f"dies must be 'sticking' or 'sliding', got {dies!r}")
+    if dies not in DIES:
+        raise ValueError(f"dies must be one of {DIES}, got {dies!r}")
+    if not (0 < reduction < 1 and n_steps >= 1 and die_speed > 0):
+        raise ValueError("need 0 < reduction < 1, n_steps >= 1 and die_speed > 0")
     msh, _, ft = cylinder_billet(comm, radius, height, h, quarter=True)
     space = MixedSpace(msh)
     sim = Simulation(space, NortonHoff(K=K, m=m, regularization=1e-4 * die_speed / height),
@@ -61,33 +105,96 @@ def run(radius=10.0, height=15.0, h=2.5, K=50.0, m=0.15, die_speed=5.0, reductio
     f = {k: sim.facets(ft, v) for k, v in BILLET_TAGS.items()}
     sim.add_velocity_bc(f["symmetry_x"], 0.0, 0)
     sim.add_velocity_bc(f["symmetry_y"], 0.0, 1)
+    contact = None
     if dies == "sticking":
         sim.add_velocity_bc(f["bottom"], np.zeros(3))
         sim.add_velocity_bc(f["top"], np.array([0.0, 0.0, -die_speed]))
-    else:
+    elif dies == "sliding":
         sim.add_velocity_bc(f["bottom"], 0.0, 2)
         sim.add_velocity_bc(f["top"], -die_speed, 2)
-    sim.add_reaction("die", f["top"])
+    else:
+        law = Tresca(mbar) if dies == "tresca" else Coulomb(mu)
+        die = Plane(point=(0.0, 0.0, height), normal=(0.0, 0.0, -1.0),
+                    velocity=(0.0, 0.0, -die_speed), name="die")
+        base = Plane(point=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0), name="base")
+        contact = sim.add_contributor(NodalContact(
+            ContactBoundary(space, ft, [BILLET_TAGS["top"], BILLET_TAGS["bottom"]]),
+            [die, base], scheme="implicit", friction=law, name="contact"))
+        # the lateral surface may fold over onto the dies: frictionless contact with the same
+        # planes (a node's lumped area sums its facets: in one contact with the end faces, an
+        # edge node would carry friction on its lateral area share too)
+        sim.add_contributor(NodalContact(
+            ContactBoundary(space, ft, BILLET_TAGS["lateral"]),
+            [Plane(die.point, die.normal, velocity=(0.0, 0.0, -die_speed), name="die_fold"),
+             Plane(base.point, base.normal, name="base_fold")], scheme="implicit",
+            name="fold"))
+    if contact is None:
+        sim.add_reaction("die", f["top"])
     t_end = reduction * height / die_speed
-    sim.run(t_end, t_end / n_steps)
+    dt = t_end / n_steps
+    volume0 = sim.volume()
+    r_face = []
+
+    def end_face_radius(sim_, res):
+        # largest radius of the nodes on the upper die at the end of the increment
+        x = sim_.vertex_positions()
+        top = comm.allreduce(np.max(x[:, 2], initial=-np.inf), op=MPI.MAX)
+        on = x[:, 2] > top - 1e-3 * h
+        r_face.append(comm.allreduce(np.max(np.hypot(x[on, 0], x[on, 1]), initial=0.0),
+                                     op=MPI.MAX))
+
+    if contact is not None:
+        # start-up increment: the nodal Tresca limits k come from the increment's predictor,
+        # which is the rest state in the first increment (k at the regularisation's strain
+        # rate); a short first increment (5 % of dt) gives the next ones a real predictor
+        sim.run(STARTUP * dt, STARTUP * dt, close=False, callback=end_face_radius)
+    sim.run(t_end, dt, callback=end_face_radius)
+    hist = sim.history
+    # die force on the body (full billet), per increment
+    if contact is None:
+        Fz = np.array([4.0 * row["die_z"] for row in hist])
+    else:
+        Fz = np.array([-4.0 * (row["die_force_z"] + row["die_fold_force_z"]) for row in hist])
+    # the increment's equilibrium is written on its initial geometry (updated Lagrangian)
+    t0 = np.array([row["time"] - row["dt"] for row in hist])
+    # volume at the start of each increment (the explicit geometry update of an increment
+    # changes it by O(dt²): 0.2 % per increment of 5 % height reduction)
+    vol = 4.0 * np.r_[volume0, [row["volume"] for row in hist[:-1]]]
+    h0 = height - die_speed * t0
+    area_h = vol / h0                        # homogeneous end face (volume is conserved)
+    R_h = np.sqrt(area_h / np.pi)
+    sigma0 = flow_stress(K, m, die_speed / h0)
+    p_mean = -Fz / area_h / sigma0
+    r0 = np.r_[radius, r_face[:-1]]          # end face at the start of each increment
+    p_face = -Fz / (np.pi * r0 ** 2) / sigma0
+    mb = {"sticking": 1.0, "sliding": 0.0, "tresca": mbar}.get(dies)
+    ub = np.array([upsetting_upper_bound(mb, 2 * r, hh) if mb is not None else np.nan
+                   for r, hh in zip(R_h, h0)])
+    slab = np.array([upsetting_slab_coulomb(mu, r, hh) if dies == "coulomb" else np.nan
+                     for r, hh in zip(R_h, h0)])
     # barrelling: radius of the lateral surface at mid-height vs at the end faces
     x = space.vertex_positions()
     r = np.hypot(x[:, 0], x[:, 1])
     hcur = comm.allreduce(np.max(x[:, 2]), op=MPI.MAX)
-    mid = np.abs(x[:, 2] - 0.5 * hcur) < 0.51 * h
-    ends = (x[:, 2] < 1e-9) | (x[:, 2] > hcur - 1e-9)
+    zmin = comm.allreduce(np.min(x[:, 2]), op=MPI.MIN)
+    mid = np.abs(x[:, 2] - 0.5 * (hcur + zmin)) < 0.51 * h
+    ends = (x[:, 2] < zmin + 1e-3 * h) | (x[:, 2] > hcur - 1e-3 * h)
     r_mid = comm.allreduce(np.max(r[mid], initial=0.0), op=MPI.MAX)
     r_end = comm.allreduce(np.max(r[ends], initial=0.0), op=MPI.MAX)
     png = None
     if picture and output_dir is not None:
         from fxcontact.io import render_png
         png = os.path.join(output_dir, "upsetting.png")
+        label = {"tresca": f"Tresca m̄ = {mbar:g}", "coulomb": f"Coulomb μ = {mu:g}"}.get(
+            dies, dies)
         render_png(msh, png, sim.strain.x.array, "equivalent strain",
-                   title=f"Upsetting, {dies} dies, {100 * reduction:.0f}% reduction")
-    return {"history": sim.history, "height": hcur, "radius_mid": r_mid, "radius_end": r_end,
-            "die_force": 4.0 * sim.history[-1]["die_z"], "png": png,
+                   title=f"Upsetting, {label} dies, {100 * reduction:.0f}% reduction")
+    return {"history": hist, "height": hcur - zmin, "radius_mid": r_mid, "radius_end": r_end,
+            "die_force": float(Fz[-1]), "png": png,
             "vtk": os.path.join(output_dir, "upsetting.pvd") if output_dir else None,
-            "max_strain": comm.allreduce(np.max(sim.strain.x.array), op=MPI.MAX)}
+            "max_strain": comm.allreduce(np.max(sim.strain.x.array), op=MPI.MAX),
+            "reduction": 1.0 - h0 / height, "p_mean": p_mean, "p_face": p_face,
+            "sigma0": sigma0, "upper_bound": ub, "slab": slab, "dies": dies}
 
 
 # %% [markdown]
@@ -99,14 +206,22 @@ def run(radius=10.0, height=15.0, h=2.5, K=50.0, m=0.15, die_speed=5.0, reductio
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--size", type=float, default=2.0, help="element size [mm]")
-    ap.add_argument("--dies", default="sticking", choices=["sticking", "sliding"])
+    ap.add_argument("--dies", default="sticking", choices=DIES)
+    ap.add_argument("--mbar", type=float, default=0.3, help="Tresca factor (--dies tresca)")
+    ap.add_argument("--mu", type=float, default=0.1, help="Coulomb coefficient (--dies coulomb)")
     ap.add_argument("--output", default="results/upsetting")
     a = ap.parse_args()
-    res = run(h=a.size, dies=a.dies, output_dir=a.output)
+    res = run(h=a.size, dies=a.dies, mbar=a.mbar, mu=a.mu, output_dir=a.output)
     if MPI.COMM_WORLD.rank == 0:
         homog = 10.0 * np.sqrt(15.0 / res["height"])
         print(f"final height {res['height']:.3f} mm, die force (full billet) "
               f"{-res['die_force'] / 1e3:.2f} kN, max equivalent strain {res['max_strain']:.3f}")
         print(f"radius at mid-height {res['radius_mid']:.3f} mm, at the end faces "
               f"{res['radius_end']:.3f} mm (homogeneous: {homog:.3f} mm)")
+        print("mean die pressure over sigma0 (homogeneous end face / actual end face), "
+              "Tresca upper bound, Coulomb slab:")
+        for row in zip(res["reduction"], res["p_mean"], res["p_face"], res["upper_bound"],
+                       res["slab"]):
+            print("  reduction {:5.1%}: p/s0 = {:.4f} / {:.4f}, upper bound {:.4f}, "
+                  "slab {:.4f}".format(*row))
         print(f"outputs: {res['vtk']}, {res['png']}")
