@@ -316,8 +316,12 @@ def plot_chart(fe: dict, ub: dict, path: str, ring_size) -> str:
 #   measured are known to do.
 # * The FE die force stays below the upper bound everywhere (1–2 % at m̄ ≤ 0.2, 20 % at
 #   m̄ = 1 and 48 %).
-# * Not measured here: the effect of the slip regularisation v₀ and of the mesh size on these
-#   curves (one mesh, h = 2.5 mm: 6 elements across the wall, 4 in the half height).
+# * Sensitivity (50 % reduction, minimum ID change): slip regularisation v₀ = 0.01 instead of
+#   0.05 mm/s, m̄ = 0.4: −24.60 % instead of −24.66 %; mesh h = 2.0 instead of 2.5 mm: m̄ = 0.4
+#   −24.82 %, m̄ = 1 −51.75 % (instead of −52.11 %); 50 increments instead of 25: m̄ = 0
+#   40.87 % (the Euler error halves: first order), m̄ = 1 −53.51 %. The time step is the
+#   largest error at high friction (≈ 1.4 points at 25 increments, first order, so about 1.4
+#   more towards dt → 0), the mesh and v₀ are below 0.4 points.
 
 # %% [markdown]
 # ## Script
