@@ -61,6 +61,7 @@ from mpi4py import MPI
 import dolfinx
 import dolfinx.mesh
 
+from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact
 from fxcontact.materials import LinearElastic
@@ -304,7 +305,9 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true",
                     help="reduced configuration of the tests (coarse groove, implicit scheme)")
     ap.add_argument("--output", default="results/groove")
+    add_verbosity_arguments(ap)
     args = ap.parse_args(argv)
+    configure_logging(args.verbose, args.quiet)
     kw = dict(QUICK) if args.quick else {}
     res = run(**kw, output_dir=args.output)
     if MPI.COMM_WORLD.rank == 0:

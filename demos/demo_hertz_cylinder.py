@@ -54,6 +54,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
+from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact, penalty_from_beta
 from fxcontact.materials import LinearElastic
@@ -213,7 +214,9 @@ if __name__ == "__main__":
     ap.add_argument("--size", type=float, default=0.008, help="fine element size h_fine [mm]")
     ap.add_argument("--scheme", default="implicit")
     ap.add_argument("--output", default="results/hertz_cylinder")
+    add_verbosity_arguments(ap)
     args = ap.parse_args()
+    configure_logging(args.verbose, args.quiet)
     res = run(h_fine=args.size, scheme=args.scheme, output_dir=args.output)
     if MPI.COMM_WORLD.rank == 0:
         a, p0 = res["hertz_half_width"], res["hertz_p_max"]

@@ -55,6 +55,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
+from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact, penalty_from_beta
 from fxcontact.materials import LinearElastic
@@ -515,7 +516,9 @@ if __name__ == "__main__":
     ap.add_argument("--compare", action="store_true",
                     help="run the analytic, Nagata and flat tools and compare them")
     ap.add_argument("--output", default="results/hertz_sphere")
+    add_verbosity_arguments(ap)
     args = ap.parse_args()
+    configure_logging(args.verbose, args.quiet)
     if args.compare:
         res = compare_tools(h_fine=args.size, scheme=args.scheme,
                             tool_facet_size=args.tool_facet_size, tool_normals=args.tool_normals,

@@ -105,6 +105,7 @@ from mpi4py import MPI
 import dolfinx
 import dolfinx.mesh
 
+from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact
 from fxcontact.materials import LinearElastic
@@ -624,7 +625,9 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true",
                     help="reduced configuration of the test (coarse tool, implicit scheme)")
     ap.add_argument("--output", default="results/ironing")
+    add_verbosity_arguments(ap)
     args = ap.parse_args(argv)
+    configure_logging(args.verbose, args.quiet)
     kw = dict(QUICK) if args.quick else {}
     kw.update(h_fine=args.size, output_dir=args.output)
     if args.travel is not None:

@@ -53,6 +53,7 @@ import os
 import numpy as np
 from mpi4py import MPI
 
+from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Coulomb, Tresca
 from fxcontact.contact.nodal import NodalContact
@@ -240,7 +241,9 @@ if __name__ == "__main__":
     ap.add_argument("--mbar", type=float, default=0.3, help="Tresca factor (--dies tresca)")
     ap.add_argument("--mu", type=float, default=0.1, help="Coulomb coefficient (--dies coulomb)")
     ap.add_argument("--output", default="results/upsetting")
+    add_verbosity_arguments(ap)
     a = ap.parse_args()
+    configure_logging(a.verbose, a.quiet)
     res = run(h=a.size, dies=a.dies, mbar=a.mbar, mu=a.mu, output_dir=a.output)
     if MPI.COMM_WORLD.rank == 0:
         homog = 10.0 * np.sqrt(15.0 / res["height"])

@@ -1,3 +1,105 @@
-"""fxcontact: nodal penalty contact against rigid tools for FEniCSx (dolfinx 0.5.2)."""
+"""fxcontact: nodal penalty contact against rigid tools for FEniCSx (dolfinx 0.5.2).
+
+Everything a forming or contact computation needs is importable from the package itself::
+
+    import fxcontact as fx
+    sim = fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(K=50.0, m=0.15))
+
+The submodules (``fxcontact.simulation``, ``fxcontact.tools.analytic``, …) stay importable and
+hold the lower-level functions (kernels and their numpy twins, projections, compatibility
+helpers). Section numbers such as "THEORY §3.4" refer to the theory manual ``docs/theory.md``;
+``docs/architecture.md`` shows how the pieces fit together.
+
+Public API (name, its submodule, what it is):
+
+{api}
+"""
+
+from importlib import import_module as _import_module
 
 __version__ = "0.1.0"
+
+# One line per public name: name -> (submodule, one-line description). The names are loaded on
+# first access (PEP 562), so ``import fxcontact`` stays light and adding a name (e.g. a friction
+# law of ``fxcontact.contact.friction``) is one line here.
+_API = {
+    # time stepping and spaces
+    "Simulation": ("simulation", "increment loop: BCs, contributors, cut-back, outputs (§1.5)"),
+    "IncrementError": ("simulation", "raised when an increment fails after its cut-backs"),
+    "IncrementResult": ("simulation", "outcome of one accepted increment (history row + info)"),
+    "MixedSpace": ("spaces", "MINI (or Taylor-Hood) velocity-pressure space, vertex maps (§1.3)"),
+    "facets_with_tags": ("spaces", "facet indices carrying given tags"),
+    # materials
+    "Material": ("materials", "base class of the constitutive laws"),
+    "NortonHoff": ("materials", "incompressible Norton-Hoff viscoplasticity (§1.1)"),
+    "LinearElastic": ("materials", "incremental linear elasticity, mixed pressure (§1.4)"),
+    # contact
+    "ContactBoundary": ("contact.boundary", "contact nodes and their lumped areas S_n (§1.3)"),
+    "NodalContact": ("contact.nodal", "nodal penalty contact, four schemes (§2-§3)"),
+    "SCHEMES": ("contact.nodal", "names of the contact time-integration schemes (§3)"),
+    "penalty_from_beta": ("contact.nodal", "penalty rho from the dimensionless beta (§2.5)"),
+    "FRICTION_MODES": ("contact.nodal", "implicit or explicit friction (§9.4)"),
+    "Frictionless": ("contact.friction", "no tangential stress (the default law, §9)"),
+    "Coulomb": ("contact.friction", "Coulomb friction limited by Tresca (§9.2)"),
+    "Tresca": ("contact.friction", "Tresca friction factor law tau = mbar k (§9.2)"),
+    "Norton": ("contact.friction", "viscoplastic (Norton) friction (§9.2)"),
+    "NodalSprings": ("springs", "nodal springs/dashpots: the smallest nodal contributor"),
+    # tools and their motions
+    "Tool": ("tools.base", "base class of rigid tools (projection, motion)"),
+    "Projection": ("tools.base", "result of a projection: gap, normal, point, Hessian, flags"),
+    "RigidMotion": ("tools.base", "translation and rotation of a tool (§4.2)"),
+    "StagedMotion": ("tools.base", "piecewise-constant rigid motion, integrated exactly"),
+    "MovedTool": ("tools.base", "any tool moved by a rigid motion from its t = 0 position"),
+    "Plane": ("tools.analytic", "analytic plane (§4.1)"),
+    "Sphere": ("tools.analytic", "analytic ball or spherical cavity (§4.1)"),
+    "Cylinder": ("tools.analytic", "analytic cylinder (roll, mandrel) or bore (§4.1)"),
+    "Cone": ("tools.analytic", "analytic cone or conical bore (drawing die) (§4.1)"),
+    "RevolvedProfile": ("tools.revolved", "surface of revolution of a line/arc profile: dies, "
+                        "grooved rolls (§4.1)"),
+    "die_profile": ("tools.revolved", "drawing-die meridian profile: cone, fillet, land"),
+    "grooved_roll_profile": ("tools.revolved", "grooved-roll meridian profile"),
+    "faceted_revolved": ("tools.revolved", "triangulation of a revolved profile (whole or "
+                         "mirror-symmetric sector)"),
+    "FacetedTool": ("tools.faceted", "triangulated tool, flat or Nagata projection (§6-§8)"),
+    "read_surface": ("tools.faceted", "read a tool surface (gmsh .msh, STL, OBJ)"),
+    "check_surface": ("tools.faceted", "check a triangulated surface, naming bad items"),
+    # configuration updates
+    "CartesianUpdate": ("kinematics", "configuration update X = x + dt v"),
+    "CylindricalUpdate": ("kinematics", "cylindrical update about an axis, ring rolling (§5)"),
+    # meshes
+    "cylinder_billet": ("meshing", "gmsh cylinder billet (full or quarter) with facet tags"),
+    "block": ("meshing", "gmsh block, optionally refined in a box, with facet tags"),
+    "gmsh_session": ("meshing", "context manager: a clean gmsh model"),
+    "BILLET_TAGS": ("meshing", "facet tags of cylinder_billet"),
+    "BLOCK_TAGS": ("meshing", "facet tags of block"),
+    # solver and assembly
+    "SolverOptions": ("solver", "Newton and linear solver settings"),
+    "NewtonSolver": ("solver", "SNES Newton with a stable-active-set test (§3.6)"),
+    "SolveInfo": ("solver", "outcome of a Newton solve"),
+    "NonlinearProblem": ("petsc", "UFL residual/Jacobian plus nodal terms, MPI-safe"),
+    "NodalTerms": ("petsc", "per-vertex residual entries and 3x3 Jacobian blocks"),
+    "ContributorError": ("petsc", "error raised by a nodal contributor on any rank"),
+    # outputs and console
+    "render_png": ("io", "offscreen picture of the mesh coloured by a cell field"),
+    "configure_logging": ("console", "console of a script: rank 0, --verbose/--quiet"),
+    "add_verbosity_arguments": ("console", "add --verbose/--quiet to an argparse parser"),
+}
+
+__all__ = ["__version__", *_API]
+
+__doc__ = __doc__.format(api="\n".join(
+    f"* {name} ({mod}): {text}" for name, (mod, text) in _API.items()))
+
+
+def __getattr__(name):
+    try:
+        mod, _ = _API[name]
+    except KeyError:
+        raise AttributeError(f"module 'fxcontact' has no attribute {name!r}") from None
+    value = getattr(_import_module(f"fxcontact.{mod}"), name)
+    globals()[name] = value  # cache: later look-ups do not come here
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_API))

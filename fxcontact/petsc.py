@@ -1,6 +1,6 @@
 """All PETSc insertion of fxcontact: UFL residual/Jacobian assembly plus nodal terms, for SNES.
 
-Order of operations (PLATFORM.md, verified):
+Order of operations (dolfinx 0.5.2; see docs/architecture.md, platform notes):
 
 * residual: assemble the UFL vector, apply lifting, reverse ghost update, **then** add the nodal
   residual entries to owned rows, **then** ``set_bc``;

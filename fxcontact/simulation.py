@@ -25,7 +25,7 @@ import dolfinx
 import dolfinx.fem
 import dolfinx.fem.petsc
 
-from fxcontact import compat
+from fxcontact import compat, console
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import Material
 from fxcontact.petsc import NonlinearProblem
@@ -92,7 +92,8 @@ class Simulation:
         output_dir: where the VTK series, the CSV history and pictures go (None: no files).
         name: basename of the outputs.
         output_every: write the VTK series every n increments.
-        progress: show a tqdm progress bar (rank 0 only).
+        progress: show a tqdm progress bar (rank 0 only), unless the console was set up quiet
+            (:func:`fxcontact.console.configure_logging`).
     """
 
     def __init__(self, space: MixedSpace, material: Material,
@@ -317,8 +318,9 @@ class Simulation:
         if self._startup is not None and not np.any(self.w_prev.x.array):
             self.comm.barrier()
             info0 = self._startup.solve()
-            log.info("start-up (linearised material) solve: %d iterations, converged=%s",
-                     info0.iterations, info0.converged)
+            log.log(logging.DEBUG if info0.converged else logging.INFO,
+                    "start-up (linearised material) solve: %d iterations, converged=%s",
+                    info0.iterations, info0.converged)
             if not info0.converged:  # keep the zero guess
                 self.w.x.array[:] = 0.0
                 dolfinx.fem.petsc.set_bc(self.w.vector, self.problem.bcs)
@@ -400,6 +402,20 @@ class Simulation:
                 break
             t0 = time.perf_counter()
             info = self._try_increment(trial)
+            fb = self.solver_options.line_search_fallback
+            if not info.converged and fb and fb != self.solver_options.line_search \
+                    and not self.problem.error:
+                # second attempt at the same dt with the fallback line search
+                log.info("t = %.6g: Newton failed with the %s line search (%s); retrying dt = "
+                         "%.3g with the %s line search", self.t, self.solver_options.line_search,
+                         info.message, trial, fb)
+                failed_its += info.iterations
+                msgs.append(info.message)
+                self.solver.set_line_search(fb)
+                try:
+                    info = self._try_increment(trial)
+                finally:
+                    self.solver.set_line_search(self.solver_options.line_search)
             if info.converged:
                 row = self._commit(trial, info)
                 row["cutbacks"] = k
@@ -471,19 +487,21 @@ class Simulation:
             raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
         self._build()
         bar = None
-        if self.progress and self.comm.rank == 0:
+        if self.progress and console.progress_enabled() and self.comm.rank == 0:
             from tqdm import tqdm
             bar = tqdm(total=t_end - self.t, desc=self.name, unit="s", leave=False,
-                       bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]")
+                       bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s "
+                                  "[{elapsed}<{remaining}{postfix}]")
+        n0, t0, wall0 = len(self.history), self.t, time.perf_counter()
         cur = dt
         eps = 1e-9 * dt
         try:
             while self.t < t_end - eps:
                 step = min(cur, t_end - self.t)
                 res = self.step(step, max_cutbacks, min_dt=dt * 0.5 ** max_cutbacks)
-                if bar is not None:
+                if bar is not None:  # one refresh per increment (set_postfix would add one)
+                    bar.set_postfix(newton=res.info.iterations, refresh=False)
                     bar.update(res.row["dt"])
-                    bar.set_postfix(newton=res.info.iterations)
                 # after a cut-back, grow back towards the nominal dt
                 cur = min(dt, 2.0 * res.row["dt"]) if res.row["cutbacks"] else dt
                 if callback is not None:
@@ -494,6 +512,10 @@ class Simulation:
         finally:
             if bar is not None:
                 bar.close()
+        rows = self.history[n0:]
+        log.info("%s: t = %.4g -> %.4g in %d increments (%d cut-backs), %d Newton iterations, "
+                 "%.1f s", self.name, t0, self.t, len(rows), sum(r["cutbacks"] for r in rows),
+                 sum(r["newton_iterations_all"] for r in rows), time.perf_counter() - wall0)
         if close:
             self.close()
         return self.history

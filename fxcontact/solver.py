@@ -43,6 +43,9 @@ LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
 }
 
 
+#: PETSc SNES line searches accepted by :class:`SolverOptions`
+LINE_SEARCHES = ("bt", "basic", "l2", "cp", "nleqerr")
+
 #: PETSc option keys (without prefix) written by the last solver created under each prefix
 _WRITTEN_OPTIONS: Dict[str, set] = {}
 
@@ -57,6 +60,11 @@ class SolverOptions:
         stol: relative step tolerance ‖Δx‖/‖x‖ (a converged Newton step).
         max_it: maximum Newton iterations per solve.
         line_search: PETSc SNES line search ("bt", "basic", "l2", "cp").
+        line_search_fallback: line search of a second attempt at the same time step when the
+            first one fails to converge (before any cut-back), or None. Backtracking on the
+            residual norm can stall when contact nodes open and close and friction nodes pass
+            between stick and slip in the same iteration (tiny accepted steps, or a 2-cycle);
+            full Newton steps then converge in a few iterations. Default ``"basic"``.
         linear_solver: key of :data:`LINEAR_SOLVERS` or a dict of PETSc options.
         prefix: PETSc options prefix.
         petsc_options: extra PETSc options (without prefix) that override the presets.
@@ -67,6 +75,7 @@ class SolverOptions:
     stol: float = 1e-9
     max_it: int = 30
     line_search: str = "bt"
+    line_search_fallback: Optional[str] = "basic"
     linear_solver: object = "mumps"
     prefix: str = "fxc_"
     petsc_options: Dict[str, object] = field(default_factory=dict)
@@ -78,8 +87,11 @@ class SolverOptions:
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
         if not (isinstance(self.max_it, (int, np.integer)) and self.max_it >= 1):
             raise ValueError(f"max_it must be an integer >= 1, got {self.max_it!r}")
-        if self.line_search not in ("bt", "basic", "l2", "cp", "nleqerr"):
-            raise ValueError(f"unknown line search {self.line_search!r}")
+        for name in ("line_search", "line_search_fallback"):
+            ls = getattr(self, name)
+            if ls not in LINE_SEARCHES and not (name == "line_search_fallback" and ls is None):
+                raise ValueError(f"unknown {name.replace('_', ' ')} {ls!r}; choose one of "
+                                 f"{LINE_SEARCHES}")
         if isinstance(self.linear_solver, str) and self.linear_solver not in LINEAR_SOLVERS:
             raise ValueError(f"unknown linear solver {self.linear_solver!r}; choose one of "
                              f"{sorted(LINEAR_SOLVERS)} or pass a dict of PETSc options")
@@ -221,6 +233,15 @@ class NewtonSolver:
                    for j in range(k - n + 1, k + 1)):
                 return p
         return 0
+
+    def set_line_search(self, kind: str):
+        """Switch the SNES line search (e.g. for a fallback attempt); ``kind`` as in
+        :data:`LINE_SEARCHES`."""
+        if kind not in LINE_SEARCHES:
+            raise ValueError(f"unknown line search {kind!r}; choose one of {LINE_SEARCHES}")
+        # petsc4py 3.18 has no SNESLineSearch object: go through the prefixed options
+        PETSc.Options()[self.options.prefix + "snes_linesearch_type"] = kind
+        self.snes.setFromOptions()
 
     def _linear_time(self) -> float:
         return sum(e.getPerfInfo()["time"] for e in self._ev)

@@ -3,7 +3,7 @@
 MINI (P1 ⊕ bubble / P1) is the default: its velocity trace on the boundary is exactly P1, so the
 contact nodes are the boundary vertices (THEORY §1.3). The quadrature degree is always explicit:
 the default estimate for the Norton–Hoff power law is absurd, and MINI needs degree ≥ 6 to
-integrate its bubble block (PLATFORM.md).
+integrate its bubble block (docs/architecture.md, platform notes).
 """
 
 from __future__ import annotations

@@ -174,7 +174,8 @@ def _contact_case(tool, law, scheme, mode, seed=3):
     b = _FakeBoundary(n)
     # penalty small enough that implicit Coulomb pressures straddle the Tresca limit
     c = NodalContact(b, tl, scheme=scheme, penalty=1.0, max_initial_penetration=10.0,
-                     friction=law, friction_mode=mode, slip_velocity=0.05)
+                     friction=law, friction_mode=mode, slip_velocity=0.05,
+                     friction_tangent="consistent")
     sim = _FakeSim(LinearElastic(1.0, 0.3), v.ravel())
     c.begin_increment(sim, t0, dt, x)
     if mode == "explicit":  # pressures of a "previous increment"

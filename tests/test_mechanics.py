@@ -247,14 +247,15 @@ class _UnsettledAboveDt:
         return self.dt <= self.limit
 
 
-def _pressed_cube(max_it, contributor):
+def _pressed_cube(max_it, contributor, fallback=None):
     """A Norton–Hoff unit cube pressed on its top face, Newton capped at ``max_it``
-    iterations, with ``contributor`` deciding when a state is settled."""
+    iterations, with ``contributor`` deciding when a state is settled (no fallback line
+    search unless asked: every failed attempt is then a cut-back)."""
     comm = MPI.COMM_WORLD
     L = (1.0, 1.0, 1.0)
     msh = box_mesh(comm, L, (2, 2, 2))
     sim = Simulation(MixedSpace(msh), NortonHoff(K=10.0, m=0.3), progress=False,
-                     solver_options=SolverOptions(max_it=max_it))
+                     solver_options=SolverOptions(max_it=max_it, line_search_fallback=fallback))
     f = _faces(msh, L)
     for key, comp in (("x0", 0), ("y0", 1), ("z0", 2)):
         sim.add_velocity_bc(f[key], 0.0, comp)
@@ -275,6 +276,31 @@ def test_cutback_halves_dt_and_counts_failed_iterations():
     with pytest.raises(IncrementError, match="t = 0.025"):
         sim.step(0.2, max_cutbacks=1)            # 0.2, 0.1 both fail
     assert len(sim.history) == 1 and abs(sim.t - 0.025) < 1e-15
+
+
+class _UnsettledFirstAttempt(_UnsettledAboveDt):
+    """Never settles during the first Newton solve, settles from the second one on."""
+
+    def __init__(self):
+        super().__init__(0.0)
+        self.solves = 0
+
+    def begin_solve(self):
+        self.solves += 1
+
+    def stable(self):
+        return self.solves > 1
+
+
+@pytest.mark.parametrize("fallback", [None, "basic"])
+def test_fallback_line_search_before_cutback(fallback):
+    """A failed attempt is retried at the same dt with the fallback line search (when one is
+    set) before dt is cut back; the failed iterations are counted either way."""
+    sim = _pressed_cube(4, _UnsettledFirstAttempt(), fallback=fallback)
+    row = sim.step(0.1, max_cutbacks=2).row
+    assert row["cutbacks"] == (1 if fallback is None else 0)
+    assert abs(row["dt"] - (0.05 if fallback is None else 0.1)) < 1e-15
+    assert row["newton_iterations_all"] == row["newton_iterations"] + 4
 
 
 class _ShrinkingLimit(_UnsettledAboveDt):

@@ -21,7 +21,11 @@ its 3×3 Jacobian block (THEORY §9)::
     threshold τ_lim:    K = S τ_lim (P_t − Δv_t⊗Δv_t / s²) / s
     implicit Coulomb:   K += S (Δv_t / s) ⊗ μ ∂p_n/∂v     (on the Coulomb branch only)
 
-The last term is non-symmetric: it appears with *implicit* friction (``p_n = ρ[h]₊`` of the
+With ``theta = 0`` the slip-direction terms (``(q−1)/s²``, ``−1/s²``) are dropped: the secant
+tangent, used by :class:`~fxcontact.contact.nodal.NodalContact` until the stick/slip state of
+the nodes settles within a Newton solve (the consistent tangent of a node slipping at
+|Δv_t| ≫ v₀ vanishes along the slip, and Newton steps from a slipping guess towards a sticking
+solution overshoot by orders of magnitude). The last term is non-symmetric: it appears with *implicit* friction (``p_n = ρ[h]₊`` of the
 current iterate) when the Coulomb branch is active. With *explicit* friction ``p_n`` and the
 contact status come from the previous converged increment, the threshold is fixed and the
 Jacobian symmetric. The dependence of ``n`` and ``v_tool(P)`` on the iterate through the
@@ -164,7 +168,8 @@ class Norton(FrictionLaw):
 # --------------------------------------------------------------------------------------------
 
 @numba.njit(cache=True)
-def friction_kernel(S, law, mu, tau_max, visc, q, pn, dpn, dv, nrm, v0, active, jacobian):
+def friction_kernel(S, law, mu, tau_max, visc, q, pn, dpn, dv, nrm, v0, active, jacobian,
+                    theta=1.0):
     """Nodal friction residual, Jacobian blocks, stress and branch.
 
     Args:
@@ -181,6 +186,10 @@ def friction_kernel(S, law, mu, tau_max, visc, q, pn, dpn, dv, nrm, v0, active, 
         v0: slip-speed regularisation (> 0).
         active: (N,) bool, nodes that carry friction (in contact).
         jacobian: whether to compute the blocks.
+        theta: weight of the slip-direction term of the tangent: 1 = consistent tangent, 0 =
+            secant tangent ``S c P_t`` (positive definite in the tangent plane; it does not
+            vanish along the slip of a node that slips at |Δv_t| ≫ v₀, so a body held by
+            friction alone keeps a non-singular tangent while stick and slip settle).
 
     Returns:
         r (N, d) residual entries, K (N, d, d) blocks (or (0, d, d)), tau (N, d) tangential
@@ -227,7 +236,7 @@ def friction_kernel(S, law, mu, tau_max, visc, q, pn, dpn, dv, nrm, v0, active, 
             for a in range(d):
                 for b in range(d):
                     pt = (1.0 if a == b else 0.0) - nrm[i, a] * nrm[i, b]
-                    K[i, a, b] = sc * (pt + e * dvt[a] * dvt[b])
+                    K[i, a, b] = sc * (pt + theta * e * dvt[a] * dvt[b])
             if coulomb and has_dp:
                 for a in range(d):
                     for b in range(d):
@@ -235,7 +244,8 @@ def friction_kernel(S, law, mu, tau_max, visc, q, pn, dpn, dv, nrm, v0, active, 
     return r, K, tau, branch
 
 
-def friction_kernel_numpy(S, law, mu, tau_max, visc, q, pn, dpn, dv, nrm, v0, active, jacobian):
+def friction_kernel_numpy(S, law, mu, tau_max, visc, q, pn, dpn, dv, nrm, v0, active, jacobian,
+                          theta=1.0):
     """Reference implementation of :func:`friction_kernel`, for testing only."""
     n, d = dv.shape
     on = active & (law != LAW_NONE)
@@ -257,7 +267,8 @@ def friction_kernel_numpy(S, law, mu, tau_max, visc, q, pn, dpn, dv, nrm, v0, ac
     if not jacobian:
         return r, np.zeros((0, d, d)), tau, branch
     Pt = np.eye(d)[None] - nrm[:, :, None] * nrm[:, None, :]
-    K = (S * c)[:, None, None] * (Pt + e[:, None, None] * dvt[:, :, None] * dvt[:, None, :])
+    K = (S * c)[:, None, None] * (Pt + theta * e[:, None, None] * dvt[:, :, None]
+                                  * dvt[:, None, :])
     if dpn.shape[0] == n:
         sel = on & coul
         K[sel] += (S * mu / s)[sel, None, None] * dvt[sel, :, None] * dpn[sel, None, :]

@@ -126,8 +126,12 @@ class NodalContact:
             symmetric Jacobian; default with the explicit and quasi-implicit schemes).
         slip_velocity: regularisation v₀ of the slip speed s = √(|Δv_t|² + v₀²) [length/time].
             Default: ``DEFAULT_SLIP_VELOCITY_REL`` (1e-3) × the characteristic speed of the
-            process, taken at the first increment as the largest of the tools' surface speeds
-            at the contact nodes and the body's boundary speeds (predictor).
+            process, taken at each increment as the largest of the tools' surface speeds at
+            the contact nodes' projections and the contact nodes' speeds of the predictor (a
+            roll that starts turning after a pressing stage gets the v₀ of its surface speed).
+        friction_tangent: ``"auto"`` (default: the secant friction tangent while the nodes'
+            stick/slip state changes between Newton iterations, the consistent one once it has
+            settled — quadratic end of the convergence), ``"consistent"`` or ``"secant"``.
         name: label used in history columns.
         backend: "numba" or "numpy" (reference twin of the kernels, for testing).
 
@@ -145,7 +149,7 @@ class NodalContact:
                  sticky_gap: float = 0.0, max_initial_penetration: Optional[float] = None,
                  gap_stiffness: Optional[float] = None, friction=None,
                  friction_mode: Optional[str] = None, slip_velocity: Optional[float] = None,
-                 name: str = "contact", backend: str = "numba"):
+                 friction_tangent: str = "auto", name: str = "contact", backend: str = "numba"):
         if scheme not in SCHEMES:
             raise ValueError(f"unknown contact scheme {scheme!r}; choose one of {SCHEMES}")
         tools = [tools] if isinstance(tools, Tool) else list(tools)
@@ -189,7 +193,14 @@ class NodalContact:
         self.friction_mode = friction_mode
         if slip_velocity is not None and not (math.isfinite(slip_velocity) and slip_velocity > 0):
             raise ValueError(f"slip_velocity (v0) must be finite and > 0, got {slip_velocity!r}")
-        self.slip_velocity = None if slip_velocity is None else float(slip_velocity)
+        if friction_tangent not in ("auto", "consistent", "secant"):
+            raise ValueError(f"friction_tangent must be 'auto', 'consistent' or 'secant', got "
+                             f"{friction_tangent!r}")
+        self.friction_tangent = friction_tangent
+        self._fr_state_prev = None
+        self._fr_settled = False
+        self._slip_velocity_user = None if slip_velocity is None else float(slip_velocity)
+        self.slip_velocity = self._slip_velocity_user
         comm = boundary.comm
         if element_size is None:
             a = boundary.areas
@@ -318,7 +329,7 @@ class NodalContact:
             rate = self._vertex_strain_rate(sim)
             z = np.sqrt(3.0 * rate**2 + 3.0 * mat.regularization**2)
             self._k_node = mat.K * z**mat.m
-        if self.slip_velocity is None:
+        if self._slip_velocity_user is None:
             pr, tool_idx = self._project_all(self.x_t, t, hessian=False)
             speed = 0.0
             for k, tool in enumerate(self.tools):
@@ -334,8 +345,10 @@ class NodalContact:
                 raise ValueError(f"{self.name}: cannot estimate a characteristic speed for the "
                                  f"slip regularisation (static tools and a body at rest): give "
                                  f"slip_velocity=")
-            self.slip_velocity = DEFAULT_SLIP_VELOCITY_REL * speed
-            log.info("%s: slip regularisation v0 = %.4g", self.name, self.slip_velocity)
+            v0 = DEFAULT_SLIP_VELOCITY_REL * speed
+            if v0 != self.slip_velocity:
+                log.debug("%s: slip regularisation v0 = %.4g", self.name, v0)
+            self.slip_velocity = v0
 
     # ------------------------------------------------------------------ set-up per increment
     def _resolve_penalty(self, sim, dt):
@@ -448,6 +461,8 @@ class NodalContact:
     def begin_solve(self):
         self._status_prev = None
         self._settled = False
+        self._fr_state_prev = None
+        self._fr_settled = False
 
     # ------------------------------------------------------------------ evaluation
     def _constraint(self, v: np.ndarray, jacobian: bool):
@@ -548,9 +563,13 @@ class NodalContact:
             pn = self._p_prev
             active = pn > 0
             dpn = np.zeros((0, d))
+        if self.friction_tangent == "auto":
+            theta = 1.0 if self._fr_settled else 0.0
+        else:
+            theta = 1.0 if self.friction_tangent == "consistent" else 0.0
         rf, Kf, tau, branch = self.friction_kernel(
             self.boundary.areas, code, mu, tau_max, visc, q, pn, dpn, dv, nrm,
-            float(self.slip_velocity), active, jacobian)
+            float(self.slip_velocity), active, jacobian, theta)
         self._tau, self._branch = tau, branch
         self._dvt = dv - np.einsum("ni,ni->n", dv, nrm)[:, None] * nrm
         return rf, Kf
@@ -576,6 +595,15 @@ class NodalContact:
         self._fingerprint = tuple(comm.allgather(zlib.crc32(status.tobytes())))
         self._status_prev = status
         self._settled = bool(comm.allreduce(int(same), op=MPI.MIN))
+        if self.has_friction:
+            # stick (1) / slip (2) state of the friction nodes: the consistent friction tangent
+            # is used once it is unchanged between two iterates (friction_tangent="auto")
+            slip = np.linalg.norm(self._dvt, axis=1)
+            fr = np.where(self._branch > 0,
+                          np.where(slip < STICK_FACTOR * self.slip_velocity, 1, 2), 0)
+            fr_same = self._fr_state_prev is not None and np.array_equal(fr, self._fr_state_prev)
+            self._fr_state_prev = fr
+            self._fr_settled = bool(comm.allreduce(int(fr_same), op=MPI.MIN))
         return self._settled
 
     def fingerprint(self) -> tuple:

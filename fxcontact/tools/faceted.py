@@ -57,6 +57,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from fxcontact.console import ALL_RANKS
 from fxcontact.tools.base import Projection, RigidMotion, Tool, as_points
 from fxcontact.tools.nagata import (
     _GT,
@@ -284,7 +285,7 @@ def read_surface(path: str) -> Tuple[np.ndarray, np.ndarray]:
 
 
 # ------------------------------------------------------------------------------------------
-# Closest point on a triangle (Ericson, Real-Time Collision Detection §5.1.5)
+# Closest point on a triangle (Ericson, Real-Time Collision Detection, sect. 5.1.5; THEORY §6)
 # ------------------------------------------------------------------------------------------
 
 
@@ -1224,7 +1225,8 @@ class FacetedTool(Tool):
         self.total_fallbacks += nfb
         if nfb:
             logger.warning("%s: Nagata projection did not converge for %d of %d points; the "
-                           "flat projection was used for them (flag = 1)", self.name, nfb, n)
+                           "flat projection was used for them (flag = 1)", self.name, nfb, n,
+                           extra=ALL_RANKS)  # rank-local: this rank's points
         return Projection(gap, normal, point, hess if hessian else None, feature, flag)
 
     def __repr__(self) -> str:

@@ -1,0 +1,35 @@
+"""The public API is importable from ``fxcontact`` itself, documented, and the same objects as in
+the submodules."""
+
+import importlib
+import pydoc
+
+import pytest
+
+import fxcontact as fx
+
+
+def test_all_names_importable_and_documented():
+    assert fx.__version__
+    for name in fx.__all__:
+        if name == "__version__":
+            continue
+        obj = getattr(fx, name)
+        mod, text = fx._API[name]
+        assert obj is getattr(importlib.import_module(f"fxcontact.{mod}"), name), name
+        assert text.strip(), name
+        assert f"* {name} ({mod}): " in fx.__doc__, name
+        if callable(obj):
+            assert (obj.__doc__ or "").strip(), f"{name} has no docstring"
+
+
+def test_star_import_and_help():
+    ns = {}
+    exec("from fxcontact import *", ns)
+    assert set(fx.__all__) <= set(ns)
+    text = pydoc.render_doc(fx, renderer=pydoc.plaintext)
+    for name in ("Simulation", "NodalContact", "FacetedTool", "SolverOptions", "IncrementError"):
+        assert f"class {name}" in text
+    with pytest.raises(AttributeError, match="no attribute 'Nonexistent'"):
+        fx.Nonexistent
+    assert set(fx._API) <= set(dir(fx))
