@@ -74,6 +74,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
+from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import NodalContact
@@ -179,8 +180,8 @@ def run(outer_radius=30.0, inner_radius=15.0, height=20.0, h=2.5, K=50.0, m=0.15
         speed: closing speed of the dies [mm/s] (each die moves at half of it).
         reduction: final height reduction (fraction); n_steps: increments.
         mbars: Tresca friction factors in [0, 1].
-        slip_velocity: regularisation v₀ of the slip speed [mm/s] (default 5e-3 × ``speed``:
-            see the notes).
+        slip_velocity: regularisation v₀ of the slip speed [mm/s] (default: the contact's,
+            10⁻³ × the process speed of the increment).
         line_search: Newton line search (``"bt"``: backtracking, ``"basic"``: full steps).
         output_dir: where the outputs go (None: nothing written).
     Returns:
@@ -199,8 +200,6 @@ def run(outer_radius=30.0, inner_radius=15.0, height=20.0, h=2.5, K=50.0, m=0.15
     mbars = [float(x) for x in mbars]
     if not mbars or any(not 0.0 <= x <= 1.0 for x in mbars):
         raise ValueError(f"mbars must be friction factors in [0, 1], got {mbars!r}")
-    if slip_velocity is None:
-        slip_velocity = 5e-3 * speed
     if output_dir is not None and comm.rank == 0:
         os.makedirs(output_dir, exist_ok=True)
     common = dict(outer_radius=outer_radius, inner_radius=inner_radius, height=height, h=h, K=K,
@@ -335,7 +334,9 @@ def main(argv=None):
     ap.add_argument("--mbar", type=float, nargs="+", default=list(MBARS),
                     help="Tresca friction factors")
     ap.add_argument("--output", default="results/ring_test")
+    add_verbosity_arguments(ap)
     a = ap.parse_args(argv)
+    configure_logging(a.verbose, a.quiet)
     res = run(h=a.size, reduction=a.reduction, n_steps=a.steps, mbars=a.mbar,
               output_dir=a.output)
     if MPI.COMM_WORLD.rank == 0:

@@ -17,7 +17,7 @@ slab's 1.1609.
 
 ring 60:30:20, h = 5, 20 % reduction (start-up + 3 increments), change of the minimum inner
 diameter FE / upper bound [%]: m̄ = 0: 11.15 / 11.80 (explicit geometry update); 0.3:
-−0.27 / −1.73; 1: −10.24 / −9.14 (mid-height −9.51, die face −2.77: the bore barrels); die
+−0.24 / −1.73; 1: −10.37 / −9.14 (mid-height −9.60, die face −2.77: the bore barrels); die
 force F/(σ₀A₀) FE / UB: 1.149 / 1.158, 1.349 / 1.368, 1.513 / 1.663.
 """
 
