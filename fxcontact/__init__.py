@@ -72,6 +72,15 @@ _API = {
     "gmsh_session": ("meshing", "context manager: a clean gmsh model"),
     "BILLET_TAGS": ("meshing", "facet tags of cylinder_billet"),
     "BLOCK_TAGS": ("meshing", "facet tags of block"),
+    "ring": ("meshing", "gmsh flat ring (eighth, quarter or full model) with facet tags"),
+    "RING_TAGS": ("meshing", "facet tags of ring"),
+    # forming theory (validation references, pure numpy/scipy)
+    "flow_stress": ("forming", "flow stress of the Norton-Hoff law at a strain rate (§14.1)"),
+    "upsetting_upper_bound": ("forming", "upsetting mean die pressure, Tresca upper bound "
+                              "(§14.5)"),
+    "upsetting_slab_coulomb": ("forming", "upsetting mean die pressure, Coulomb slab (§14.5)"),
+    "ring_compression_upper_bound": ("forming", "Avitzur's ring-compression calibration curve "
+                                     "and die pressure (§14.5)"),
     # solver and assembly
     "SolverOptions": ("solver", "Newton and linear solver settings"),
     "NewtonSolver": ("solver", "SNES Newton with a stable-active-set test (§3.6)"),
