@@ -37,11 +37,9 @@
 # homogeneous field as predictor gives the right k, but Newton's iteration then stalls where
 # the slip must reverse, at the neutral radius.)
 #
-# **Slip regularisation.** ``v₀ = 5·10⁻³ × closing speed`` (0.05 mm/s: 1 % of the die speed,
-# under 1 % of the slip speed at the outer edge), in THEORY §9's range 10⁻³–10⁻² of the sliding
-# speed. With the contact's default (10⁻³ × the die speed) Newton's iteration creeps with
-# sticking friction (m̄ = 1) in the first increments and fails: around the neutral radius the
-# slip changes sign, and the regularised Tresca law is steep there (k/v₀ per unit slip).
+# **Slip regularisation.** The contact's default ``v₀ = 10⁻³ ×`` the process speed of the
+# increment (THEORY §9: 10⁻³–10⁻² of the sliding speed); ``slip_velocity`` sets it. Its effect
+# on the curves is small (see the results).
 #
 # **Measured.** The bore is not straight once the ring barrels: with low friction it bulges
 # outwards (smallest at the die faces), with high friction inwards (smallest at mid-height).
@@ -283,8 +281,9 @@ def plot_chart(fe: dict, ub: dict, path: str, ring_size) -> str:
 # %% [markdown]
 # ## Results (measured, serial, Debian 12 / dolfinx 0.5.2, 2-core machine)
 #
-# Defaults (h = 2.5 mm, 25 increments of 2 % after the start-up, v₀ = 0.05 mm/s): 4 min for the
-# six m̄ (33–58 s each, 77–133 Newton iterations, no cut-back). Change of the minimum inner
+# Defaults (h = 2.5 mm, 25 increments of 2 % after the start-up, the contact's default v₀ =
+# 10⁻³ × the process speed): 7 min for the six m̄ on a loaded machine (57–88 s each, 77–214
+# Newton iterations, no cut-back). Change of the minimum inner
 # diameter, FE / upper bound [%], at 10–50 % height reduction; at 50 %: the FE diameter at
 # mid-height and at the die face; the last increment's die force F/(σ₀A₀) (at 48 %), FE /
 # upper bound:
@@ -293,10 +292,10 @@ def plot_chart(fe: dict, ub: dict, path: str, ring_size) -> str:
 # |---|---|---|---|---|---|---|---|
 # | 0 | 5.3/5.4 | 11.6/11.8 | 19.1/19.5 | 28.5/29.1 | 40.4/41.4 | 40.4, 40.4 | 1.901/1.927 |
 # | 0.1 | 3.0/3.3 | 6.1/6.7 | 9.1/10.0 | 11.6/12.7 | 12.6/13.6 | 15.3, 13.0 | 2.165/2.196 |
-# | 0.2 | 0.7/1.2 | 0.8/1.5 | 0.7/1.0 | −0.6/−0.8 | −4.1/−4.8 | −2.6, −3.5 | 2.345/2.392 |
-# | 0.4 | −1.4/−1.4 | −4.0/−3.6 | −8.3/−7.1 | −14.7/−12.7 | −24.7/−21.9 | −23.5, −13.7 | 2.622/2.758 |
-# | 0.7 | −4.1/−3.0 | −9.9/−7.1 | −17.6/−13.0 | −28.1/−21.8 | −43.7/−35.8 | −41.2, −18.5 | 2.905/3.297 |
-# | 1 | −5.0/−3.9 | −11.9/−9.1 | −20.9/−16.5 | −33.3/−27.3 | −52.1/−44.7 | −49.4, −17.8 | 3.058/3.835 |
+# | 0.2 | 0.7/1.2 | 0.7/1.5 | 0.7/1.0 | −0.6/−0.8 | −4.2/−4.8 | −2.6, −3.6 | 2.345/2.392 |
+# | 0.4 | −1.4/−1.4 | −4.1/−3.6 | −8.3/−7.1 | −14.7/−12.7 | −24.6/−21.9 | −23.4, −13.7 | 2.622/2.758 |
+# | 0.7 | −4.1/−3.0 | −9.9/−7.1 | −17.7/−13.0 | −28.1/−21.8 | −43.7/−35.8 | −41.2, −18.3 | 2.905/3.297 |
+# | 1 | −5.1/−3.9 | −12.0/−9.1 | −21.1/−16.5 | −33.5/−27.3 | −52.3/−44.7 | −49.7, −17.6 | 3.056/3.835 |
 #
 # **Reading.**
 #
@@ -306,21 +305,23 @@ def plot_chart(fe: dict, ub: dict, path: str, ring_size) -> str:
 #   height strain a, a radius grows by (1 + a/2) instead of (1 − a)^(−1/2); 25 increments lose
 #   2.5 % of the change (halving the increments halves it). The die force is within 1.3 % of the
 #   bound (σ₀ at v/T), which is exact here.
-# * m̄ ≤ 0.2: FE and upper bound within 1 point of diameter change over the whole chart; the FE
-#   bore bulges outwards (the minimum is at the die faces), which the bound ignores.
-# * m̄ ≥ 0.4: the FE hole shrinks faster than the bound's (−24.7 % vs −21.9 % at m̄ = 0.4,
+# * m̄ ≤ 0.2: FE and upper bound within 1.1 points of diameter change over the whole chart
+#   (the size of the m̄ = 0 time-integration error), the FE below; the FE bore bulges outwards
+#   at m̄ = 0.1 (the minimum is at the die faces), which the bound ignores.
+# * m̄ ≥ 0.4: the FE hole shrinks faster than the bound's (−24.6 % vs −21.9 % at m̄ = 0.4,
 #   −52 % vs −45 % at m̄ = 1, 50 % reduction) and the bore barrels inwards (at m̄ = 1 the die
-#   face diameter changes by −18 %, mid-height by −49 %): the bound's field has no barrelling,
+#   face diameter changes by −18 %, mid-height by −50 %): the bound's field has no barrelling,
 #   as expected from the analysis (THEORY §14.5) and as calibration charts computed by FE or
 #   measured are known to do.
 # * The FE die force stays below the upper bound everywhere (1–2 % at m̄ ≤ 0.2, 20 % at
 #   m̄ = 1 and 48 %).
-# * Sensitivity (50 % reduction, minimum ID change): slip regularisation v₀ = 0.01 instead of
-#   0.05 mm/s, m̄ = 0.4: −24.60 % instead of −24.66 %; mesh h = 2.0 instead of 2.5 mm: m̄ = 0.4
-#   −24.82 %, m̄ = 1 −51.75 % (instead of −52.11 %); 50 increments instead of 25: m̄ = 0
-#   40.87 % (the Euler error halves: first order), m̄ = 1 −53.51 %. The time step is the
-#   largest error at high friction (≈ 1.4 points at 25 increments, first order, so about 1.4
-#   more towards dt → 0), the mesh and v₀ are below 0.4 points.
+# * Sensitivity (50 % reduction, minimum ID change; measured with v₀ = 0.05 mm/s, which gives
+#   −24.66 % at m̄ = 0.4 and −52.11 % at m̄ = 1 against −24.60 % and −52.32 % with the default
+#   v₀): v₀ = 0.01 mm/s, m̄ = 0.4: −24.60 %; mesh h = 2.0 instead of 2.5 mm: m̄ = 0.4 −24.82 %,
+#   m̄ = 1 −51.75 %; 50 increments instead of 25: m̄ = 0 40.87 % (the Euler error halves: first
+#   order), m̄ = 1 −53.51 %. The time step is the largest error at high friction (≈ 1.4 points
+#   at 25 increments, first order, so about 1.4 more towards dt → 0); the mesh and v₀ are
+#   below 0.4 points.
 
 # %% [markdown]
 # ## Script
