@@ -85,6 +85,15 @@ _API = {
     "drawing_bar": ("meshing", "gmsh round bar with a drawn nose, whole or a sector, with tags"),
     "DRAWING_BAR_TAGS": ("meshing", "facet tags of drawing_bar"),
     "sector_plane_normals": ("meshing", "outward normals of a sector's symmetry planes"),
+    "ring": ("meshing", "gmsh flat ring (eighth, quarter or full model) with facet tags"),
+    "RING_TAGS": ("meshing", "facet tags of ring"),
+    # forming theory (validation references, pure numpy/scipy)
+    "flow_stress": ("forming", "flow stress of the Norton-Hoff law at a strain rate (§14.1)"),
+    "upsetting_upper_bound": ("forming", "upsetting mean die pressure, Tresca upper bound "
+                              "(§14.5)"),
+    "upsetting_slab_coulomb": ("forming", "upsetting mean die pressure, Coulomb slab (§14.5)"),
+    "ring_compression_upper_bound": ("forming", "Avitzur's ring-compression calibration curve "
+                                     "and die pressure (§14.5)"),
     # solver and assembly
     "SolverOptions": ("solver", "Newton and linear solver settings"),
     "NewtonSolver": ("solver", "SNES Newton with a stable-active-set test (§3.6)"),

@@ -15,8 +15,9 @@ from mpi4py import MPI
 
 from fxcontact import compat
 
-__all__ = ["cylinder_billet", "block", "drawing_bar", "sector_plane_normals", "gmsh_session",
-           "BILLET_TAGS", "BLOCK_TAGS", "DRAWING_BAR_TAGS", "GMSH_MESH_DEFAULTS"]
+__all__ = ["cylinder_billet", "ring", "block", "drawing_bar", "sector_plane_normals",
+           "gmsh_session", "BILLET_TAGS", "RING_TAGS", "RING_SECTORS", "BLOCK_TAGS",
+           "DRAWING_BAR_TAGS", "GMSH_MESH_DEFAULTS"]
 
 log = logging.getLogger(__name__)
 
@@ -28,6 +29,14 @@ BILLET_TAGS: Dict[str, int] = {"bottom": 1, "top": 2, "lateral": 3, "symmetry_x"
 #: half-plane θ = 0, i.e. y = 0, x ≥ 0) and ``symmetry_1`` (the half-plane θ = sector) of a sector
 DRAWING_BAR_TAGS: Dict[str, int] = {"back": 1, "front": 2, "lateral": 3, "symmetry_0": 4,
                                     "symmetry_1": 5}
+#: facet tags of :func:`ring`: the die faces ``top`` (z = +H/2) and ``bottom`` (z = −H/2),
+#: the ``mid_plane`` z = 0 of the ``"eighth"`` model (instead of ``bottom``), the ``outer`` and
+#: ``inner`` (bore) lateral surfaces, and the symmetry planes x = 0 and y = 0 of the
+#: ``"eighth"`` and ``"quarter"`` models
+RING_TAGS: Dict[str, int] = {"top": 1, "bottom": 2, "outer": 3, "inner": 4, "symmetry_x": 5,
+                             "symmetry_y": 6, "mid_plane": 7}
+#: models of :func:`ring`: extent in plan and in height
+RING_SECTORS = ("eighth", "quarter", "full")
 #: facet tags of :func:`block`
 BLOCK_TAGS: Dict[str, int] = {"xmin": 1, "xmax": 2, "ymin": 3, "ymax": 4, "zmin": 5, "zmax": 6}
 
@@ -122,6 +131,68 @@ def cylinder_billet(comm: MPI.Comm, radius: float, height: float, h: float,
             for name, tags in groups.items():
                 if tags:
                     gmsh.model.addPhysicalGroup(2, tags, BILLET_TAGS[name])
+            gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
+            gmsh.option.setNumber("Mesh.CharacteristicLengthMin", 0.5 * h)
+            gmsh.model.mesh.generate(3)
+        return _finish(gmsh, comm, 3)
+
+
+def ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, height: float, h: float,
+         sector: str = "eighth"):
+    """Tetrahedral ring along z, centred on the origin (the mid-plane is z = 0).
+
+    Args:
+        outer_radius, inner_radius, height: the ring (0 < inner < outer; e.g. 30, 15, 20 for the
+            6:3:2 ring of the ring-compression test).
+        h: element size.
+        sector: ``"eighth"`` (x ≥ 0, y ≥ 0, 0 ≤ z ≤ H/2: a quarter in plan, the upper half in
+            height, with the symmetry planes x = 0, y = 0 and the mid-plane z = 0),
+            ``"quarter"`` (x ≥ 0, y ≥ 0, |z| ≤ H/2) or ``"full"`` (|z| ≤ H/2).
+    Returns ``(mesh, cell_tags, facet_tags)`` with facet tags :data:`RING_TAGS` (only those of
+    the surfaces the model has).
+    """
+    if not (outer_radius > 0 and height > 0 and h > 0):
+        raise ValueError("outer_radius, height and h must be > 0")
+    if not 0 < inner_radius < outer_radius:
+        raise ValueError(f"need 0 < inner_radius < outer_radius, got {inner_radius!r}, "
+                         f"{outer_radius!r}")
+    if sector not in RING_SECTORS:
+        raise ValueError(f"sector must be one of {RING_SECTORS}, got {sector!r}")
+    Ro, Ri = float(outer_radius), float(inner_radius)
+    z0 = 0.0 if sector == "eighth" else -0.5 * height
+    with gmsh_session("ring") as gmsh:
+        if comm.rank == 0:
+            occ = gmsh.model.occ
+            outer = occ.addCylinder(0, 0, z0, 0, 0, 0.5 * height - z0, Ro)
+            inner = occ.addCylinder(0, 0, z0 - 1, 0, 0, 0.5 * height - z0 + 2, Ri)
+            body, _ = occ.cut([(3, outer)], [(3, inner)])
+            if sector != "full":
+                box = occ.addBox(0, 0, z0 - 1, 2 * Ro, 2 * Ro, 0.5 * height - z0 + 2)
+                body, _ = occ.intersect(body, [(3, box)])
+            occ.synchronize()
+            vols = gmsh.model.getEntities(3)
+            gmsh.model.addPhysicalGroup(3, [v[1] for v in vols], 1)
+            groups = {k: [] for k in RING_TAGS}
+            eps = 1e-6 * max(Ro, height)
+            for dim, tag in gmsh.model.getEntities(2):
+                c = np.array(occ.getCenterOfMass(dim, tag))
+                if abs(c[2] - 0.5 * height) < eps:
+                    groups["top"].append(tag)
+                elif abs(c[2] - z0) < eps:
+                    groups["mid_plane" if sector == "eighth" else "bottom"].append(tag)
+                elif sector != "full" and abs(c[0]) < eps:
+                    groups["symmetry_x"].append(tag)
+                elif sector != "full" and abs(c[1]) < eps:
+                    groups["symmetry_y"].append(tag)
+                else:
+                    # a lateral surface (the centre of mass of a whole circle is on the axis:
+                    # use the corner of its bounding box farthest from the axis)
+                    bb = gmsh.model.getBoundingBox(dim, tag)
+                    rmax = np.hypot(max(abs(bb[0]), abs(bb[3])), max(abs(bb[1]), abs(bb[4])))
+                    groups["outer" if rmax > 0.5 * (Ri + Ro) else "inner"].append(tag)
+            for name, tags in groups.items():
+                if tags:
+                    gmsh.model.addPhysicalGroup(2, tags, RING_TAGS[name])
             gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
             gmsh.option.setNumber("Mesh.CharacteristicLengthMin", 0.5 * h)
             gmsh.model.mesh.generate(3)

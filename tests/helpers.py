@@ -63,11 +63,11 @@ def shared_tmpdir(prefix):
     return comm.bcast(d, root=0)
 
 
-def assert_histories_match(h_par, h_ser, keys, rtol=1e-8):
+def assert_histories_match(h_par, h_ser, keys, rtol=1e-8, scale_key="tool_force_z"):
     """Same number of increments and, per increment, the values of ``keys`` within ``rtol``
-    of the reference's vertical tool force (at least 1)."""
+    of the reference's ``scale_key`` (the vertical tool force; at least 1)."""
     assert len(h_par) == len(h_ser)
     for a, b in zip(h_par, h_ser):
-        F = max(abs(b["tool_force_z"]), 1.0)
+        F = max(abs(b[scale_key]), 1.0)
         for k in keys:
             assert abs(a[k] - b[k]) <= rtol * F, (k, a["time"], a[k], b[k])

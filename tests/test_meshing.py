@@ -1,8 +1,13 @@
 """gmsh builders: isolation of gmsh options between builders and from a caller's session."""
 
+import numpy as np
+import pytest
+import ufl
 from mpi4py import MPI
 
-from fxcontact.meshing import block, cylinder_billet, gmsh_session
+import dolfinx.fem
+
+from fxcontact.meshing import RING_TAGS, block, cylinder_billet, gmsh_session, ring
 
 from helpers import load_tool_meshes
 
@@ -147,3 +152,47 @@ def test_drawing_bar_plain_and_half():
 def test_drawing_bar_bad_input(kwargs, match):
     with pytest.raises(ValueError, match=match):
         drawing_bar(MPI.COMM_WORLD, **{**BAR, **kwargs})
+def _integral(msh, measure):
+    return msh.comm.allreduce(dolfinx.fem.assemble_scalar(dolfinx.fem.form(
+        1.0 * measure)), op=MPI.SUM)
+
+
+@pytest.mark.parametrize("sector, plan, half", [("eighth", 0.25, 0.5), ("quarter", 0.25, 1.0),
+                                                ("full", 1.0, 1.0)])
+def test_ring_volume_and_tags(sector, plan, half):
+    """6:3:2 ring (R_o 30, R_i 15, H 20): volume and area of every tagged surface against the
+    exact values (the circles are faceted: relative error of order h²/R_i² ≈ 1 %), and only the
+    surfaces the model has are tagged."""
+    Ro, Ri, H, h = 30.0, 15.0, 20.0, 3.0
+    msh, _, ft = ring(MPI.COMM_WORLD, Ro, Ri, H, h, sector=sector)
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=ft)
+    V = _integral(msh, ufl.dx(msh))
+    # plan: fraction of the annulus; half: fraction of the height
+    fraction = plan * half
+    assert V == pytest.approx(fraction * np.pi * (Ro ** 2 - Ri ** 2) * H, rel=1e-2)
+    annulus = np.pi * (Ro ** 2 - Ri ** 2) * plan
+    expected = {"top": annulus, "bottom": 0.0 if sector == "eighth" else annulus,
+                "mid_plane": annulus if sector == "eighth" else 0.0,
+                "outer": 2 * np.pi * Ro * H * fraction, "inner": 2 * np.pi * Ri * H * fraction,
+                "symmetry_x": 0.0 if sector == "full" else (Ro - Ri) * H * half,
+                "symmetry_y": 0.0 if sector == "full" else (Ro - Ri) * H * half}
+    for name, tag in RING_TAGS.items():
+        area = _integral(msh, ds(tag))
+        if expected[name] == 0.0:
+            assert area == 0.0, name
+        else:
+            assert area == pytest.approx(expected[name], rel=1e-2), name
+    # every exterior facet is tagged
+    total = _integral(msh, ufl.ds(msh))
+    assert total == pytest.approx(sum(_integral(msh, ds(t)) for t in RING_TAGS.values()),
+                                  rel=1e-12)
+    x = msh.geometry.x
+    zmin = msh.comm.allreduce(np.min(x[:, 2]), op=MPI.MIN)
+    assert zmin == pytest.approx(0.0 if sector == "eighth" else -0.5 * H, abs=1e-12)
+
+
+def test_ring_bad_input():
+    with pytest.raises(ValueError, match="inner_radius"):
+        ring(MPI.COMM_WORLD, 10.0, 12.0, 5.0, 1.0)
+    with pytest.raises(ValueError, match="sector"):
+        ring(MPI.COMM_WORLD, 10.0, 5.0, 5.0, 1.0, sector="half")

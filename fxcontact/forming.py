@@ -1,0 +1,280 @@
+"""Classical forming theory the process demos are compared against (THEORY §14).
+
+Pure numpy/scipy, no FE. The results are approximations (upper bounds, slab estimates) with known
+biases: the FE answer is not expected to equal them but to fall in the band they define.
+
+* :func:`flow_stress` — uniaxial flow stress of the Norton–Hoff law at a strain rate (§14.1).
+* Upsetting a cylinder between flat dies (§14.5): :func:`upsetting_upper_bound` (Tresca factor
+  m̄, homogeneous field) and :func:`upsetting_slab_coulomb` (Coulomb μ, slab method).
+* Ring compression (Avitzur's upper bound, §14.5): :func:`ring_power` (closed form),
+  :func:`ring_power_quadrature` (the same by quadrature, an independent check),
+  :func:`ring_neutral_radius` (minimiser of the power) and :func:`ring_compression_upper_bound`
+  (the calibration curve: change of the inner diameter against the height reduction, and the
+  mean die pressure).
+
+Units are free (consistent); pressures are returned over σ₀ and powers per unit σ₀ and closing
+speed unless stated.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Dict, Sequence
+
+import numpy as np
+from scipy import integrate, optimize
+
+__all__ = ["flow_stress", "upsetting_upper_bound", "upsetting_slab_coulomb", "ring_power",
+           "ring_power_quadrature", "ring_neutral_radius", "ring_compression_upper_bound"]
+
+SQRT3 = math.sqrt(3.0)
+
+
+def _positive(name: str, value) -> float:
+    value = float(value)
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return value
+
+
+def _friction_factor(mbar) -> float:
+    mbar = float(mbar)
+    if not (0.0 <= mbar <= 1.0):
+        raise ValueError(f"the Tresca friction factor mbar must be in [0, 1], got {mbar!r}")
+    return mbar
+
+
+# ------------------------------------------------------------------------------ flow stress
+def flow_stress(K: float, m: float, strain_rate) -> np.ndarray:
+    """Uniaxial flow stress σ₀ = √3 K (√3 ε̄̇)^m of the Norton–Hoff law (THEORY §14.1).
+
+    The shear yield stress is k = σ₀/√3.
+    """
+    _positive("K", K)
+    if not (0 < m <= 1):
+        raise ValueError(f"the strain-rate sensitivity m must be in (0, 1], got {m!r}")
+    rate = np.asarray(strain_rate, dtype=float)
+    if np.any(~np.isfinite(rate)) or np.any(rate < 0):
+        raise ValueError("strain_rate must be finite and >= 0")
+    return SQRT3 * K * (SQRT3 * rate) ** m
+
+
+# ------------------------------------------------------------------------------ upsetting
+def upsetting_upper_bound(mbar: float, diameter: float, height: float) -> float:
+    """Upper bound of the mean die pressure, p̄/σ₀ = 1 + m̄ d/(3√3 h) (THEORY §14.5).
+
+    Homogeneous velocity field (no barrelling), Tresca friction τ = m̄ k on both dies; the FE
+    answer (which can barrel) is expected below it.
+    """
+    mbar = _friction_factor(mbar)
+    d, h = _positive("diameter", diameter), _positive("height", height)
+    return 1.0 + mbar * d / (3.0 * SQRT3 * h)
+
+
+def upsetting_slab_coulomb(mu: float, radius: float, height: float) -> float:
+    """Slab estimate of the mean die pressure with Coulomb friction on both dies,
+    p̄/σ₀ = 2(eˣ − x − 1)/x², x = 2μR/h (THEORY §14.5; ≈ 1 + μd/(3h) for small x).
+
+    No Tresca cap (at the centre of a long billet μp can exceed k: the slab then overestimates).
+    """
+    mu = float(mu)
+    if not (math.isfinite(mu) and mu >= 0):
+        raise ValueError(f"the Coulomb coefficient mu must be >= 0, got {mu!r}")
+    R, h = _positive("radius", radius), _positive("height", height)
+    x = 2.0 * mu * R / h
+    if x < 1e-4:  # series: 2(eˣ − x − 1)/x² = 1 + x/3 + x²/12 + x³/60 + …
+        return 1.0 + x / 3.0 + x * x / 12.0 + x ** 3 / 60.0
+    return 2.0 * math.expm1(x) / (x * x) - 2.0 / x
+
+
+# ------------------------------------------------------------------------------ ring
+def _check_ring(inner_radius, outer_radius, height):
+    Ri = float(inner_radius)
+    Ro = _positive("outer_radius", outer_radius)
+    T = _positive("height", height)
+    if not (math.isfinite(Ri) and 0 <= Ri < Ro):
+        raise ValueError(f"need 0 <= inner_radius < outer_radius, got {Ri!r}, {Ro!r}")
+    return Ri, Ro, T
+
+
+def _plastic_primitive(u: float, b: float) -> float:
+    """F(u) with F' = √(3u² + b²)/u (u = r², b = R_n²); for b = 0, F = √3 u."""
+    S = math.sqrt(3.0 * u * u + b * b)
+    if b == 0.0:
+        return S
+    return S - b * math.log((b + S) / u)
+
+
+def _friction_integral(Ri: float, Ro: float, Rn: float) -> float:
+    """∫_{Ri}^{Ro} |r² − R_n²| dr (closed form)."""
+    b = Rn * Rn
+
+    def G(r):
+        return r ** 3 / 3.0 - b * r
+
+    if Rn <= Ri:
+        return G(Ro) - G(Ri)
+    if Rn >= Ro:
+        return G(Ri) - G(Ro)
+    return G(Ri) + G(Ro) - 2.0 * G(Rn)
+
+
+def ring_power(neutral_radius: float, inner_radius: float, outer_radius: float, height: float,
+               mbar: float) -> float:
+    """Avitzur's upper-bound power J(R_n) of a ring compressed between flat dies, per unit σ₀
+    and closing speed v (THEORY §14.5), closed form:
+
+    J/(σ₀v) = (π/√3) [F(R_o²) − F(R_i²)] + (2π m̄/(√3 T)) ∫_{R_i}^{R_o} |r² − R_n²| dr,
+
+    with F(u) = √(3u² + b²) − b ln((b + √(3u² + b²))/u), b = R_n² (a primitive of
+    √(3u² + b²)/u, u = r², which turns the plastic term ``(2π/√3)∫ r √(3 + R_n⁴/r⁴) dr`` into
+    closed form). Friction on both faces. The die force is J/v: ``σ₀·ring_power``.
+
+    A solid disc (``inner_radius = 0``) has finite power only for R_n = 0 (the strain rate
+    ~ R_n²/r² is not integrable at the axis): ``inf`` otherwise.
+    """
+    Ri, Ro, T = _check_ring(inner_radius, outer_radius, height)
+    mbar = _friction_factor(mbar)
+    Rn = float(neutral_radius)
+    if not (math.isfinite(Rn) and 0 <= Rn <= Ro):
+        raise ValueError(f"the neutral radius must be in [0, R_o], got {Rn!r}")
+    b = Rn * Rn
+    if Ri == 0.0:
+        if b > 0.0:
+            return math.inf
+        plastic = math.pi / SQRT3 * _plastic_primitive(Ro * Ro, 0.0)
+    else:
+        plastic = math.pi / SQRT3 * (_plastic_primitive(Ro * Ro, b)
+                                     - _plastic_primitive(Ri * Ri, b))
+    friction = 2.0 * math.pi * mbar / (SQRT3 * T) * _friction_integral(Ri, Ro, Rn)
+    return plastic + friction
+
+
+def ring_power_quadrature(neutral_radius: float, inner_radius: float, outer_radius: float,
+                          height: float, mbar: float) -> float:
+    """:func:`ring_power` by adaptive quadrature of THEORY §14.5's integrals (reference twin)."""
+    Ri, Ro, T = _check_ring(inner_radius, outer_radius, height)
+    mbar = _friction_factor(mbar)
+    Rn = float(neutral_radius)
+    v = 1.0
+    plastic = 2.0 * math.pi * v / SQRT3 * integrate.quad(
+        lambda r: r * math.sqrt(3.0 + Rn ** 4 / r ** 4), Ri, Ro, epsabs=0.0, epsrel=1e-12,
+        limit=200)[0]
+    pts = [Rn] if Ri < Rn < Ro else None
+    friction = 2.0 * mbar / SQRT3 * v / (2.0 * T) * 2.0 * math.pi * integrate.quad(
+        lambda r: abs(r - Rn * Rn / r) * r, Ri, Ro, points=pts, epsabs=0.0, epsrel=1e-12,
+        limit=200)[0]
+    return plastic + friction
+
+
+def _ring_power_slope(Rn: float, Ri: float, Ro: float, T: float, mbar: float) -> float:
+    """dJ/d(R_n²) of :func:`ring_power` (R_i > 0): with g(r) = (b + √(3r⁴ + b²))/r², b = R_n²,
+    (π/√3) ln(g(R_i)/g(R_o)) + (2π m̄/(√3 T)) d/db ∫|r² − b| dr (∂F/∂b = −ln((b + S)/u))."""
+    b = Rn * Rn
+
+    def lng(r):
+        u = r * r
+        return math.log((b + math.sqrt(3.0 * u * u + b * b)) / u)
+
+    if Rn <= Ri:
+        dI = -(Ro - Ri)
+    elif Rn >= Ro:
+        dI = Ro - Ri
+    else:
+        dI = 2.0 * Rn - Ri - Ro
+    return math.pi / SQRT3 * (lng(Ri) - lng(Ro)) + 2.0 * math.pi * mbar / (SQRT3 * T) * dI
+
+
+def ring_neutral_radius(inner_radius: float, outer_radius: float, height: float,
+                        mbar: float) -> float:
+    """Neutral radius R_n minimising :func:`ring_power` over [0, R_o] (THEORY §14.5).
+
+    ``scipy.optimize.minimize_scalar`` (bounded) on [0, R_o]; the end points, which the bounded
+    method never evaluates, are compared with its answer: R_n = 0 (all the material flows
+    outwards: the hole grows) is the exact answer for m̄ = 0 and for a solid disc; R_n ≤ R_i
+    also means outward flow everywhere, R_i < R_n < R_o that the hole shrinks. An interior
+    minimum is then polished to round-off by ``brentq`` on the slope dJ/d(R_n²) (Brent's
+    minimiser only locates a flat minimum to ~√ε, which would make the radii's ODE noisy).
+    """
+    Ri, Ro, T = _check_ring(inner_radius, outer_radius, height)
+    mbar = _friction_factor(mbar)
+    if Ri == 0.0:  # the power of a disc is finite only for R_n = 0
+        return 0.0
+
+    def J(Rn):
+        return ring_power(Rn, Ri, Ro, T, mbar)
+
+    if _ring_power_slope(0.0, Ri, Ro, T, mbar) >= 0.0:
+        # J rises from R_n = 0 (m̄ = 0): 0 is the minimiser; Brent's answer would only be the
+        # end of the region where J is flat to round-off (J − J(0) ~ R_n⁴)
+        return 0.0
+
+    res = optimize.minimize_scalar(J, bounds=(0.0, Ro), method="bounded",
+                                   options={"xatol": 1e-10 * Ro, "maxiter": 500})
+    best, Jbest = float(res.x), float(res.fun)
+    for x in (0.0, Ro):  # ties go to the end point (J is flat at R_n = 0: dJ/dR_n = 0 there)
+        if J(x) <= Jbest:
+            best, Jbest = x, J(x)
+    if 0.0 < best < Ro:
+        def slope(Rn):
+            return _ring_power_slope(Rn, Ri, Ro, T, mbar)
+
+        d = 1e-6 * Ro
+        lo, hi = max(best - d, 0.0), min(best + d, Ro)
+        if slope(lo) < 0.0 < slope(hi):
+            best = optimize.brentq(slope, lo, hi, xtol=1e-15 * Ro, rtol=4 * np.finfo(float).eps)
+    return best
+
+
+def ring_compression_upper_bound(outer_radius: float, inner_radius: float, height: float,
+                                 mbar: float, reductions: Sequence[float]) -> Dict[str, np.ndarray]:
+    """Avitzur's ring-compression calibration curve for the Tresca factor ``mbar``.
+
+    The ring (R_o, R_i, height T) is compressed at closing speed v; at each instant R_n minimises
+    J on the current geometry and the radii move with the upper-bound field,
+    ``dR/dt = u_r(R) = v/(2T) (R − R_n²/R)``, ``dT/dt = −v`` (volume is conserved exactly by
+    this field). Integrated over the height reduction ε = 1 − T/T₀ with ``solve_ivp``
+    (DOP853, rtol 1e-11).
+
+    Args:
+        outer_radius, inner_radius, height: initial ring (a 6:3:2 ring: 30, 15, 20).
+        mbar: Tresca friction factor in [0, 1].
+        reductions: height reductions ε in [0, 1) where the curve is wanted (increasing).
+    Returns:
+        dict of arrays over ``reductions``: ``reduction``, ``inner_radius``, ``outer_radius``,
+        ``height``, ``neutral_radius``, ``id_change`` (% change of the inner diameter,
+        100 (R_i/R_i0 − 1)), ``od_change`` (% for the outer diameter) and ``pressure``
+        (mean die pressure over σ₀, J/(v π (R_o² − R_i²))).
+    """
+    Ri0, Ro0, T0 = _check_ring(inner_radius, outer_radius, height)
+    if Ri0 == 0.0:
+        raise ValueError("inner_radius must be > 0 for a ring (a disc is upsetting)")
+    mbar = _friction_factor(mbar)
+    eps = np.asarray(reductions, dtype=float)
+    if eps.ndim != 1 or len(eps) == 0 or np.any(~np.isfinite(eps)) or np.any(eps < 0) \
+            or np.any(eps >= 1) or np.any(np.diff(eps) < 0):
+        raise ValueError("reductions must be a non-empty increasing sequence in [0, 1)")
+
+    def rhs(e, y):
+        Ri, Ro = y
+        T = T0 * (1.0 - e)
+        Rn = ring_neutral_radius(Ri, Ro, T, mbar)
+        # d/dε = (T₀/v) d/dt, u_r = v/(2T)(R − R_n²/R)
+        k = T0 / (2.0 * T)
+        return [k * (Ri - Rn * Rn / Ri), k * (Ro - Rn * Rn / Ro)]
+
+    if eps[-1] > 0:
+        sol = integrate.solve_ivp(rhs, (0.0, float(eps[-1])), [Ri0, Ro0], t_eval=eps,
+                                  rtol=1e-11, atol=1e-13 * Ro0, method="DOP853")
+        if not sol.success:
+            raise RuntimeError(f"ring upper bound: integration failed ({sol.message})")
+        Ri, Ro = sol.y
+    else:
+        Ri, Ro = np.full(len(eps), Ri0), np.full(len(eps), Ro0)
+    T = T0 * (1.0 - eps)
+    Rn = np.array([ring_neutral_radius(a, b, c, mbar) for a, b, c in zip(Ri, Ro, T)])
+    J = np.array([ring_power(n, a, b, c, mbar) for n, a, b, c in zip(Rn, Ri, Ro, T)])
+    return {"reduction": eps, "inner_radius": Ri, "outer_radius": Ro, "height": T,
+            "neutral_radius": Rn, "id_change": 100.0 * (Ri / Ri0 - 1.0),
+            "od_change": 100.0 * (Ro / Ro0 - 1.0),
+            "pressure": J / (math.pi * (Ro ** 2 - Ri ** 2))}
