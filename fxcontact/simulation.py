@@ -850,7 +850,8 @@ class Simulation:
                     "next_step": (2.0 * last["dt"] if last is not None and last.get("cutbacks")
                                   else None),
                     "mesh": ck.mesh_fingerprint(self.mesh, self._x_ref),
-                    "setup": self._setup_signature(), "contributors": states}
+                    "setup": self._setup_signature(), "contributors": states,
+                    "volume_initial": self._volume_initial}
         path = path or self._checkpoint_path()
         if self.comm.rank == 0:
             os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
@@ -945,6 +946,11 @@ class Simulation:
         self._resume_step = man.get("next_step")
         self._resumed = man
         self._build()
+        # the volume correction is relative to the initial volume of the body, not to the
+        # volume at the checkpoint
+        if man.get("volume_initial") is not None:
+            self._volume_initial = float(man["volume_initial"])
+            self._update_volume_correction()
         log.info("resumed %s from %s: t = %.6g, increment %d", self.name, path, self.t,
                  self.increment)
         return path

@@ -31,7 +31,11 @@ up = load_demo("demo_upsetting")
 ring_demo = load_demo("demo_ring_test")
 
 #: short billet (d/h = 2), coarse mesh, 10 % reduction in 2 increments (+ start-up)
-UPSET = dict(radius=10.0, height=10.0, h=5.0, reduction=0.1, n_steps=2, output_dir=None,
+# the volume correction (on by default) adds a volumetric rate of the order of one increment's
+# volume error (0.25 % per increment here), which does work through the pressure and shifts p̄
+# by as much: the comparisons with the bounds are made on the plain incompressible update
+UPSET = dict(volume_correction="none", radius=10.0, height=10.0, h=5.0, reduction=0.1,
+             n_steps=2, output_dir=None,
              picture=False, progress=False)
 
 
@@ -141,7 +145,7 @@ def test_ring_side_by_side_with_upper_bound(ring):
     """The FE and upper-bound curves are produced at the same reductions. Without friction the
     FE ring stays straight (mid-height = die face) and follows the homogeneous bound up to the
     explicit geometry update's error (r ← r(1 + a/2) per increment of height strain a, against
-    (1 − a)^(−1/2)): below it, by less than that error summed over the increments."""
+    (1 − a)^(−1/2)), which the volume correction reduces: between the two."""
     for mb, r in ring["fe"].items():
         u = ring["ub"][mb]
         assert len(u["id_change"]) == len(r["id_min"])
@@ -151,8 +155,11 @@ def test_ring_side_by_side_with_upper_bound(ring):
     assert np.allclose(r["id_mid"], r["id_face"], atol=1e-2)
     T = 1.0 - r["reduction"]
     euler = 100 * (np.cumprod(np.r_[1.0, 1.0 + 0.5 * (T[:-1] - T[1:]) / T[:-1]]) - 1.0)
-    assert np.allclose(r["id_min"], euler, atol=0.05)
+    # the volume correction gives back what the explicit update loses: above the Euler
+    # curve, below the exact homogeneous one
+    assert np.all(r["id_min"][1:] > euler[1:] - 0.05)
     assert np.all(r["id_min"][1:] < u["id_change"][1:])
+    _say(f"ring m = 0: FE {r['id_min'][1:]}, Euler update {euler[1:]}, exact {u['id_change'][1:]}")
     # force: the homogeneous bound is exact without friction (σ₀ at v/T)
     assert np.allclose(r["force"][2:], u["force"][2:], rtol=1e-2)
 

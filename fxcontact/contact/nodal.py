@@ -328,13 +328,6 @@ class NodalContact:
             self._K_node = np.full(len(self.boundary), mat.K)
         if isinstance(mat, NortonHoff) and need_k:
             rate = self._vertex_strain_rate(sim)
-            # a predictor at rest (first increment of a process driven by the tools: the
-            # start-up solve does not see them) has no strain rate: k at the regularisation's
-            # rate would be far too small; take the representative rate of the process
-            comm = self.boundary.comm
-            rep = self._representative_rate(sim)
-            if not comm.allreduce(float(np.max(rate, initial=0.0)), op=MPI.MAX) > 1e-6 * rep:
-                rate = np.full_like(rate, rep)
             z = np.sqrt(3.0 * rate**2 + 3.0 * mat.regularization**2)
             self._k_node = mat.K * z**mat.m
         if self._slip_velocity_user is None:
@@ -366,7 +359,23 @@ class NodalContact:
             return self._penalty
         if isinstance(sim.material, NortonHoff):
             if self.strain_rate is None:
-                rate = self._representative_rate(sim)
+                # representative strain rate: mean of the first increment's initial guess;
+                # the start-up solve does not see the tools, so a body driven by velocity
+                # conditions against static tools (drawing) moves rigidly in it: then the
+                # speed of the body relative to the tools over the body's size
+                rate = sim.mean_strain_rate()
+                v = self.boundary.velocities(sim.w)
+                speed = max(float(np.max(np.linalg.norm(
+                    v - tool.velocity(_pad3(self.x_t), self.t)[:, : self.gdim], axis=1),
+                    initial=0.0)) for tool in self.tools)
+                speed = self.boundary.comm.allreduce(speed, op=MPI.MAX)
+                rate_kin = speed / sim.volume() ** (1.0 / self.gdim)
+                if not rate > 1e-6 * rate_kin:
+                    rate = rate_kin
+                if not rate > 0:
+                    raise ValueError("cannot estimate a representative strain rate for the "
+                                     "penalty (the body and the tools are at rest): give "
+                                     "strain_rate= or penalty=")
                 self.strain_rate = rate
                 log.info("%s: representative strain rate %.4g 1/s", self.name, rate)
             self._penalty = penalty_from_beta(sim.material, self.beta, self.element_size,
@@ -374,27 +383,6 @@ class NodalContact:
             log.info("%s: penalty rho = %.4g (beta = %g)", self.name, self._penalty, self.beta)
             return self._penalty
         return penalty_from_beta(sim.material, self.beta, self.element_size, None, dt)
-
-    def _representative_rate(self, sim) -> float:
-        """Representative strain rate of the increment (collective): the mean strain rate of
-        the predictor; the start-up solve does not see the tools, so a body driven by velocity
-        conditions against static tools (drawing), or at rest before moving tools (upsetting
-        between dies), moves rigidly in it: then the speed of the body relative to the tools
-        over the body's size."""
-        rate = sim.mean_strain_rate()
-        v = self.boundary.velocities(sim.w)
-        speed = max(float(np.max(np.linalg.norm(
-            v - tool.velocity(_pad3(self.x_t), self.t)[:, : self.gdim], axis=1),
-            initial=0.0)) for tool in self.tools)
-        speed = self.boundary.comm.allreduce(speed, op=MPI.MAX)
-        rate_kin = speed / sim.volume() ** (1.0 / self.gdim)
-        if not rate > 1e-6 * rate_kin:
-            rate = rate_kin
-        if not rate > 0:
-            raise ValueError("cannot estimate a representative strain rate for the "
-                             "penalty (the body and the tools are at rest): give "
-                             "strain_rate= or penalty=")
-        return rate
 
     def _project_all(self, X: np.ndarray, t: float, hessian: bool):
         """Project on every tool; per node keep the tool with the smallest gap."""
