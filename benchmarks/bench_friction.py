@@ -4,7 +4,7 @@ friction.
 Usage::
 
     python benchmarks/bench_friction.py                 # both cases, default sizes
-    python benchmarks/bench_friction.py --h-fine 0.04   # finer roll case
+    python benchmarks/bench_friction.py --h-fine 0.06   # finer roll case
     mpirun -n 2 python benchmarks/bench_friction.py
 
 Cases (each run frictionless, then with friction, implicit and explicit):
@@ -42,8 +42,8 @@ FIELDS = ["ranks", "case", "friction", "mode", "dofs", "contact_nodes", "increme
 
 
 def roll_case(law, mode, h_fine, comm):
-    msh, _, ft = fx.block(comm, (0, 0, 0), (6, 1, 1), 0.3,
-                          refine_box=((2.5, 0, 0.7), (3.5, 1, 1)), h_fine=h_fine)
+    msh, _, ft = fx.block(comm, (0, 0, 0), (6, 1, 1), 0.4,
+                          refine_box=((2.75, 0, 0.85), (3.25, 1, 1)), h_fine=h_fine)
     sp = fx.MixedSpace(msh)
     sim = fx.Simulation(sp, fx.LinearElastic(1000.0, 0.3), progress=False)
     f = {k: sim.facets(ft, v) for k, v in fx.BLOCK_TAGS.items()}
@@ -56,7 +56,7 @@ def roll_case(law, mode, h_fine, comm):
                         friction_mode=mode)
     sim.add_contributor(c)
     sim.run(1.0, 0.5, close=False)
-    sim.run(1.1, 0.01)
+    sim.run(1.05, 0.01)
     return sim
 
 
@@ -98,7 +98,7 @@ def summarise(sim, case, law, mode):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--h-fine", type=float, default=0.05, help="roll case: fine element size")
+    ap.add_argument("--h-fine", type=float, default=0.08, help="roll case: fine element size")
     ap.add_argument("--h", type=float, default=2.0, help="upsetting case: element size")
     ap.add_argument("--cases", default="roll,upsetting")
     a = ap.parse_args()

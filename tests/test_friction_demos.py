@@ -65,8 +65,19 @@ def test_upsetting_tresca_below_upper_bound(upsetting, mbar):
     r = upsetting[mbar]
     p, ub = r["p_mean"][-1], r["upper_bound"][-1]
     assert 1.0 < p < ub
-    # measured: within 5 % of the bound for this short billet (d/h = 2)
     _say(f"m = {mbar}: FE {p:.4f}, UB {ub:.4f}, FE/UB - 1 = {p / ub - 1:+.2%}")
+
+
+@pytest.mark.parametrize("mbar", [0.1, 0.3, pytest.param(1.0, marks=pytest.mark.xfail(
+    strict=True, reason="measured FE/UB - 1 = -9.2 % at m = 1 (d/h = 2, 10 %; -15.7 % for the "
+    "demo's d/h = 4/3 at 30 %): the homogeneous-field bound ignores the barrelling that strong "
+    "friction causes (the FE solution is below the bound, as the bound theorem requires, but "
+    "not within 5 %)"))])
+def test_upsetting_tresca_within_5_percent_of_bound(upsetting, mbar):
+    """Short billet (d/h = 2): the FE mean pressure within 5 % of the upper bound."""
+    r = upsetting[mbar]
+    p, ub = r["p_mean"][-1], r["upper_bound"][-1]
+    assert abs(p / ub - 1.0) < 0.05
 
 
 def test_upsetting_pressure_increases_with_friction(upsetting):
