@@ -20,6 +20,28 @@ def box_mesh(comm, L=(1.0, 1.0, 1.0), n=(4, 4, 4), perturb=0.0, seed=0):
     return msh
 
 
+class FakeBoundary:
+    """Duck-typed ContactBoundary holding plain arrays (no dolfinx): n nodes with random areas,
+    velocities read from a flat array."""
+
+    def __init__(self, n, d=3, seed=0):
+        rng = np.random.default_rng(seed)
+        self.comm = MPI.COMM_SELF
+        self.gdim = d
+        self.areas = 0.5 + rng.random(n)
+        self.vertices = np.arange(n)
+        self.dofs = np.arange(n * d).reshape(n, d)
+
+    def __len__(self):
+        return len(self.areas)
+
+    def velocities(self, w):
+        return np.asarray(w).reshape(-1, self.gdim)
+
+    def update_areas(self):
+        pass
+
+
 def gather_by_position(comm, x, values, decimals=9):
     """Gather (position, value) pairs on all ranks, unique by position, sorted."""
     xs = np.concatenate(comm.allgather(np.asarray(x)))

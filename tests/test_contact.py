@@ -15,31 +15,11 @@ from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Cone, Cylinder, Plane, Sphere
 
+from helpers import FakeBoundary as _FakeBoundary
 from helpers import gather_by_position
 
 
 # ----------------------------------------------------------------------------- unit level
-class _FakeBoundary:
-    """Duck-typed ContactBoundary holding plain arrays (no dolfinx)."""
-
-    def __init__(self, n, d=3, seed=0):
-        rng = np.random.default_rng(seed)
-        self.comm = MPI.COMM_SELF
-        self.gdim = d
-        self.areas = 0.5 + rng.random(n)
-        self.vertices = np.arange(n)
-        self.dofs = np.arange(n * d).reshape(n, d)
-
-    def __len__(self):
-        return len(self.areas)
-
-    def velocities(self, w):
-        return w.reshape(-1, self.gdim)
-
-    def update_areas(self):
-        pass
-
-
 class _FakeSim:
     def __init__(self, kin, w_prev):
         self.kinematics = kin

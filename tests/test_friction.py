@@ -14,6 +14,8 @@ from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic, NortonHoff
 from fxcontact.tools.analytic import Cylinder, Plane, Sphere
 
+from helpers import FakeBoundary as _FakeBoundary
+
 
 def _random_case(n, law, seed=0, d=3):
     rng = np.random.default_rng(seed)
@@ -118,25 +120,6 @@ def test_kernel_implicit_coulomb_jacobian():
 
 
 # ------------------------------------------------------------------ through NodalContact
-class _FakeBoundary:
-    def __init__(self, n, d=3, seed=0):
-        rng = np.random.default_rng(seed)
-        self.comm = MPI.COMM_SELF
-        self.gdim = d
-        self.areas = 0.5 + rng.random(n)
-        self.vertices = np.arange(n)
-        self.dofs = np.arange(n * d).reshape(n, d)
-
-    def __len__(self):
-        return len(self.areas)
-
-    def velocities(self, w):
-        return np.asarray(w).reshape(-1, self.gdim)
-
-    def update_areas(self):
-        pass
-
-
 class _FakeSim:
     def __init__(self, material, w):
         self.kinematics = CartesianUpdate()
@@ -184,6 +167,20 @@ def _contact_case(tool, law, scheme, mode, seed=3):
     return c, v
 
 
+def _assert_jacobian_fd(c, v, K, eps=1e-6):
+    """K equals the central finite difference of the contact + friction residual at the nodes
+    away from the contact kink h = 0."""
+    K_fd = np.zeros_like(K)
+    for a in range(3):
+        e = np.zeros_like(v)
+        e[:, a] = eps
+        K_fd[:, :, a] = (c.evaluate((v + e).ravel(), False).residual
+                         - c.evaluate((v - e).ravel(), False).residual) / (2 * eps)
+    c.evaluate(v.ravel(), False)
+    far = np.abs(c._h) > 1e-3
+    assert np.linalg.norm((K - K_fd)[far]) <= 1e-6 * np.linalg.norm(K[far])
+
+
 @pytest.mark.parametrize("mode", ["explicit", "implicit"])
 @pytest.mark.parametrize("law", list(LAWS))
 @pytest.mark.parametrize("tool", list(TOOLS))
@@ -197,16 +194,7 @@ def test_contact_friction_jacobian_fd(tool, law, mode):
     assert np.any(c._branch > 0)
     if law == "coulomb":
         assert {1, 2} <= set(c._branch.tolist())
-    eps = 1e-6
-    K_fd = np.zeros_like(K)
-    for a in range(3):
-        e = np.zeros_like(v)
-        e[:, a] = eps
-        K_fd[:, :, a] = (c.evaluate((v + e).ravel(), False).residual
-                         - c.evaluate((v - e).ravel(), False).residual) / (2 * eps)
-    c.evaluate(v.ravel(), False)
-    far = np.abs(c._h) > 1e-3       # away from the contact kink h = 0
-    assert np.linalg.norm((K - K_fd)[far]) <= 1e-6 * np.linalg.norm(K[far])
+    _assert_jacobian_fd(c, v, K)
     # friction force tangential to the tool, against the slip relative to the tool surface
     nrm = c._cur_proj.normal
     assert np.allclose(np.einsum("ni,ni->n", c._rf, nrm), 0.0, atol=1e-12)
@@ -219,16 +207,7 @@ def test_implicit_scheme_plane_fd(law):
     of contact + implicit friction."""
     c, v = _contact_case("plane", LAWS[law], "implicit", "implicit", seed=7)
     K = c.evaluate(v.ravel(), True).jacobian
-    eps = 1e-6
-    K_fd = np.zeros_like(K)
-    for a in range(3):
-        e = np.zeros_like(v)
-        e[:, a] = eps
-        K_fd[:, :, a] = (c.evaluate((v + e).ravel(), False).residual
-                         - c.evaluate((v - e).ravel(), False).residual) / (2 * eps)
-    c.evaluate(v.ravel(), False)
-    far = np.abs(c._h) > 1e-3
-    assert np.linalg.norm((K - K_fd)[far]) <= 1e-6 * np.linalg.norm(K[far])
+    _assert_jacobian_fd(c, v, K)
 
 
 def test_rotating_tool_slip_velocity():
