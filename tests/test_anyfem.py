@@ -354,3 +354,19 @@ def test_ranks_agree():
     assert np.allclose(x1, x2, atol=1e-12)
     assert np.linalg.norm(f1 - f2) <= 1e-8 * np.linalg.norm(f2)
     assert np.max(np.abs(u1 - u2)) <= 1e-8 * np.max(np.abs(u2))
+
+
+def test_hyperelastic_demo_small():
+    """The demo's neo-Hookean block at a small size: dolfinx's NewtonSolver and the SNES
+    callbacks give the same ball force (1e-8), the block is pressed 30 % of its height, the
+    ball force grows with the indentation, and the penalty penetration stays below 2 % of the
+    indentation."""
+    from helpers import load_demo
+    demo = load_demo("demo_hyperelastic_contact")
+    r1 = demo.run("newton", n=6, n_steps=3)
+    r2 = demo.run("snes", n=6, n_steps=3)
+    assert abs(r2["force"] / r1["force"] - 1.0) <= 1e-8
+    assert r1["u_z_min"] < -0.28
+    forces = [row["force"] for row in r1["rows"]]
+    assert forces[0] > 0 and np.all(np.diff(forces) > 0)
+    assert r1["penetration"] < 0.02 * 0.3
