@@ -21,8 +21,8 @@ quadratic end of the convergence. Each node is handled against the tool
 it penetrates most. Convergence additionally requires an unchanged active set (and, for implicit
 schemes, unchanged projected features of faceted tools).
 
-**Displacement formulation** (``formulation="displacement"``, for a dolfinx problem whose unknown
-is the total displacement u of a P1 field, mesh not moved). The gap is written on the positions
+**Displacement formulation** (THEORY §3.7; ``formulation="displacement"``, for a dolfinx
+problem whose unknown is the total displacement u of a P1 field, mesh not moved). The gap is written on the positions
 at the end of the load step, X = X_ref + u, against the tools at the step's end time, with the
 same schemes. Over a load step t → t + Δt starting from uᵗ (positions xᵗ = X_ref + uᵗ), the
 nodal terms are those of the velocity form with v = (u − uᵗ)/Δt — then X = xᵗ + Δt v — and the
