@@ -257,8 +257,12 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
         height=80.0, refine=0.4, growth=0.15, scheme="implicit", penalty=None, beta=1e4, n_steps=3,
         tool="analytic", tool_facet_size=1.0, tool_normals="nvv",
         output_dir="results/hertz_sphere", picture=True, progress=True,
-        comm=MPI.COMM_WORLD) -> dict:
+        comm=MPI.COMM_WORLD, formulation="mixed") -> dict:
     """Indent the block by ``indentation`` with the sphere in ``n_steps`` increments.
+
+    ``formulation="mixed"`` (default) is fxcontact's MINI velocity–pressure Simulation;
+    ``formulation="p1"`` is a plain P1-displacement dolfinx problem with the same contact
+    (:func:`run_p1`, displacement form, same penalty, same mesh).
 
     Args:
         radius: sphere radius R [mm]; E [MPa], nu: block material.
@@ -285,6 +289,14 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
         ``tool_projection_fallbacks``) and, for faceted tools, ``tool_triangles``,
         ``tool_divisions``, ``tool_facet_size``.
     """
+    if formulation == "p1":
+        return run_p1(radius=radius, E=E, nu=nu, indentation=indentation, h_fine=h_fine, h=h,
+                      width=width, height=height, refine=refine, growth=growth, scheme=scheme,
+                      beta=beta, n_steps=n_steps, tool=tool, tool_facet_size=tool_facet_size,
+                      tool_normals=tool_normals, output_dir=output_dir, picture=picture,
+                      comm=comm)
+    if formulation != "mixed":
+        raise ValueError(f"formulation must be 'mixed' or 'p1', got {formulation!r}")
     t_start = time.perf_counter()
     if not (0 < indentation < 0.5 * radius):
         raise ValueError("indentation must be in (0, R/2)")
@@ -342,6 +354,143 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
         if picture:
             out["png"] = plot_profile(out, os.path.join(output_dir, "hertz_sphere.png"))
     out["wall_time"] = time.perf_counter() - t_start
+    out["formulation"] = "mixed"
+    return out
+
+
+# %% [markdown]
+# ## The same test in P1 displacement (a plain dolfinx problem plus fxcontact's contact)
+#
+# For compressible elasticity the mixed velocity–pressure machinery is not needed: the
+# displacement u of a ``VectorFunctionSpace(msh, ("Lagrange", 1))`` and the linear elastic
+# residual ∫ σ(u):ε(v) dx, written the dolfinx way, solved by dolfinx's own ``NewtonSolver``.
+# fxcontact adds the nodal contact in displacement form (:class:`fxcontact.ContactProblem`,
+# ``NodalContact(..., formulation="displacement")``): the gap is written on X = X_ref + u with
+# the sphere at the end of each load step, with the gap stiffness k = β E*/h_fine — the
+# same penalty as the mixed run (ρ = β dt E*/h_fine on the velocity). Same mesh, same nodes,
+# same areas: the two differ only by the volume discretisation (P1 against MINI with a mixed
+# pressure). ``--formulation both`` prints them side by side.
+
+# %%
+def run_p1(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, width=80.0,
+           height=80.0, refine=0.4, growth=0.15, scheme="implicit", beta=1e4, n_steps=3,
+           tool="analytic", tool_facet_size=1.0, tool_normals="nvv",
+           output_dir="results/hertz_sphere", picture=True, comm=MPI.COMM_WORLD) -> dict:
+    """:func:`run` in P1 displacement; returns the same keys (no deformed-mesh picture)."""
+    import ufl
+    import dolfinx.fem
+    import dolfinx.fem.petsc
+    import dolfinx.mesh
+    import dolfinx.nls.petsc
+    from petsc4py import PETSc
+    import fxcontact as fx
+
+    t_start = time.perf_counter()
+    if not (0 < indentation < 0.5 * radius):
+        raise ValueError("indentation must be in (0, R/2)")
+    msh, _, ft = graded_block(comm, width, height, h_fine, refine, growth, h)
+    # --- the dolfinx problem: linear elasticity in P1 displacement -----------------------
+    V = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+    u, v = dolfinx.fem.Function(V, name="displacement"), ufl.TestFunction(V)
+    mu, lmbda = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+    eps = lambda w: ufl.sym(ufl.grad(w))  # noqa: E731
+    sigma = 2 * mu * eps(u) + lmbda * ufl.tr(eps(u)) * ufl.Identity(3)
+    F = ufl.inner(sigma, eps(v)) * ufl.dx
+    fdim = 2
+    bcs = []
+    for name, comp in (("xmin", 0), ("ymin", 1), ("zmin", 2)):
+        facets = ft.indices[ft.values == BLOCK_TAGS[name]]
+        dofs = dolfinx.fem.locate_dofs_topological(V.sub(comp), fdim, facets)
+        bcs.append(dolfinx.fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V.sub(comp)))
+    # --- the fxcontact lines --------------------------------------------------------------
+    mat = LinearElastic(E, nu)
+    indenter, tool_info = make_tool(tool, radius, indentation, tool_facet_size, tool_normals)
+    contact = fx.NodalContact(fx.ContactBoundary(V, ft, BLOCK_TAGS["zmax"]), indenter,
+                              scheme=scheme, formulation="displacement", beta=beta,
+                              modulus=mat.plane_strain_modulus, element_size=h_fine)
+    problem = fx.ContactProblem(F, u, bcs, contributors=[contact])
+    solver = dolfinx.nls.petsc.NewtonSolver(comm, problem)
+    # dolfinx's "residual" test is relative to the first Newton step's norm (0.5.2): on a
+    # stiff elastic problem it stalls at the round-off floor; test the Newton step instead
+    solver.convergence_criterion = "incremental"
+    solver.rtol, solver.atol = 1e-9, 1e-14
+    problem.set_solver(solver)
+    ksp = solver.krylov_solver
+    opts, pfx = PETSc.Options(), ksp.getOptionsPrefix()
+    for key, val in {"ksp_type": "preonly", "pc_type": "lu",
+                     "pc_factor_mat_solver_type": "mumps"}.items():
+        opts[pfx + key] = val
+    ksp.setFromOptions()
+    newton = 0
+    for k in range(1, n_steps + 1):
+        problem.begin_step(k / n_steps)       # the sphere at t = k/n: indentation k δ/n
+        its, converged = solver.solve(u)
+        newton += its
+    problem.end_step()
+    # --- outputs (as run) -----------------------------------------------------------------
+    E_star = mat.plane_strain_modulus
+    P = 4.0 * float(contact.tool_force(0)[2])
+    P_h, a_h, p0_h = hertz_sphere(indentation, radius, E_star)
+    b = contact.boundary
+    xb = b.mesh_positions()
+    loc = np.c_[np.hypot(xb[:, 0], xb[:, 1]), contact.pressures(), b.areas]
+    allv = np.concatenate(comm.allgather(loc))
+    allv = allv[np.argsort(allv[:, 0], kind="stable")]
+    rs, ps, Ss = allv[:, 0], allv[:, 1], allv[:, 2]
+    active = ps > 0
+    a_fem = math.sqrt(4.0 * float(np.sum(Ss[active])) / math.pi)
+    # bottom reaction: the internal forces at the bottom's u_z dofs (owned), summed
+    r = dolfinx.fem.petsc.assemble_vector(problem.L)
+    r.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    bdofs = dolfinx.fem.locate_dofs_topological(
+        V.sub(2), fdim, ft.indices[ft.values == BLOCK_TAGS["zmin"]])
+    bdofs = bdofs[bdofs < V.dofmap.index_map.size_local * 3]
+    Rz = comm.allreduce(float(np.sum(r.getArray(readonly=True)[bdofs])), op=MPI.SUM)
+    r.destroy()
+    diag = contact.diagnostics()
+    n_cells = comm.allreduce(msh.topology.index_map(3).size_local, op=MPI.SUM)
+    out = {"force": P, "contact_radius": a_fem,
+           "contact_radius_bounds": (float(np.max(rs[active], initial=0.0)),
+                                     float(np.min(rs[~active], initial=np.inf))),
+           "p_max": float(np.max(ps)), "hertz_force": P_h, "hertz_contact_radius": a_h,
+           "hertz_p_max": p0_h, "E_star": E_star, "r": rs, "p": ps, "nodal_area": Ss,
+           "bottom_reaction": 4.0 * Rz, "indentation": indentation, "radius": radius,
+           "penetration": diag["contact_penetration_true"], "active_nodes": int(np.sum(active)),
+           "h_fine": h_fine, "cells": n_cells,
+           "dofs": V.dofmap.index_map.size_global * V.dofmap.index_map_bs, "history": [],
+           "png": None, "png_deformed": None, "tool": tool, "newton_iterations": newton,
+           "fallbacks": int(diag["contact_fallbacks"]),
+           "tool_projection_fallbacks": comm.allreduce(
+               int(getattr(indenter, "total_fallbacks", 0)), op=MPI.SUM),
+           "formulation": "p1", **tool_info}
+    if output_dir is not None and comm.rank == 0:
+        os.makedirs(output_dir, exist_ok=True)
+        np.savetxt(os.path.join(output_dir, "profile_p1.csv"), np.c_[rs, ps, Ss],
+                   delimiter=",", header="r,p,S", comments="")
+        if picture:
+            out["png"] = plot_profile(out, os.path.join(output_dir, "hertz_sphere_p1.png"))
+    out["wall_time"] = time.perf_counter() - t_start
+    return out
+
+
+def compare_formulations(**params) -> dict:
+    """The mixed (MINI velocity–pressure) and the P1-displacement runs on the same mesh, one
+    after the other in the same process; returns ``{"mixed": …, "p1": …, "table": str}``."""
+    out = {f: run(formulation=f, **params) for f in ("mixed", "p1")}
+    first = out["mixed"]
+    lines = [f"Hertz (δ = {1e3 * first['indentation']:.1f} µm): P = {first['hertz_force']:.1f} "
+             f"N, p0 = {first['hertz_p_max']:.0f} MPa, a = {first['hertz_contact_radius']:.4f} "
+             f"mm; {first['cells']} tetrahedra, h_fine = {first['h_fine']} mm",
+             f"{'formulation':12s}{'dofs':>9s}{'force [N]':>11s}{'vs H':>8s}{'p_max':>8s}"
+             f"{'vs H':>8s}{'a [mm]':>8s}{'vs H':>8s}{'Newton':>7s}{'time [s]':>9s}"]
+    for f in ("mixed", "p1"):
+        r = out[f]
+        lines.append(f"{f:12s}{r['dofs']:9d}{r['force']:11.2f}"
+                     f"{r['force'] / r['hertz_force'] - 1:8.2%}{r['p_max']:8.0f}"
+                     f"{r['p_max'] / r['hertz_p_max'] - 1:8.2%}{r['contact_radius']:8.4f}"
+                     f"{r['contact_radius'] / r['hertz_contact_radius'] - 1:8.2%}"
+                     f"{r['newton_iterations']:7d}{r['wall_time']:9.1f}")
+    out["table"] = "\n".join(lines)
     return out
 
 
@@ -515,6 +664,9 @@ if __name__ == "__main__":
                     help="nodal normals of the Nagata patches")
     ap.add_argument("--compare", action="store_true",
                     help="run the analytic, Nagata and flat tools and compare them")
+    ap.add_argument("--formulation", default="mixed", choices=("mixed", "p1", "both"),
+                    help="MINI velocity-pressure (fxcontact Simulation), P1 displacement (a "
+                         "dolfinx problem + ContactProblem), or both side by side")
     ap.add_argument("--output", default="results/hertz_sphere")
     add_verbosity_arguments(ap)
     args = ap.parse_args()
@@ -527,9 +679,16 @@ if __name__ == "__main__":
             print(res["table"])
             print(f"output: {res['png']}")
         raise SystemExit(0)
+    if args.formulation == "both":
+        res = compare_formulations(h_fine=args.size, scheme=args.scheme, tool=args.tool,
+                                   tool_facet_size=args.tool_facet_size,
+                                   tool_normals=args.tool_normals, output_dir=args.output)
+        if MPI.COMM_WORLD.rank == 0:
+            print(res["table"])
+        raise SystemExit(0)
     res = run(h_fine=args.size, scheme=args.scheme, tool=args.tool,
               tool_facet_size=args.tool_facet_size, tool_normals=args.tool_normals,
-              output_dir=args.output)
+              output_dir=args.output, formulation=args.formulation)
     if MPI.COMM_WORLD.rank == 0:
         lo, hi = res["contact_radius_bounds"]
         print(f"mesh: {res['cells']} tetrahedra, {res['dofs']} dofs, h_fine = {res['h_fine']} "
@@ -547,3 +706,4 @@ if __name__ == "__main__":
         print(f"active/inactive node radii {lo:.4f}..{hi:.4f}; a/R = "
               f"{res['hertz_contact_radius'] / res['radius']:.3f}")
         print(f"outputs: {res['png']}, {res['png_deformed']}")
+        print(f"formulation: {res['formulation']}")

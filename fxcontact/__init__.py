@@ -49,6 +49,7 @@ _API = {
     "SCHEMES": ("contact.nodal", "names of the contact time-integration schemes (§3)"),
     "penalty_from_beta": ("contact.nodal", "penalty rho from the dimensionless beta (§2.5)"),
     "FRICTION_MODES": ("contact.nodal", "implicit or explicit friction (§9.4)"),
+    "FORMULATIONS": ("contact.nodal", "contact in velocities (Simulation) or displacements"),
     "Frictionless": ("contact.friction", "no tangential stress (the default law, §9)"),
     "Coulomb": ("contact.friction", "Coulomb friction limited by Tresca (§9.2)"),
     "Tresca": ("contact.friction", "Tresca friction factor law tau = mbar k (§9.2)"),
@@ -99,6 +100,8 @@ _API = {
     "NewtonSolver": ("solver", "SNES Newton with a stable-active-set test (§3.6)"),
     "SolveInfo": ("solver", "outcome of a Newton solve"),
     "NonlinearProblem": ("petsc", "UFL residual/Jacobian plus nodal terms, MPI-safe"),
+    "ContactProblem": ("petsc", "dolfinx NonlinearProblem plus nodal contact: your own "
+                       "NewtonSolver or SNES"),
     "NodalTerms": ("petsc", "per-vertex residual entries and 3x3 Jacobian blocks"),
     "ContributorError": ("petsc", "error raised by a nodal contributor on any rank"),
     # outputs and console

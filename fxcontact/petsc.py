@@ -28,7 +28,7 @@ import dolfinx.fem.petsc
 
 from fxcontact import compat
 
-__all__ = ["NodalTerms", "NonlinearProblem", "Timers", "add_nodal_residual",
+__all__ = ["NodalTerms", "NonlinearProblem", "ContactProblem", "Timers", "add_nodal_residual",
            "add_nodal_jacobian", "ContributorError"]
 
 log = logging.getLogger(__name__)
@@ -238,3 +238,216 @@ class NonlinearProblem:
 
 def owned_sum(comm: MPI.Comm, value) -> float:
     return comm.allreduce(value, op=MPI.SUM)
+
+
+class ContactProblem(dolfinx.fem.petsc.NonlinearProblem):
+    """dolfinx's ``NonlinearProblem`` plus fxcontact's nodal terms: contact in your own solver.
+
+    A drop-in replacement of ``dolfinx.fem.petsc.NonlinearProblem(F, u, bcs, J)`` (same
+    constructor, plus ``contributors``) for dolfinx's ``NewtonSolver``, with petsc4py SNES
+    callbacks too. At every residual/Jacobian evaluation the contributors (e.g. a
+    :class:`~fxcontact.contact.nodal.NodalContact` with ``formulation="displacement"`` on the
+    space of ``u``) are evaluated at the current iterate — the contact is re-projected at every
+    Newton iteration — and their terms are added in the order of this module's docstring.
+
+    Load steps: call :meth:`begin_step` before each solve (the tools are taken at the step's end
+    time). The active-set convergence check (THEORY §3.6): Newton may only stop at an iterate
+    whose contact state equals that of the previous iterate.
+
+    * dolfinx ``NewtonSolver``: ``problem.set_solver(solver)``; the solver's tolerances are then
+      held at 0 (no convergence) at the iterates where the active set changed, and restored at
+      the next stable iterate (dolfinx 0.5 has no user convergence test).
+    * SNES: ``snes.setFunction(problem.snes_residual, b)``,
+      ``snes.setJacobian(problem.snes_jacobian, A)`` and
+      ``snes.setConvergenceTest(problem.snes_converged)`` (the SNES tolerances plus the stable
+      active set); :meth:`snes_callbacks` returns the three.
+
+    Args:
+        F, u, bcs, J, form_compiler_params, jit_params: as dolfinx's ``NonlinearProblem``.
+        contributors: nodal contributors (``evaluate(u, jacobian) -> NodalTerms``, ``stable()``,
+            optional ``begin_step(t, dt, u)``, ``begin_solve()``, ``end_step(u)``).
+    """
+
+    def __init__(self, F, u, bcs=None, J=None, contributors: Sequence = (),
+                 form_compiler_params=None, jit_params=None):
+        super().__init__(F, u, bcs=list(bcs or []), J=J,
+                         form_compiler_params=dict(form_compiler_params or {}),
+                         jit_params=dict(jit_params or {}))
+        self.u = u
+        self.contributors = list(contributors)
+        self.comm = u.function_space.mesh.comm
+        self.timers = Timers()
+        V = u.function_space
+        n_local = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
+        self.bc_marker = np.zeros(n_local * V.dofmap.index_map_bs, dtype=bool)
+        for bc in self.bcs:
+            self.bc_marker[bc.dof_indices()[0]] = True
+        self.t = 0.0
+        self.error: Optional[str] = None
+        self.stable_iterate = False
+        self.iterations_unstable = 0
+        self._solver = None
+        self._tolerances = None
+        self._started = False
+
+    # ------------------------------------------------------------------ load steps
+    def begin_step(self, t: Optional[float] = None):
+        """Start a load step ending at time ``t`` (default: the previous time + 1, a load-step
+        counter for static tools): the contributors take the current ``u`` as the step's
+        start and the tools at ``t``. Collective."""
+        t_new = self.t + 1.0 if t is None else float(t)
+        dt = t_new - self.t
+        if not dt > 0:
+            raise ValueError(f"begin_step: the time must increase (from {self.t} to {t_new})")
+        if self._started:
+            self.end_step()
+        self.u.x.scatter_forward()
+        for c in self.contributors:
+            if hasattr(c, "begin_step"):
+                c.begin_step(self.t, dt, self.u)
+            elif hasattr(c, "begin_solve"):
+                c.begin_solve()
+        self.t = t_new
+        self.stable_iterate = False
+        self.error = None
+        self._started = True
+
+    def end_step(self):
+        """Close the current load step (penetration diagnostics; also done by the next
+        :meth:`begin_step`)."""
+        for c in self.contributors:
+            if hasattr(c, "end_step"):
+                c.end_step(self.u)
+        self._started = False
+
+    def stable(self) -> bool:
+        """Ask every contributor whether its state is unchanged since its previous call
+        (collective; once per Newton iteration)."""
+        return all([c.stable() for c in self.contributors])
+
+    # ------------------------------------------------------------------ shared assembly
+    def _sync(self, x: PETSc.Vec):
+        if x.handle != self.u.vector.handle:  # a line-search work vector (SNES)
+            x.copy(self.u.vector)
+        self.u.x.scatter_forward()
+
+    def _evaluate(self, jacobian: bool) -> Optional[List[NodalTerms]]:
+        if not self._started and self.contributors:
+            raise RuntimeError("ContactProblem: call begin_step() before solving (it starts the "
+                               "load step of the contact)")
+        terms, msg = [], None
+        with self.timers("contact"):
+            try:
+                for c in self.contributors:
+                    terms.append(c.evaluate(self.u, jacobian))
+            except ContributorError as e:
+                msg = str(e)
+        bad = [m for m in self.comm.allgather(msg) if m is not None]
+        if bad:
+            self.error = bad[0]
+            return None
+        return terms
+
+    def _residual(self, x: PETSc.Vec, b: PETSc.Vec):
+        self._sync(x)
+        terms = self._evaluate(jacobian=False)
+        with self.timers("assembly"):
+            with b.localForm() as bl:
+                bl.set(0.0)
+            dolfinx.fem.petsc.assemble_vector(b, self.L)
+            dolfinx.fem.petsc.apply_lifting(b, [self.a], bcs=[self.bcs], x0=[self.u.vector],
+                                            scale=-1.0)
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        if terms is None:  # a contributor refused this iterate: poison the residual
+            b.set(np.nan)
+            return
+        with self.timers("contact"):
+            for t in terms:
+                add_nodal_residual(b, t)
+        with self.timers("assembly"):
+            dolfinx.fem.petsc.set_bc(b, self.bcs, self.u.vector, -1.0)
+
+    def _jacobian(self, x: PETSc.Vec, A: PETSc.Mat):
+        self._sync(x)
+        terms = self._evaluate(jacobian=True)
+        A.zeroEntries()
+        if terms:
+            with self.timers("contact"):
+                for t in terms:
+                    add_nodal_jacobian(A, t, self.bc_marker)
+        with self.timers("assembly"):
+            dolfinx.fem.petsc.assemble_matrix(A, self.a, bcs=self.bcs)
+            A.assemble()
+        if terms is None:
+            raise ContributorError(self.error)
+
+    # ------------------------------------------------------------------ dolfinx NewtonSolver
+    def set_solver(self, solver):
+        """Let the active-set check act on a dolfinx ``NewtonSolver`` built on this problem."""
+        self._solver = solver
+        self._tolerances = None
+
+    def F(self, x: PETSc.Vec, b: PETSc.Vec):
+        """Residual for dolfinx's ``NewtonSolver`` (called once per Newton iteration, just
+        before its convergence test): UFL residual plus the nodal terms at the iterate."""
+        self._residual(x, b)
+        self.stable_iterate = self.stable() if self.contributors else True
+        s = self._solver
+        if s is None:
+            return
+        if not self.stable_iterate:
+            self.iterations_unstable += 1
+            if self._tolerances is None:
+                self._tolerances = (s.atol, s.rtol)
+            s.atol, s.rtol = 0.0, 0.0      # the test of this iterate cannot pass
+        elif self._tolerances is not None:
+            s.atol, s.rtol = self._tolerances
+            self._tolerances = None
+
+    def J(self, x: PETSc.Vec, A: PETSc.Mat):
+        """Jacobian for dolfinx's ``NewtonSolver``: nodal blocks, then the UFL assembly."""
+        self._jacobian(x, A)
+
+    def restore_tolerances(self):
+        """Give the solver back its tolerances (if a solve ended while they were held)."""
+        if self._solver is not None and self._tolerances is not None:
+            self._solver.atol, self._solver.rtol = self._tolerances
+            self._tolerances = None
+
+    # ------------------------------------------------------------------ petsc4py SNES
+    def snes_residual(self, snes, x: PETSc.Vec, b: PETSc.Vec):
+        """SNES residual callback."""
+        self._residual(x, b)
+
+    def snes_jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat):
+        """SNES Jacobian callback."""
+        self._jacobian(x, A)
+
+    def snes_converged(self, snes, it: int, norms):
+        """SNES convergence test: the SNES tolerances (``snes.getTolerances()``: rtol on the
+        residual, atol, stol on the step, max_it) and a stable contact state."""
+        xnorm, snorm, fnorm = norms
+        rtol, atol, stol, max_it = snes.getTolerances()
+        if not np.isfinite(fnorm):
+            return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
+        if it == 0:
+            self._f0 = fnorm
+        stable = self.stable() if self.contributors else True
+        self.stable_iterate = stable
+        if stable:
+            if fnorm <= atol:
+                return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
+            if it > 0 and fnorm <= rtol * self._f0:
+                return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_RELATIVE
+            if it > 0 and snorm <= stol * max(xnorm, 1e-300):
+                return PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE
+        else:
+            self.iterations_unstable += 1
+        if it >= max_it:
+            return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
+        return PETSc.SNES.ConvergedReason.ITERATING
+
+    def snes_callbacks(self):
+        """(residual, jacobian, convergence test) for ``snes.setFunction``,
+        ``snes.setJacobian`` and ``snes.setConvergenceTest``."""
+        return self.snes_residual, self.snes_jacobian, self.snes_converged

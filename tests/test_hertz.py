@@ -122,3 +122,50 @@ def test_hertz_sphere_accuracy():
     assert abs(res["p_max"] / res["hertz_p_max"] - 1.0) <= 0.05, res["p_max"]
     assert abs(res["contact_radius"] - res["hertz_contact_radius"]) <= h_fine
     assert abs(res["bottom_reaction"] - res["force"]) <= 1e-5 * res["force"]
+
+
+# ------------------------------------------------------------------ P1 displacement (dolfinx)
+
+def test_hertz_sphere_p1_small(outdir):
+    """The sphere in P1 displacement (a plain dolfinx problem + ContactProblem), reduced size
+    (h_fine = 50 µm, growth 0.15, 20 mm block): the reduced-size tolerances of the mixed test
+    (force within +10 %, p_max within 6 %, radius within one element; measured +4.7 %, +5.4 %);
+    equilibrium with the bottom reaction, negligible penalty penetration."""
+    demo = load_demo("demo_hertz_sphere")
+    h_fine = 0.05
+    res = demo.run(h_fine=h_fine, growth=0.15, width=20.0, height=20.0, h=4.0, n_steps=2,
+                   output_dir=outdir, progress=False, formulation="p1")
+    assert res["formulation"] == "p1"
+    P, Ph = res["force"], res["hertz_force"]
+    assert abs(res["bottom_reaction"] - P) <= 1e-5 * P
+    assert 0.98 < P / Ph < 1.10, (P, Ph)
+    assert abs(res["p_max"] / res["hertz_p_max"] - 1.0) < 0.06
+    assert abs(res["contact_radius"] - res["hertz_contact_radius"]) <= h_fine
+    assert res["penetration"] < 1e-3 * res["indentation"]
+    if MPI.COMM_WORLD.rank == 0:
+        assert os.path.getsize(res["png"]) > 10_000
+
+
+def test_hertz_sphere_p1_ranks():
+    """P1 displacement on all ranks and on one rank (same gmsh mesh): the same force and
+    p_max to 1e-8 (serially the two runs coincide)."""
+    demo = load_demo("demo_hertz_sphere")
+    kw = dict(h_fine=0.1, growth=0.3, width=10.0, height=10.0, h=3.0, n_steps=2,
+              output_dir=None, progress=False, formulation="p1")
+    r2 = demo.run(comm=MPI.COMM_WORLD, **kw)
+    r1 = demo.run(comm=MPI.COMM_SELF, **kw)
+    assert r1["active_nodes"] == r2["active_nodes"] > 3
+    for key in ("force", "p_max", "contact_radius"):
+        assert abs(r2[key] / r1[key] - 1.0) <= 1e-8, (key, r1[key], r2[key])
+
+
+def test_hertz_sphere_p1_accuracy():
+    """Default sphere mesh (h_fine = 25 µm) in P1 displacement: the acceptance criteria of the
+    mixed demo — force within 3 %, p_max within 5 %, contact radius within one element
+    (measured +2.8 %, +4.5 %)."""
+    demo = load_demo("demo_hertz_sphere")
+    res = demo.run(output_dir=None, picture=False, progress=False, formulation="p1")
+    assert abs(res["force"] / res["hertz_force"] - 1.0) <= 0.03, res["force"]
+    assert abs(res["p_max"] / res["hertz_p_max"] - 1.0) <= 0.05, res["p_max"]
+    assert abs(res["contact_radius"] - res["hertz_contact_radius"]) <= res["h_fine"]
+    assert abs(res["bottom_reaction"] - res["force"]) <= 1e-5 * res["force"]

@@ -1,8 +1,15 @@
-"""Contact boundary: boundary vertices, lumped nodal areas, vertex→velocity dofs, ownership.
+"""Contact boundary: boundary vertices, lumped nodal areas, vertex→dof maps, ownership.
 
-With a P1 velocity trace (MINI), the contact nodes are the boundary vertices and their weight is
+With a P1 trace of the unknown vector field (MINI velocity, or any vector P1 displacement or
+velocity), the contact nodes are the boundary vertices and their weight is
 ``S_n = ∫_Γ N_n dΓ`` (THEORY §1.3), assembled with a P1 test function on the selected facets so
 that contributions from all ranks are summed (each vertex is then handled by its owner only).
+
+The field can live in fxcontact's :class:`~fxcontact.spaces.MixedSpace` (its velocity) or in any
+dolfinx function space whose trace is P1: a ``VectorFunctionSpace(mesh, ("Lagrange", 1))``, or
+the vector P1 (or P1 ⊕ bubble) sub-space ``W.sub(i)`` of a mixed space. The dof maps are taken
+from that space; nodal values are read from (and nodal terms added to) a Function of the space
+itself, or of the parent mixed space for a sub-space.
 """
 
 from __future__ import annotations
@@ -23,33 +30,115 @@ import dolfinx.mesh
 from fxcontact import compat
 from fxcontact.spaces import MixedSpace, facets_with_tags
 
-__all__ = ["ContactBoundary"]
+__all__ = ["ContactBoundary", "p1_trace_check", "vertex_dof_map"]
 
 log = logging.getLogger(__name__)
 
 
+def _lagrange_degree(e):
+    """Polynomial degree of a scalar Lagrange element, or None if ``e`` is not Lagrange."""
+    fam = e.family()
+    if fam in ("Lagrange", "P", "CG", "Q"):
+        return e.degree()
+    return None
+
+
+def p1_trace_check(V):
+    """Why the vector field of the dolfinx space ``V`` cannot carry nodal contact, or None.
+
+    Nodal contact needs a vector field whose trace on the boundary is P1: the contact nodes are
+    the vertices and their weights the P1 lumped areas. Accepted: vector Lagrange of degree 1,
+    or P1 enriched with interior bubbles (MINI, the bubble vanishes on the boundary).
+    """
+    import ufl
+    e = V.ufl_element()
+    if not isinstance(e, ufl.VectorElement):
+        return (f"nodal contact needs a vector field (one dof per component at each vertex), got "
+                f"the element {e}")
+    sub = e.sub_elements()[0]
+    if isinstance(sub, ufl.EnrichedElement):
+        parts = list(getattr(sub, "_elements", ())) or list(sub.sub_elements())
+        lag = [p for p in parts if _lagrange_degree(p) is not None]
+        bub = [p for p in parts if p.family() == "Bubble"]
+        if len(lag) == 1 and len(bub) == len(parts) - 1 and _lagrange_degree(lag[0]) == 1:
+            return None
+    elif _lagrange_degree(sub) == 1:
+        return None
+    deg = sub.degree()
+    return (f"nodal contact needs a P1 trace of the field (vector Lagrange degree 1, or P1 + "
+            f"bubble), got {e} (degree {deg}): with higher-order Lagrange elements the "
+            f"boundary has nodes that are not vertices (edge/face nodes) and the row-sum lumped "
+            f"areas of P2 are zero at the vertices (THEORY §1.3); use a P1 field for the "
+            f"contact")
+
+
+def vertex_dof_map(V, msh):
+    """(num_vertices, gdim) dofs of each vector component at each local vertex, for a vector
+    space ``V`` with a P1 trace (blocked, or a sub-space of a mixed space: the indices are then
+    the parent's local dofs, unrolled), and the owned flag of each vertex."""
+    c2v = compat.cell_vertices(msh)
+    nv_cell = c2v.shape[1]
+    imap = msh.topology.index_map(0)
+    nverts = imap.size_local + imap.num_ghosts
+    gdim = msh.geometry.dim
+    ncomp = V.num_sub_spaces
+    if ncomp != gdim:
+        raise ValueError(f"nodal contact needs a vector field with gdim = {gdim} components, "
+                         f"the space has {ncomp}")
+    vd = np.full((nverts, gdim), -1, dtype=np.int32)
+    for k in range(gdim):
+        cd = compat.dofmap_array(V.sub(k))[:, :nv_cell]
+        vd[c2v.ravel(), k] = cd.ravel()
+    nown = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    return vd, np.all(vd < nown, axis=1)
+
+
 class ContactBoundary:
-    """Owned boundary vertices of some facets with their areas and velocity dofs.
+    """Owned boundary vertices of some facets with their areas and dofs.
 
     Args:
-        space: the :class:`~fxcontact.spaces.MixedSpace` (its velocity trace must be P1: MINI).
+        space: the :class:`~fxcontact.spaces.MixedSpace` (its velocity trace must be P1: MINI),
+            or any dolfinx vector function space with a P1 trace: ``VectorFunctionSpace(msh,
+            ("Lagrange", 1))``, or ``W.sub(i)`` of a mixed space ``W`` whose i-th field is
+            vector P1 or P1 ⊕ bubble. Other spaces (P2, scalar) raise a ValueError saying why.
         facet_tags: facet MeshTags, or None for the whole exterior boundary.
         tags: tag value(s) selecting the contact facets (required with ``facet_tags``).
 
     Attributes:
         vertices: (N,) local indices of the owned contact vertices.
-        dofs: (N, gdim) W-dofs of their velocity components.
+        dofs: (N, gdim) local dofs of their vector components, in the space of the Function
+            that holds the unknown (the mixed space for a sub-space).
         areas: (N,) lumped areas S_n on the current geometry (see :meth:`update_areas`).
+        mesh: the mesh.
     """
 
-    def __init__(self, space: MixedSpace, facet_tags=None, tags: Union[int, Sequence[int],
-                 None] = None):
-        if space.element != "mini":
-            raise ValueError(
-                "nodal contact needs a P1 velocity trace (element='mini'): with Taylor-Hood the "
-                "P2 row-sum lumping gives zero area to boundary vertices (THEORY §1.3)")
-        msh = space.mesh
+    def __init__(self, space, facet_tags=None, tags: Union[int, Sequence[int], None] = None):
+        if isinstance(space, MixedSpace):
+            if space.element != "mini":
+                raise ValueError(
+                    "nodal contact needs a P1 velocity trace (element='mini'): with Taylor-Hood "
+                    "the P2 row-sum lumping gives zero area to boundary vertices (THEORY §1.3)")
+            msh = space.mesh
+            vertex_dofs, vertex_owned = space.vertex_dofs, space.vertex_owned
+            self._gdim = space.gdim
+        elif isinstance(space, dolfinx.fem.FunctionSpace):
+            why = p1_trace_check(space)
+            if why is not None:
+                raise ValueError(why)
+            msh = space.mesh
+            tdim, gdim = msh.topology.dim, msh.geometry.dim
+            if tdim != gdim or msh.topology.cell_type not in (
+                    dolfinx.mesh.CellType.triangle, dolfinx.mesh.CellType.tetrahedron):
+                raise ValueError("nodal contact needs a simplex mesh (triangles or tetrahedra) "
+                                 f"of full dimension, got tdim={tdim}, gdim={gdim}")
+            vertex_dofs, vertex_owned = vertex_dof_map(space, msh)
+            self._gdim = gdim
+        else:
+            raise ValueError(f"space must be a fxcontact MixedSpace or a dolfinx FunctionSpace, "
+                             f"got {space!r}")
         self.space = space
+        self.mesh = msh
+        self.vertex_dofs = vertex_dofs
         self.comm = msh.comm
         tdim = msh.topology.dim
         fdim = tdim - 1
@@ -73,7 +162,7 @@ class ContactBoundary:
         Q1 = compat.function_space(msh, ("Lagrange", 1))
         c2v = compat.cell_vertices(msh)
         q1dofs = compat.dofmap_array(Q1)
-        nverts = space.vertex_dofs.shape[0]
+        nverts = vertex_dofs.shape[0]
         v2q = np.empty(nverts, dtype=np.int32)
         v2q[c2v.ravel()] = q1dofs[:, : c2v.shape[1]].ravel()
         self._area_form = compat.form(ufl.TestFunction(Q1) * ds)
@@ -81,17 +170,17 @@ class ContactBoundary:
         self._q1_of_vertex = v2q
         all_areas = self._assemble_areas()
         self.facets = np.asarray(facets, dtype=np.int32)
-        self.vertices = np.flatnonzero((all_areas > 0) & space.vertex_owned).astype(np.int32)
+        self.vertices = np.flatnonzero((all_areas > 0) & vertex_owned).astype(np.int32)
         self._q1_of_vertex = v2q[self.vertices]
-        self.dofs = space.vertex_dofs[self.vertices]
-        self.geometry_nodes = space.vertex_geometry[self.vertices]
+        self.dofs = vertex_dofs[self.vertices]
+        self.geometry_nodes = compat.entities_to_geometry(msh, 0, self.vertices).reshape(-1)
         self.update_areas()
         n = self.comm.allreduce(len(self.vertices), op=MPI.SUM)
         log.info("contact boundary: %d vertices, area %.4g", n, self.total_area())
 
     @property
     def gdim(self) -> int:
-        return self.space.gdim
+        return self._gdim
 
     def __len__(self) -> int:
         return len(self.vertices)
@@ -112,9 +201,9 @@ class ContactBoundary:
 
     def q1_dofs(self, Q1) -> np.ndarray:
         """Dofs of the contact vertices in a scalar P1 space ``Q1`` of the same mesh."""
-        c2v = compat.cell_vertices(self.space.mesh)
+        c2v = compat.cell_vertices(self.mesh)
         d = compat.dofmap_array(Q1)
-        v2q = np.empty(self.space.vertex_dofs.shape[0], dtype=np.int32)
+        v2q = np.empty(self.vertex_dofs.shape[0], dtype=np.int32)
         v2q[c2v.ravel()] = d[:, : c2v.shape[1]].ravel()
         return v2q[self.vertices]
 
@@ -122,9 +211,12 @@ class ContactBoundary:
         return self.comm.allreduce(float(np.sum(self.areas)), op=MPI.SUM)
 
     def velocities(self, w) -> np.ndarray:
-        """(N, gdim) nodal velocities of the contact vertices in the mixed Function ``w``."""
+        """(N, gdim) nodal values (velocities, or displacements) of the contact vertices in the
+        Function ``w`` (of the space given at construction, or of its parent mixed space)."""
         return w.x.array[self.dofs]
+
+    values = velocities
 
     def mesh_positions(self) -> np.ndarray:
         """(N, gdim) current mesh coordinates of the contact vertices."""
-        return self.space.mesh.geometry.x[self.geometry_nodes, : self.gdim].copy()
+        return self.mesh.geometry.x[self.geometry_nodes, : self.gdim].copy()

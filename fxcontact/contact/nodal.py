@@ -21,6 +21,17 @@ quadratic end of the convergence. Each node is handled against the tool
 it penetrates most. Convergence additionally requires an unchanged active set (and, for implicit
 schemes, unchanged projected features of faceted tools).
 
+**Displacement formulation** (THEORY §3.7; ``formulation="displacement"``, for a dolfinx
+problem whose unknown is the total displacement u of a P1 field, mesh not moved). The gap is written on the positions
+at the end of the load step, X = X_ref + u, against the tools at the step's end time, with the
+same schemes. Over a load step t → t + Δt starting from uᵗ (positions xᵗ = X_ref + uᵗ), the
+nodal terms are those of the velocity form with v = (u − uᵗ)/Δt — then X = xᵗ + Δt v — and the
+penalty ρ = k Δt, k the gap stiffness [stress/length]: the kernels are the same, the residual
+entries (nodal forces S k [−gap]₊ n) are unchanged and the Jacobian blocks are divided by Δt
+(chain rule). The quasi-implicit predictor is the previous step's displacement rate. Nodal areas
+are those of the reference configuration (nominal pressures), so the residual is the exact
+gradient of Σ S k [−gap]₊²/2 in u.
+
 Bad states are errors, raised on every rank at once: a node initially buried deeper than
 ``max_initial_penetration`` (default half the local element size), or a node in contact whose
 projection is undefined (exactly on a tool axis: flag 2).
@@ -49,13 +60,17 @@ from fxcontact.materials import LinearElastic, NortonHoff
 from fxcontact.petsc import ContributorError, NodalTerms
 from fxcontact.tools.base import Tool, unit_vector
 
-__all__ = ["NodalContact", "SCHEMES", "FRICTION_MODES", "penalty_from_beta"]
+__all__ = ["NodalContact", "SCHEMES", "FRICTION_MODES", "FORMULATIONS", "penalty_from_beta"]
 
 log = logging.getLogger(__name__)
 
 SCHEMES = ("explicit", "quasi-implicit", "implicit", "implicit-exact")
 
 FRICTION_MODES = ("implicit", "explicit")
+
+#: unknowns the contact is written in: nodal velocities over an increment (updated Lagrangian,
+#: fxcontact's Simulation) or total displacements (a dolfinx displacement problem)
+FORMULATIONS = ("velocity", "displacement")
 
 #: default slip-speed regularisation v₀ relative to the characteristic speed of the process
 #: (THEORY §9: 1e-3 – 1e-2 of the typical sliding speed)
@@ -97,6 +112,27 @@ def _pad3(x: np.ndarray) -> np.ndarray:
     return out
 
 
+class _DisplacementBody:
+    """Stands for the body of a displacement-form problem (no fxcontact material): penalties
+    come from the gap stiffness, friction laws carry their own material data."""
+
+    small_strain = True
+
+
+class _StepState:
+    """What :meth:`NodalContact.begin_increment` reads from a Simulation, for a displacement
+    load step: Cartesian positions, the predictor rate v̂ at the contact nodes."""
+
+    kinematics = CartesianUpdate()
+    material = _DisplacementBody()
+
+    def __init__(self, v_hat, boundary, u):
+        arr = np.zeros(u.x.array.shape)
+        arr[boundary.dofs] = v_hat
+        box = type("X", (), {"array": arr})()
+        self.w_prev = self.w = type("F", (), {"x": box})()
+
+
 class NodalContact:
     """Nodal penalty contact of a :class:`ContactBoundary` against rigid tools.
 
@@ -135,6 +171,14 @@ class NodalContact:
             the convergence; THEORY §9.5), ``"consistent"`` or ``"secant"``.
         name: label used in history columns.
         backend: "numba" or "numpy" (reference twin of the kernels, for testing).
+        formulation: ``"velocity"`` (default: the unknown is the nodal velocity of an increment,
+            X = xᵗ + dt·v, for :class:`~fxcontact.simulation.Simulation`) or ``"displacement"``
+            (the unknown is the total displacement u of a P1 field, X = X_ref + u, for a
+            dolfinx problem; see the module docstring). In displacement form ``penalty`` and
+            ``gap_stiffness`` are both the gap stiffness k [stress/length], and ``beta`` gives
+            k = β E*/h_e with ``modulus`` = E*; each load step starts with :meth:`begin_step`
+            (done by :class:`~fxcontact.petsc.ContactProblem`).
+        modulus: reference modulus E* [stress] of a displacement-form ``beta``.
 
     Friction (THEORY §9) acts on the nodes in contact, against the velocity relative to the
     tool's material point at the projection (tools that translate and rotate about their own
@@ -150,7 +194,14 @@ class NodalContact:
                  sticky_gap: float = 0.0, max_initial_penetration: Optional[float] = None,
                  gap_stiffness: Optional[float] = None, friction=None,
                  friction_mode: Optional[str] = None, slip_velocity: Optional[float] = None,
-                 friction_tangent: str = "auto", name: str = "contact", backend: str = "numba"):
+                 friction_tangent: str = "auto", name: str = "contact", backend: str = "numba",
+                 formulation: str = "velocity", modulus: Optional[float] = None):
+        if formulation not in FORMULATIONS:
+            raise ValueError(f"unknown formulation {formulation!r}; choose one of {FORMULATIONS}")
+        self.formulation = formulation
+        if formulation == "velocity" and modulus is not None:
+            raise ValueError("modulus is for the displacement formulation (k = beta E*/h_e); "
+                             "the velocity form takes beta with the material of the Simulation")
         if scheme not in SCHEMES:
             raise ValueError(f"unknown contact scheme {scheme!r}; choose one of {SCHEMES}")
         tools = [tools] if isinstance(tools, Tool) else list(tools)
@@ -215,6 +266,20 @@ class NodalContact:
         self.max_initial_penetration = (0.5 * self.element_size if max_initial_penetration
                                         is None else float(max_initial_penetration))
         self.rho = penalty
+        self.stiffness = None
+        if formulation == "displacement":
+            # gap stiffness k [stress/length]; rho = k dt at each load step
+            if gap_stiffness is not None or penalty is not None:
+                self.stiffness = float(gap_stiffness if gap_stiffness is not None else penalty)
+            else:
+                if modulus is None or not (math.isfinite(modulus) and modulus > 0):
+                    raise ValueError("the displacement formulation needs the gap stiffness: give "
+                                     "penalty= (k, stress/length) or beta= with modulus= (E*, "
+                                     f"k = beta E*/h_e); got modulus={modulus!r}")
+                self.stiffness = self.beta * float(modulus) / self.element_size
+            self.rho = None
+            self._u_t = None
+            self._v_hat = np.zeros((len(boundary), self.gdim))
         self.sim = None
         self.t = 0.0
         self.dt = 1.0
@@ -353,6 +418,8 @@ class NodalContact:
 
     # ------------------------------------------------------------------ set-up per increment
     def _resolve_penalty(self, sim, dt):
+        if self.formulation == "displacement":
+            return self.stiffness * dt
         if self.gap_stiffness is not None:
             return self.gap_stiffness * dt
         if self._penalty is not None:
@@ -453,6 +520,43 @@ class NodalContact:
         if self.has_friction:
             self._begin_friction(sim, t, dt)
 
+    def begin_step(self, t: float, dt: float, u):
+        """Start a load step t → t + dt of the displacement formulation from the displacement
+        Function ``u`` (its current content is the converged uᵗ of the previous step, or the
+        initial state). Collective. Called by :class:`~fxcontact.petsc.ContactProblem`."""
+        if self.formulation != "displacement":
+            raise ValueError("begin_step is for formulation='displacement'; the velocity form "
+                             "is driven by Simulation (begin_increment)")
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"the load step must advance the time: dt = {dt!r}")
+        for law, tool in zip(self.friction, self.tools):
+            if (law.needs_shear_limit and law.shear_limit is None) or \
+                    (law.needs_consistency and law.K is None):
+                raise ValueError(f"friction on tool '{tool.name}' in the displacement "
+                                 f"formulation: the body's shear flow stress / consistency are "
+                                 f"not known to fxcontact, give shear_limit= (and K=) in the law")
+        b = self.boundary
+        u_nodes = np.array(b.velocities(u), dtype=np.float64).reshape(-1, self.gdim)
+        if self._u_t is not None:
+            # closure of the previous step: rate for the quasi-implicit predictor
+            self._v_hat = (u_nodes - self._u_t) / self.dt
+        self._u_t = u_nodes
+        x_ref = b.mesh_positions()
+        shim = _StepState(self._v_hat, b, u)
+        x_all = np.zeros((int(np.max(b.vertices, initial=-1)) + 1, self.gdim))
+        x_all[b.vertices] = x_ref + u_nodes
+        self.begin_increment(shim, t, dt, x_all)
+        self.begin_solve()
+
+    def end_step(self, u):
+        """Close a displacement-form load step: true penetration of X_ref + u against the tools
+        at the step's end time, pressures for explicit friction (optional; collective)."""
+        b = self.boundary
+        X = b.mesh_positions() + b.velocities(u)
+        pr, _ = self._project_all(X, self.t + self.dt, hessian=False)
+        self._true_pen = float(np.max(-pr.gap, initial=-np.inf))
+        self._p_prev = self.pressures().copy()
+
     def _tool_velocities(self, points: np.ndarray, tool_idx: np.ndarray, t: float):
         """(N, gdim) material velocity of each node's tool at its projection point."""
         vt = np.zeros((len(points), 3))
@@ -502,7 +606,14 @@ class NodalContact:
 
     def evaluate(self, w, jacobian: bool) -> NodalTerms:
         b = self.boundary
-        v = np.ascontiguousarray(b.velocities(w))
+        if self.formulation == "displacement":
+            if self._u_t is None:
+                raise RuntimeError(f"{self.name}: displacement-form contact evaluated before "
+                                   f"begin_step() (ContactProblem.begin_step starts a load step)")
+            # v = (u - u^t)/dt: the velocity-form terms, then d/du = (1/dt) d/dv
+            v = np.ascontiguousarray((b.velocities(w) - self._u_t) / self.dt)
+        else:
+            v = np.ascontiguousarray(b.velocities(w))
         h, g, Hh, tool_idx, feature, flag = self._constraint(v, jacobian)
         if flag is not None:
             bad = np.flatnonzero((flag == 2) & (h > 0))
@@ -533,6 +644,8 @@ class NodalContact:
             r = r + rf
             if jacobian:
                 K = K + Kf
+        if jacobian and self.formulation == "displacement":
+            K = K / self.dt
         return NodalTerms(b.dofs, r, K if jacobian else None)
 
     def _friction_terms(self, v, h, g, tool_idx, jacobian: bool):
@@ -742,12 +855,12 @@ class NodalContact:
     def output_fields(self):
         if self._fields is None:
             b = self.boundary
-            Q1 = compat.function_space(b.space.mesh, ("Lagrange", 1))
+            Q1 = compat.function_space(b.mesh, ("Lagrange", 1))
             p = dolfinx.fem.Function(Q1, name=f"{self.name}_pressure")
             s = dolfinx.fem.Function(Q1, name=f"{self.name}_status")
             self._fields = (p, s)
             if self.has_friction:
-                V1 = compat.vector_function_space(b.space.mesh, "Lagrange", 1)
+                V1 = compat.vector_function_space(b.mesh, "Lagrange", 1)
                 self._fields += (dolfinx.fem.Function(V1, name=f"{self.name}_friction_stress"),)
         return list(self._fields)
 
