@@ -73,7 +73,7 @@ import dolfinx
 import dolfinx.mesh
 
 import fxcontact as fx
-from fxcontact import rolling
+from fxcontact import compat, rolling
 from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.power import PlasticDissipation
 
@@ -352,12 +352,13 @@ def _on_start_configuration(sim, X0, fn):
 
 
 def _penalty_power(contact, v, t):
-    """Work rate of the normal penalty forces, Σ r_n · (v_tool − v_node) over the contact nodes
-    (friction excluded: it is the contact's friction power), summed over ranks."""
+    """Work rate dissipated by the normal penalty forces, Σ r_n · (v_node − v_tool) over the
+    contact nodes (``r_n``: the nodal force on the tool; friction excluded: it is the contact's
+    friction power), summed over ranks; ≈ 0 at steady state (the gap does not change)."""
     b = contact.boundary
     tool = contact.tools[0]
     vt = tool.velocity(contact._point, t)[:, : contact.gdim]
-    return b.comm.allreduce(float(np.sum(contact._r * (vt - v[b.vertices]))), op=MPI.SUM)
+    return b.comm.allreduce(float(np.sum(contact._r * (v[b.vertices] - vt))), op=MPI.SUM)
 
 
 def _neutral_x(x, tau):
@@ -385,8 +386,6 @@ def _pictures(comm, sim, res, R, out):
     # equivalent strain at cell centroids (gathered)
     msh = sim.mesh
     nc = msh.topology.index_map(3).size_local
-    c2v = fx.compat.cell_vertices(msh)[:nc] if hasattr(fx, "compat") else None
-    from fxcontact import compat
     c2v = compat.cell_vertices(msh)[:nc]
     X = sim.vertex_positions()
     cen = _gather(comm, X[c2v].mean(axis=1))
@@ -397,7 +396,6 @@ def _pictures(comm, sim, res, R, out):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    th = res["theory"]
     a = res["arc"]
     p = res["parameters"]
     h1 = res["h1"]
@@ -406,7 +404,6 @@ def _pictures(comm, sim, res, R, out):
     xs = -R * np.sin(slab.phi)
     ax.plot(xs, slab.pressure, "k-", label="slab pressure (same law)")
     ax.plot(xs, slab.shear, "k--", label="slab friction stress")
-    order = np.argsort(a["x"])
     ax.scatter(a["x"], a["p"], s=14, c="tab:blue", label="FE nodal pressure (all rows)")
     ax.scatter(a["x"], a["tau"], s=14, c="tab:red", marker="s",
                label="FE nodal friction stress along x")

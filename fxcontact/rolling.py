@@ -226,16 +226,26 @@ def theory_band(R: float, h0: float, h1: float, sigma0: float, mu=0.3, mbar=1.0,
                 b0=None) -> dict:
     """The classical estimates of one pass: roll force per unit width (slab with the given law,
     Sims, Ford–Alexander, and their min/max: the band), slab torque per unit width and forward
-    slip, neutral angle, bite geometry, Hill's exit width (if ``b0`` is given)."""
+    slip, neutral angle, bite geometry, Hill's exit width (if ``b0`` is given). With too little
+    friction for a steady slab solution the slab entries are NaN and ``slab_message`` says why
+    (the band is then Sims's and Ford–Alexander's, which assume sticking)."""
     g = bite(R, h0, h1)
-    s = slab(R, h0, h1, sigma0, mu, mbar)
     si = sims(R, h0, h1, sigma0)
     fa = ford_alexander(R, h0, h1, sigma0)
-    forces = [s.force, si["force"], fa]
+    try:
+        s = slab(R, h0, h1, sigma0, mu, mbar)
+        sl = dict(slab_force=s.force, slab_force_vertical=s.force_vertical,
+                  slab_torque=s.torque, slab_forward_slip=s.forward_slip,
+                  slab_neutral_angle=s.neutral_angle, slab_message="")
+        forces = [s.force, si["force"], fa]
+    except ValueError as e:      # too little friction: no steady slab solution
+        if "no neutral point" not in str(e):
+            raise
+        sl = dict(slab_force=math.nan, slab_force_vertical=math.nan, slab_torque=math.nan,
+                  slab_forward_slip=math.nan, slab_neutral_angle=math.nan, slab_message=str(e))
+        forces = [si["force"], fa]
     out = dict(contact_length=g.contact_length, bite_angle=g.bite_angle,
-               tan_bite_angle=g.max_draft_ratio, slab_force=s.force,
-               slab_force_vertical=s.force_vertical, slab_torque=s.torque,
-               slab_forward_slip=s.forward_slip, slab_neutral_angle=s.neutral_angle,
+               tan_bite_angle=g.max_draft_ratio, **sl,
                sims_force=si["force"], sims_forward_slip=si["forward_slip"],
                sims_neutral_angle=si["neutral_angle"], ford_alexander_force=fa,
                force_min=min(forces), force_max=max(forces), sigma0=sigma0)

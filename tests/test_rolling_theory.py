@@ -89,3 +89,9 @@ def test_no_neutral_point_with_too_little_friction():
 def test_bad_input(args):
     with pytest.raises(ValueError):
         rolling.slab(*args)
+
+
+def test_band_without_a_slab_solution():
+    band = rolling.theory_band(R, H0, H1, S0, mu=0.03, mbar=1.0)
+    assert math.isnan(band["slab_force"]) and "no neutral point" in band["slab_message"]
+    assert band["force_min"] == pytest.approx(band["sims_force"])
