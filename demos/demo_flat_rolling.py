@@ -81,7 +81,8 @@ from fxcontact.power import PlasticDissipation
 DEFAULTS = dict(R=300.0, h0=25.0, reduction=0.28, width=100.0, K=30.0, m=0.3, mu=0.3, mbar=1.0,
                 v_roll=500.0, dt=0.75e-3, h_x=3.0, ny=8, nz=4, length_factor=3.2, nose=0.3,
                 push_ratio=0.9, grip_travel=0.6, settle=0.8, window=0.6, steady_tol=0.03,
-                scheme="implicit", line_search="bt", max_increments=2000, output_dir="results/flat_rolling",
+                roll="analytic", facet_size=None, scheme="implicit", line_search="bt",
+                max_increments=2000, output_dir="results/flat_rolling",
                 pictures=True, vtk_every=0, comm=None)
 
 #: the reduced size of the tests: a coarse mesh, larger increments, a short strip
@@ -118,6 +119,38 @@ def strip_mesh(comm, x_back, x_front, half_width, half_h0, nx, ny, nz, roll_z, R
     g[:, 1] = g[:, 1] / ny * half_width
     g[:, 0] = x
     return msh, ft
+
+
+# %% [markdown]
+# ## Faceted roll
+#
+# The whole circle is triangulated (the roll turns through the run): ``n_θ = round(2πR /
+# facet_size)`` generators, vertices on the true circle (the facets are inscribed), layers along
+# the axis about as long as the facets are wide (at most 40), the triangles oriented with the
+# normals pointing away from the axis. The tool is built at rest and turned by a
+# :class:`fxcontact.RigidMotion` about the roll's axis (:class:`fxcontact.MovedTool`).
+
+# %%
+def faceted_roll(R, centre, y_range, facet_size, mode, omega):
+    n = max(8, int(round(2.0 * math.pi * R / facet_size)))
+    ny = min(40, max(1, int(round((y_range[1] - y_range[0]) / facet_size))))
+    th = 2.0 * math.pi * np.arange(n) / n
+    ys = np.linspace(y_range[0], y_range[1], ny + 1)
+    T, Y = np.meshgrid(th, ys, indexing="ij")
+    V = np.stack([centre[0] + R * np.sin(T), Y, centre[2] - R * np.cos(T)], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(n), np.arange(ny), indexing="ij")
+    a = (i * (ny + 1) + j).ravel()
+    b = (((i + 1) % n) * (ny + 1) + j).ravel()
+    c, d = b + 1, a + 1
+    tri = np.concatenate([np.stack([a, c, b], 1), np.stack([a, d, c], 1)])
+    tool = fx.FacetedTool(V, tri, mode=mode, name="roll")
+    below = tool.project(np.array([[centre[0], 0.5 * sum(y_range), centre[2] - R - 1.0]]),
+                         0.0, hessian=False).gap
+    if not below[0] > 0.5:
+        raise RuntimeError("faceted roll oriented inward")
+    motion = fx.RigidMotion(angular_velocity=omega, axis_point=tuple(centre),
+                            axis=(0.0, -1.0, 0.0))
+    return fx.MovedTool(tool, motion), R * (1.0 - math.cos(math.pi / n))
 
 
 # %% [markdown]
@@ -188,8 +221,16 @@ def run(**parameters) -> dict:
     f = {k: sim.facets(ft, v) for k, v in fx.BLOCK_TAGS.items()}
     sim.add_velocity_bc(f["ymin"], 0.0, 1)
     sim.add_velocity_bc(f["zmin"], 0.0, 2)
-    roll = fx.Cylinder((0.0, 0.0, 0.5 * h1 + R), (0.0, -1.0, 0.0), R, angular_velocity=omega,
-                       name="roll")
+    sag = 0.0
+    if P["roll"] == "analytic":
+        roll = fx.Cylinder((0.0, 0.0, 0.5 * h1 + R), (0.0, -1.0, 0.0), R,
+                           angular_velocity=omega, name="roll")
+    elif P["roll"] in ("flat", "nagata"):
+        fs = P["facet_size"] or 0.5 * P["h_x"]
+        roll, sag = faceted_roll(R, (0.0, 0.0, 0.5 * h1 + R), (-0.1 * P["width"],
+                                 0.7 * P["width"]), fs, P["roll"], omega)
+    else:
+        raise ValueError(f"roll must be 'analytic', 'flat' or 'nagata', got {P['roll']!r}")
     friction = fx.Coulomb(P["mu"], mbar=P["mbar"])
     rc = fx.NodalContact(fx.ContactBoundary(sp, ft, fx.BLOCK_TAGS["zmax"]), roll,
                          scheme=P["scheme"], friction=friction, slip_velocity=1e-3 * v_R,
@@ -296,7 +337,7 @@ def run(**parameters) -> dict:
 
     result = dict(status=status, message=message, history=rows, theory=theory, sigma0=sigma0,
                   mean_strain_rate=rate, h1=h1, contact_length_theory=L, bite_angle=alpha,
-                  gripped_at=gripped_at, wall=wall, increments=len(rows), parameters={
+                  gripped_at=gripped_at, wall=wall, facet_sag=sag, increments=len(rows), parameters={
                       k: v for k, v in P.items() if k != "comm"},
                   max_volume_change=max(abs(q["volume_change"]) for q in rows),
                   min_quality=min(q["min_quality"] for q in rows),
@@ -485,6 +526,8 @@ def main(argv=None):
     ap.add_argument("--ny", type=int)
     ap.add_argument("--nz", type=int)
     ap.add_argument("--scheme")
+    ap.add_argument("--roll", choices=("analytic", "flat", "nagata"))
+    ap.add_argument("--facet_size", type=float)
     ap.add_argument("--output-dir", dest="output_dir")
     add_verbosity_arguments(ap)
     a = ap.parse_args(argv)
