@@ -445,9 +445,16 @@ def _pictures(comm, sim, res, R, out):
     xs = -R * np.sin(slab.phi)
     ax.plot(xs, slab.pressure, "k-", label="slab pressure (same law)")
     ax.plot(xs, slab.shear, "k--", label="slab friction stress")
-    ax.scatter(a["x"], a["p"], s=14, c="tab:blue", label="FE nodal pressure (all rows)")
-    ax.scatter(a["x"], a["tau"], s=14, c="tab:red", marker="s",
+    ax.scatter(a["x"], a["p"], s=10, c="tab:blue", alpha=0.5,
+               label="FE nodal pressure (every node across the width)")
+    ax.scatter(a["x"], a["tau"], s=10, c="tab:red", marker="s", alpha=0.5,
                label="FE nodal friction stress along x")
+    xs_fe = np.unique(np.round(a["x"], 6))
+    sel = [np.abs(a["x"] - xv) < 1e-5 for xv in xs_fe]
+    ax.plot(xs_fe, [np.mean(a["p"][m]) for m in sel], "o-", c="tab:blue", ms=4,
+            label="FE pressure, mean across the width")
+    ax.plot(xs_fe, [np.mean(a["tau"][m]) for m in sel], "s-", c="tab:red", ms=4,
+            label="FE friction stress, mean across the width")
     ax.axvline(-R * math.sin(slab.neutral_angle), color="k", ls=":", label="slab neutral point")
     if math.isfinite(res["neutral_x"]):
         ax.axvline(res["neutral_x"], color="tab:red", ls=":", label="FE neutral point")
@@ -456,20 +463,21 @@ def _pictures(comm, sim, res, R, out):
     ax.set_ylabel("stress on the strip [MPa]")
     ax.set_title(f"Flat rolling at steady state: R = {R:g}, {p['h0']:g} → {h1:.3g} mm, "
                  f"μ = {p['mu']}, m̄ = {p['mbar']}")
-    ax.legend(fontsize=8, loc="upper left")
+    ax.legend(fontsize=7, loc="upper left", ncol=2)
+    ax.set_ylim(top=1.35 * max(np.max(a["p"]), np.max(slab.pressure)))
     ax.grid(alpha=0.3)
     fig.tight_layout()
     f1 = os.path.join(out, "arc_of_contact.png")
     fig.savefig(f1, dpi=110)
     plt.close(fig)
-    fig, axs = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    fig, axs = plt.subplots(2, 1, figsize=(10, 5), sharex=True)
     for axx, val, lab in ((axs[0], eps, "equivalent strain"),
                           (axs[1], rate, "equivalent strain rate [1/s]")):
         sel = cen[:, 1] < 0.25 * p["width"] / 2 + 1e-9   # the cells near the width mid-plane
-        sc = axx.scatter(cen[sel, 0], cen[sel, 2], c=val[sel], s=18, cmap="viridis")
+        sc = axx.scatter(cen[sel, 0], cen[sel, 2], c=val[sel], s=30, marker="s",
+                         cmap="viridis")
         fig.colorbar(sc, ax=axx, label=lab)
-        axx.set_ylabel("z [mm]")
-        axx.set_aspect("equal")
+        axx.set_ylabel("z [mm] (z = 0: mid-thickness)")
     axs[1].set_xlabel("x [mm] (cells near the width mid-plane, centroids)")
     axs[0].set_title("Equivalent strain and strain rate (quarter strip, side view)")
     fig.tight_layout()
