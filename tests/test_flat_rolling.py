@@ -110,9 +110,11 @@ def test_one_and_two_ranks_agree(tmp_path):
     assert len(hs[0]) == len(hs[1]) == 3
     for a, b in zip(*hs):
         for k in ("force_per_width", "torque_per_width", "dissipation", "friction_power",
-                  "pusher_force", "volume_change"):
-            scale = max(abs(b[k]), 1e-12 * abs(b["force_per_width"]), 1e-30)
-            assert abs(a[k] - b[k]) <= 1e-8 * scale, (k, a[k], b[k])
+                  "pusher_force"):
+            assert abs(a[k] - b[k]) <= 1e-8 * abs(b[k]), (k, a[k], b[k])
+        # V/V0 - 1 (about 6e-6 here) is a difference of sums over cells: compared to 1e-11 of
+        # the volume (measured 1e-13)
+        assert abs(a["volume_change"] - b["volume_change"]) <= 1e-11
 
 
 def test_bad_parameters():
