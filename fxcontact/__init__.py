@@ -79,6 +79,10 @@ _API = {
     "CylindricalUpdate": ("kinematics", "cylindrical update about an axis, ring rolling (§5)"),
     # meshes
     "cylinder_billet": ("meshing", "gmsh cylinder billet (full or quarter) with facet tags"),
+    # process analysis
+    "PlasticDissipation": ("power", "plastic dissipation of the current solution, for power "
+                           "balances (§14.5)"),
+    "plastic_dissipation": ("power", "one-off plastic dissipation integral (§14.5)"),
     "block": ("meshing", "gmsh block, optionally refined in a box, with facet tags"),
     "gmsh_session": ("meshing", "context manager: a clean gmsh model"),
     "BILLET_TAGS": ("meshing", "facet tags of cylinder_billet"),

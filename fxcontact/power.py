@@ -1,0 +1,52 @@
+"""Power of the current solution (THEORY §14.5): plastic dissipation ∫ s:D dV.
+
+For the power balance of a forming process at steady state: the power delivered by the tools
+(force · velocity + torque · ω) equals the plastic dissipation plus the friction work (the
+contact's ``{name}_friction_power`` history column) plus the penalty work (small). For the
+Norton–Hoff law ``s:D = 2K z^(m−1) dev D : dev D`` (THEORY §1.1; ``= K z^(m+1)`` without the
+regularisation). The pressure does no work: the discrete solution satisfies ``∫ q div v = 0``
+for every pressure test function, the pressure itself included.
+"""
+
+from __future__ import annotations
+
+import ufl
+from mpi4py import MPI
+
+import dolfinx
+
+from fxcontact import compat
+
+__all__ = ["PlasticDissipation", "plastic_dissipation"]
+
+
+class PlasticDissipation:
+    """``∫ s(D(v)) : D(v) dV`` of ``sim.w`` on the current mesh (collective: call on every rank).
+
+    The form is compiled once; each call assembles it for the current velocity and geometry.
+    Call it after an increment (``sim.step``/``sim.run`` callback): the velocity of the
+    increment on the configuration at its end (updated Lagrangian), like the history columns
+    of the tools."""
+
+    def __init__(self, sim):
+        mat = sim.material
+        if not hasattr(mat, "stress_ufl"):
+            raise ValueError(f"plastic dissipation needs a material with a deviatoric stress "
+                             f"(stress_ufl), got {type(mat).__name__}")
+        v, _ = ufl.split(sim.w)
+        eps = ufl.sym(ufl.grad(v))
+        self._form = compat.form(ufl.inner(mat.stress_ufl(eps), eps) * sim.space.dx)
+        self._comm = sim.comm
+
+    def __call__(self) -> float:
+        return self._comm.allreduce(dolfinx.fem.assemble_scalar(self._form), op=MPI.SUM)
+
+
+def plastic_dissipation(sim) -> float:
+    """One-off ``∫ s:D dV`` of the current solution (compiles the form on first use per
+    simulation; collective)."""
+    pd = getattr(sim, "_fx_plastic_dissipation", None)
+    if pd is None:
+        pd = PlasticDissipation(sim)
+        sim._fx_plastic_dissipation = pd
+    return pd()

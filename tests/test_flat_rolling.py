@@ -1,0 +1,124 @@
+"""Flat rolling to steady state (demos/demo_flat_rolling.py) at a reduced size: coarse mesh
+(7.5 mm along the strip, 2 elements through the half-thickness, 3 across the half-width), a
+short strip, 1.5 mm of roll travel per increment. Checked against the classical theories of
+THEORY §14.3 computed by the demo (fxcontact.rolling): roll force per unit width in the band of
+slab (same Coulomb–Tresca law) / Sims / Ford–Alexander within 15 %, forward slip positive and
+within × 1.5 of the slab's, neutral point inside the arc, spread positive and compared with
+Hill's, power balance within 3 %, volume and element quality; refusal to enter with μ ≪ tan α;
+another pass (radius, reduction, μ); 1 vs 2 ranks."""
+
+import math
+import os
+import sys
+
+import pytest
+from mpi4py import MPI
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(os.path.dirname(HERE), "demos"))
+import demo_flat_rolling as demo  # noqa: E402
+
+
+def _run(tmp, **kw):
+    out = str(tmp) if MPI.COMM_WORLD.rank == 0 else None
+    out = MPI.COMM_WORLD.bcast(out, root=0)
+    return demo.run(**{**demo.QUICK, "output_dir": out, "pictures": False, **kw})
+
+
+@pytest.fixture(scope="module")
+def default_pass(tmp_path_factory):
+    res = _run(tmp_path_factory.mktemp("rolling"))
+    if MPI.COMM_WORLD.rank == 0:
+        print("\n" + demo.report(res))
+    return res
+
+
+@pytest.fixture(scope="module")
+def other_pass(tmp_path_factory):
+    res = _run(tmp_path_factory.mktemp("rolling2"), R=200.0, reduction=0.2, mu=0.25,
+               h_x=5.5)
+    if MPI.COMM_WORLD.rank == 0:
+        print("\n" + demo.report(res))
+    return res
+
+
+def _acceptance(res):
+    """The acceptance items that hold at the test size for both passes."""
+    assert res["status"] == "steady", res["message"]
+    th = res["theory"]
+    F = res["force_per_width"]
+    assert 0.85 * th["force_min"] <= F <= 1.15 * th["force_max"], (F, th)
+    assert res["forward_slip"] > 0
+    assert 0.0 < res["neutral_angle"] < res["bite_angle"]
+    assert res["spread"] > 0
+    # Hill's formula is an empirical fit: compared, within a factor 2
+    assert res["spread_hill"] / 2 < res["spread"] < 2 * res["spread_hill"]
+    # torque x omega against dissipation + friction work (penalty work left out) ...
+    assert abs(res["power_balance"]) < 0.03, res["power_balance"]
+    # ... and with the penalty work the balance is the discrete virtual-power identity
+    assert abs(res["power_balance_penalty"]) < 1e-3, res["power_balance_penalty"]
+    assert res["max_volume_change"] < 5e-3
+    assert res["min_quality"] > 0.05
+    assert res["gripped_at"] is not None          # the pusher let go: the roll drives alone
+    last = res["history"][res["steady_from"]:]
+    assert all(q["pusher_nodes"] == 0 for q in last)
+
+
+def _slip_within_factor(res, factor=1.5):
+    fs, fs_slab = res["forward_slip"], res["theory"]["slab_forward_slip"]
+    assert fs_slab / factor <= fs <= factor * fs_slab, (fs, fs_slab)
+
+
+def test_default_pass(default_pass):
+    _acceptance(default_pass)
+    _slip_within_factor(default_pass)
+
+
+def test_other_radius_reduction_friction(other_pass):
+    """R = 200 mm, 20 % reduction, μ = 0.25."""
+    _acceptance(other_pass)
+
+
+@pytest.mark.xfail(strict=True, reason="the forward slip of the R = 200 mm, 20 %, mu = 0.25 pass "
+                   "is 5.3 % against the slab's 2.7 % (x 1.9) at the test size, and still 5.3 % "
+                   "with 3.5 mm elements and 3 through the half-thickness, where the FE neutral "
+                   "angle (0.055 rad) matches the slab's (0.054): not a mesh effect; the slab's "
+                   "forward slip assumes plane sections, and this pass is thicker for its bite "
+                   "(mean h / L = 0.71 against 0.47 for the default pass, 6.9 % against 5.1 %, "
+                   "x 1.36)")
+def test_other_pass_forward_slip(other_pass):
+    _slip_within_factor(other_pass)
+
+
+def test_refuses_to_enter_below_the_bite_condition(tmp_path):
+    """μ = 0.05 ≪ tan α = 0.154: the pusher keeps carrying the strip, the demo stops after the
+    allowed push and says why (no hang)."""
+    res = _run(tmp_path, mu=0.05, grip_travel=0.15, max_increments=40)
+    assert res["status"] == "refused"
+    assert "refuses to enter" in res["message"] and "tan(alpha)" in res["message"]
+    assert res["increments"] < 15
+    assert all(q["pusher_nodes"] > 0 for q in res["history"][1:])
+
+
+def test_one_and_two_ranks_agree(tmp_path):
+    """Three increments on all ranks and on COMM_SELF agree to 1e-8."""
+    hs = []
+    for comm in (MPI.COMM_WORLD, MPI.COMM_SELF):
+        res = demo.run(**{**demo.QUICK, "output_dir": None, "pictures": False,
+                          "max_increments": 3, "comm": comm})
+        hs.append(res["history"])
+    assert len(hs[0]) == len(hs[1]) == 3
+    for a, b in zip(*hs):
+        for k in ("force_per_width", "torque_per_width", "dissipation", "friction_power",
+                  "pusher_force"):
+            assert abs(a[k] - b[k]) <= 1e-8 * abs(b[k]), (k, a[k], b[k])
+        # V/V0 - 1 (about 6e-6 here) is a difference of sums over cells: compared to 1e-11 of
+        # the volume (measured 1e-13)
+        assert abs(a["volume_change"] - b["volume_change"]) <= 1e-11
+
+
+def test_bad_parameters():
+    with pytest.raises(ValueError, match="unknown parameter"):
+        demo.run(radius=3.0)
+    with pytest.raises(ValueError, match="reduction"):
+        demo.run(reduction=1.2)
