@@ -17,7 +17,7 @@ import dolfinx
 
 from fxcontact import compat
 
-__all__ = ["PlasticDissipation", "plastic_dissipation"]
+__all__ = ["PlasticDissipation", "PressurePower", "plastic_dissipation"]
 
 
 class PlasticDissipation:
@@ -36,6 +36,22 @@ class PlasticDissipation:
         v, _ = ufl.split(sim.w)
         eps = ufl.sym(ufl.grad(v))
         self._form = compat.form(ufl.inner(mat.stress_ufl(eps), eps) * sim.space.dx)
+        self._comm = sim.comm
+
+    def __call__(self) -> float:
+        return self._comm.allreduce(dolfinx.fem.assemble_scalar(self._form), op=MPI.SUM)
+
+
+class PressurePower:
+    """``∫ p div v dV`` of ``sim.w`` on the current mesh (collective). Zero for the plain
+    incompressible update (the pressure is one of its own test functions); with the volume
+    correction (``div v + ln(V/V⁰)/dt = 0``, THEORY §1.5) it is the power of the pressure on
+    the volume given back, which enters the power balance: tool power = ∫ s:D − ∫ p div v
+    + friction + penalty work."""
+
+    def __init__(self, sim):
+        v, p = ufl.split(sim.w)
+        self._form = compat.form(p * ufl.div(v) * sim.space.dx)
         self._comm = sim.comm
 
     def __call__(self) -> float:
