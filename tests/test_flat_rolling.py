@@ -69,16 +69,19 @@ def _slip_within_factor(res, factor=1.5):
     assert fs_slab / factor <= fs <= factor * fs_slab, (fs, fs_slab)
 
 
+@pytest.mark.serial   # a whole pass to steady state; the MPI path: test_one_and_two_ranks_agree
 def test_default_pass(default_pass):
     _acceptance(default_pass)
     _slip_within_factor(default_pass)
 
 
+@pytest.mark.serial   # a whole pass to steady state; the MPI path: test_one_and_two_ranks_agree
 def test_other_radius_reduction_friction(other_pass):
     """R = 200 mm, 20 % reduction, μ = 0.25."""
     _acceptance(other_pass)
 
 
+@pytest.mark.serial   # a whole pass to steady state; the MPI path: test_one_and_two_ranks_agree
 @pytest.mark.xfail(strict=True, reason="the forward slip of the R = 200 mm, 20 %, mu = 0.25 pass "
                    "is 5.3 % against the slab's 2.7 % (x 1.9) at the test size, and still 5.3 % "
                    "with 3.5 mm elements and 3 through the half-thickness, where the FE neutral "
