@@ -34,7 +34,8 @@
 # stops. The run stops at **steady state**: once the front is ``settle`` × L past the exit, the
 # roll force and torque vary by less than ``steady_tol`` (relative range) over a window of
 # ``window`` × L of roll travel; the steady values are the window means. If the strip's tail
-# reaches the bite first, ``status = "no steady state"`` (a longer strip is needed).
+# reaches the bite first, ``status = "no steady state"`` (a longer strip is needed); if the
+# strip leaves the roll after the pusher let go, ``status = "lost"`` (see the results).
 #
 # **Measured per increment** (history CSV ``flat_rolling_diagnostics.csv`` and the result
 # dict): roll separating force and torque per unit width, forward slip (mean v_x of the nodes
@@ -69,7 +70,6 @@
 # | pass, mesh | P/w N/mm (band) | fwd slip (slab) | spread (Hill) | power bal. | Newton mean/max | wall |
 # |---|---|---|---|---|---|---|
 # | default, ``--quick`` (7.5 mm, 3 × 2, dt 3 ms) | 5466 (6135–6300): 0.87–0.89 | 6.9 % (5.1) | 5.6 % (5.7) | −1.35 % | 17.4 / 25 | 94 s |
-# | default, ``--quick --h_x 3.5 --nz 3 --dt 1.5e-3`` | see the report | | | | | |
 # | R 200, 20 %, μ 0.25, ``--quick --R 200 --reduction 0.2 --mu 0.25 --h_x 5.5`` | 3491 (3630–3729): 0.94–0.96 | 5.3 % (2.7) | 3.7 % (2.3) | −1.30 % | 16.8 / 22 | 126 s |
 # | same pass, ``--h_x 3.5 --nz 3 --dt 1.5e-3`` | 3457: 0.93–0.95 | 5.3 % (2.7) | 3.4 % (2.3) | −0.87 % | 14.7 / 23 | 243 s |
 # | default, ``--quick --roll nagata`` (3.75 mm facets) | 5466 (as analytic to 5 digits) | 6.9 % | 5.6 % | −1.35 % | 17.4 / 25 | 145 s |
@@ -81,6 +81,14 @@
 # 1e-5 (the discrete virtual-power identity). The forward slip of the R = 200 mm pass is 1.9 × the slab's
 # on both meshes (the FE neutral angle 0.055 matches the slab's 0.054 on the finer one): the
 # slab's plane-section assumption, not the mesh (the test keeps it as a strict xfail).
+#
+# **Known problem.** The default pass on the finer mesh ``--quick --h_x 3.5 --nz 3 --dt 1.5e-3``
+# was gripped (the pusher let go at t = 3 ms) but at t = 15 ms, front 25 mm before the exit, one
+# increment converged to a solution where the strip moves back out of the bite and loses
+# contact: once released, nothing but the roll's friction holds the strip along x (a free rigid
+# translation in a quasi-static model). The demo now stops with ``status = "lost"`` instead of
+# running on; a weak dashpot on the strip's tail (``fx.NodalSprings``, its power in the
+# balance) would remove the free translation — not done.
 
 # %%
 from __future__ import annotations
@@ -204,7 +212,7 @@ def _contact_arc(comm, contact, sim):
 def run(**parameters) -> dict:
     """Roll the strip to steady state (or report why not); returns the result dict.
 
-    Keys: ``status`` ("steady", "refused", "no steady state"), ``message``, ``history`` (one
+    Keys: ``status`` ("steady", "refused", "lost", "no steady state"), ``message``, ``history`` (one
     dict per increment), the theory band (``theory``), the steady means (``force_per_width``,
     ``torque_per_width``, ``forward_slip``, ``half_width_exit``, ``spread`` …), ratios to the
     theories, the power balance, and the paths of the outputs."""
@@ -335,6 +343,14 @@ def run(**parameters) -> dict:
                            f"against the bite condition tan(alpha) = {geo.max_draft_ratio:.4f}")
                 break
             continue
+        # ---- the strip must stay in the bite (nothing else holds it along x once released)
+        if row["contact_nodes"] == 0:
+            status = "lost"
+            message = (f"the strip left the roll at t = {sim.t:.4g} after the pusher let go "
+                       f"(front at x = {front:.4g} mm): with friction alone holding it along x "
+                       f"the quasi-static strip has a free rigid translation, and this increment "
+                       f"converged to the ejected solution; reduce dt or refine the bite")
+            break
         # ---- steady state
         if tail > x_entry - 0.5 * P["h_x"]:
             status = "no steady state"
