@@ -406,7 +406,7 @@ def run(**parameters) -> dict:
         xa, pa, ta = _contact_arc(comm, rc, sim)
         act = pa > 0
         result["arc"] = dict(x=xa[act, 0], y=xa[act, 1], p=pa[act], tau=ta[act])
-        result["neutral_x"] = _neutral_x(xa[act, 0], ta[act])
+        result["neutral_x"] = _neutral_x(xa[act, 0], ta[act], 0.25 * P["h_x"])
         result["neutral_angle"] = (math.asin(min(1.0, max(-1.0, -result["neutral_x"] / R)))
                                    if math.isfinite(result["neutral_x"]) else math.nan)
     if comm.rank == 0 and out:
@@ -443,13 +443,22 @@ def _penalty_power(contact, v, t):
     return b.comm.allreduce(float(np.sum(contact._r * (v[b.vertices] - vt))), op=MPI.SUM)
 
 
-def _neutral_x(x, tau):
+def _stations(x, gap):
+    """Group the contact nodes into stations along x (rows across the width: consecutive sorted
+    x closer than ``gap``); returns the list of index arrays."""
+    order = np.argsort(x)
+    cut = np.nonzero(np.diff(x[order]) > gap)[0] + 1
+    return np.split(order, cut)
+
+
+def _neutral_x(x, tau, gap):
     """x where the friction stress changes sign (+ towards the exit in the entry zone, − after):
-    the sign change of the x-binned mean stress, interpolated linearly."""
+    the sign change of the station (row) means, interpolated linearly."""
     if len(x) < 3:
         return math.nan
-    xs = np.unique(np.round(x, 9))
-    tm = np.array([np.mean(tau[np.abs(x - xv) < 1e-8]) for xv in xs])
+    st = _stations(x, gap)
+    xs = np.array([np.mean(x[i]) for i in st])
+    tm = np.array([np.mean(tau[i]) for i in st])
     s = np.nonzero((tm[:-1] > 0) & (tm[1:] <= 0))[0]
     if len(s) == 0:
         return math.nan
@@ -490,8 +499,8 @@ def _pictures(comm, sim, res, R, out):
                label="FE nodal pressure (every node across the width)")
     ax.scatter(a["x"], a["tau"], s=10, c="tab:red", marker="s", alpha=0.5,
                label="FE nodal friction stress along x")
-    xs_fe = np.unique(np.round(a["x"], 6))
-    sel = [np.abs(a["x"] - xv) < 1e-5 for xv in xs_fe]
+    sel = _stations(a["x"], 0.25 * p["h_x"])
+    xs_fe = [np.mean(a["x"][m]) for m in sel]
     ax.plot(xs_fe, [np.mean(a["p"][m]) for m in sel], "o-", c="tab:blue", ms=4,
             label="FE pressure, mean across the width")
     ax.plot(xs_fe, [np.mean(a["tau"][m]) for m in sel], "s-", c="tab:red", ms=4,
