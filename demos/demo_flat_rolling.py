@@ -34,7 +34,8 @@
 # stops. The run stops at **steady state**: once the front is ``settle`` × L past the exit, the
 # roll force and torque vary by less than ``steady_tol`` (relative range) over a window of
 # ``window`` × L of roll travel; the steady values are the window means. If the strip's tail
-# reaches the bite first, ``status = "no steady state"`` (a longer strip is needed).
+# reaches the bite first, ``status = "no steady state"`` (a longer strip is needed); if the
+# strip leaves the roll after the pusher let go, ``status = "lost"`` (see the results).
 #
 # **Measured per increment** (history CSV ``flat_rolling_diagnostics.csv`` and the result
 # dict): roll separating force and torque per unit width, forward slip (mean v_x of the nodes
@@ -69,16 +70,27 @@
 # | pass, mesh | P/w N/mm (band) | fwd slip (slab) | spread (Hill) | power bal. | Newton mean/max | wall |
 # |---|---|---|---|---|---|---|
 # | default, ``--quick`` (7.5 mm, 3 × 2, dt 3 ms) | 5466 (6135–6300): 0.87–0.89 | 6.9 % (5.1) | 5.6 % (5.7) | −1.35 % | 17.4 / 25 | 94 s |
-# | default, ``--quick --h_x 3.5 --nz 3 --dt 1.5e-3`` | see the report | | | | | |
 # | R 200, 20 %, μ 0.25, ``--quick --R 200 --reduction 0.2 --mu 0.25 --h_x 5.5`` | 3491 (3630–3729): 0.94–0.96 | 5.3 % (2.7) | 3.7 % (2.3) | −1.30 % | 16.8 / 22 | 126 s |
 # | same pass, ``--h_x 3.5 --nz 3 --dt 1.5e-3`` | 3457: 0.93–0.95 | 5.3 % (2.7) | 3.4 % (2.3) | −0.87 % | 14.7 / 23 | 243 s |
 # | default, ``--quick --roll nagata`` (3.75 mm facets) | 5466 (as analytic to 5 digits) | 6.9 % | 5.6 % | −1.35 % | 17.4 / 25 | 145 s |
+# | default, ``--quick --scheme explicit`` | 5440: 0.86–0.89 | 5.9 % (5.1) | 5.4 % | +3.9 % | 13.3 / 23 | 108 s |
 # | default, ``--quick --roll flat --facet_size 18.75`` (5× coarser) | 5369: 0.85–0.88, ±6.1 % oscillation (analytic ±2.5 %) | 7.1 % | 5.3 % | −1.33 % | 18.0 / 81 | 211 s |
 #
-# The power balance without the penalty work is −0.9 to −1.4 %; with it, it closes to 1e-5 (the
-# discrete virtual-power identity). The forward slip of the R = 200 mm pass is 1.9 × the slab's
-# on both meshes (the FE neutral angle 0.055 matches the slab's 0.054 on the finer one): the
-# slab's plane-section assumption, not the mesh (the test keeps it as a strict xfail).
+# The power balance without the penalty work is −0.9 to −1.4 % (implicit), +3.9 % (explicit: the
+# penalty of the explicit scheme works on the nodes entering the bite); with it, it closes to
+# 1e-5 (the discrete virtual-power identity). The forward slip of the R = 200 mm pass is 1.9 × the slab's
+# on both meshes (FE neutral angle 0.062 rad against the slab's 0.054 on the finer one; the slab
+# formula with the FE neutral angle gives 3.7 %): partly the neutral point, mostly the slab's
+# plane-section assumption (the test keeps it as a strict xfail). The default pass's FE neutral
+# angle is 0.069 rad (slab 0.056).
+#
+# **Known problem.** The default pass on the finer mesh ``--quick --h_x 3.5 --nz 3 --dt 1.5e-3``
+# was gripped (the pusher let go at t = 3 ms) but at t = 15 ms, front 25 mm before the exit, one
+# increment converged to a solution where the strip moves back out of the bite and loses
+# contact: once released, nothing but the roll's friction holds the strip along x (a free rigid
+# translation in a quasi-static model). The demo now stops with ``status = "lost"`` instead of
+# running on; a weak dashpot on the strip's tail (``fx.NodalSprings``, its power in the
+# balance) would remove the free translation — not done.
 
 # %%
 from __future__ import annotations
@@ -202,7 +214,7 @@ def _contact_arc(comm, contact, sim):
 def run(**parameters) -> dict:
     """Roll the strip to steady state (or report why not); returns the result dict.
 
-    Keys: ``status`` ("steady", "refused", "no steady state"), ``message``, ``history`` (one
+    Keys: ``status`` ("steady", "refused", "lost", "no steady state"), ``message``, ``history`` (one
     dict per increment), the theory band (``theory``), the steady means (``force_per_width``,
     ``torque_per_width``, ``forward_slip``, ``half_width_exit``, ``spread`` …), ratios to the
     theories, the power balance, and the paths of the outputs."""
@@ -336,6 +348,14 @@ def run(**parameters) -> dict:
                            f"against the bite condition tan(alpha) = {geo.max_draft_ratio:.4f}")
                 break
             continue
+        # ---- the strip must stay in the bite (nothing else holds it along x once released)
+        if row["contact_nodes"] == 0:
+            status = "lost"
+            message = (f"the strip left the roll at t = {sim.t:.4g} after the pusher let go "
+                       f"(front at x = {front:.4g} mm): with friction alone holding it along x "
+                       f"the quasi-static strip has a free rigid translation, and this increment "
+                       f"converged to the ejected solution; reduce dt or refine the bite")
+            break
         # ---- steady state
         if tail > x_entry - 0.5 * P["h_x"]:
             status = "no steady state"
@@ -391,7 +411,7 @@ def run(**parameters) -> dict:
         xa, pa, ta = _contact_arc(comm, rc, sim)
         act = pa > 0
         result["arc"] = dict(x=xa[act, 0], y=xa[act, 1], p=pa[act], tau=ta[act])
-        result["neutral_x"] = _neutral_x(xa[act, 0], ta[act])
+        result["neutral_x"] = _neutral_x(xa[act, 0], ta[act], 0.25 * P["h_x"])
         result["neutral_angle"] = (math.asin(min(1.0, max(-1.0, -result["neutral_x"] / R)))
                                    if math.isfinite(result["neutral_x"]) else math.nan)
     if comm.rank == 0 and out:
@@ -428,13 +448,22 @@ def _penalty_power(contact, v, t):
     return b.comm.allreduce(float(np.sum(contact._r * (v[b.vertices] - vt))), op=MPI.SUM)
 
 
-def _neutral_x(x, tau):
+def _stations(x, gap):
+    """Group the contact nodes into stations along x (rows across the width: consecutive sorted
+    x closer than ``gap``); returns the list of index arrays."""
+    order = np.argsort(x)
+    cut = np.nonzero(np.diff(x[order]) > gap)[0] + 1
+    return np.split(order, cut)
+
+
+def _neutral_x(x, tau, gap):
     """x where the friction stress changes sign (+ towards the exit in the entry zone, − after):
-    the sign change of the x-binned mean stress, interpolated linearly."""
+    the sign change of the station (row) means, interpolated linearly."""
     if len(x) < 3:
         return math.nan
-    xs = np.unique(np.round(x, 9))
-    tm = np.array([np.mean(tau[np.abs(x - xv) < 1e-8]) for xv in xs])
+    st = _stations(x, gap)
+    xs = np.array([np.mean(x[i]) for i in st])
+    tm = np.array([np.mean(tau[i]) for i in st])
     s = np.nonzero((tm[:-1] > 0) & (tm[1:] <= 0))[0]
     if len(s) == 0:
         return math.nan
@@ -475,8 +504,8 @@ def _pictures(comm, sim, res, R, out):
                label="FE nodal pressure (every node across the width)")
     ax.scatter(a["x"], a["tau"], s=10, c="tab:red", marker="s", alpha=0.5,
                label="FE nodal friction stress along x")
-    xs_fe = np.unique(np.round(a["x"], 6))
-    sel = [np.abs(a["x"] - xv) < 1e-5 for xv in xs_fe]
+    sel = _stations(a["x"], 0.25 * p["h_x"])
+    xs_fe = [np.mean(a["x"][m]) for m in sel]
     ax.plot(xs_fe, [np.mean(a["p"][m]) for m in sel], "o-", c="tab:blue", ms=4,
             label="FE pressure, mean across the width")
     ax.plot(xs_fe, [np.mean(a["tau"][m]) for m in sel], "s-", c="tab:red", ms=4,
