@@ -111,6 +111,50 @@ def add_nodal_jacobian(A: PETSc.Mat, terms: NodalTerms, bc_marker: np.ndarray):
     A.setValuesLocalRCV(rows, rows, vals, addv=PETSc.InsertMode.ADD_VALUES)
 
 
+def assemble_residual_with_terms(b: PETSc.Vec, L, a, bcs, x0: PETSc.Vec, terms, timers,
+                                 constraints=(), w=None):
+    """The residual sequence (PLATFORM order): UFL vector, lifting, reverse ghost update, THEN
+    the nodal entries of ``terms`` (None: a contributor refused the iterate → NaN residual),
+    THEN ``set_bc``; ``constraints`` (symmetry planes) record the residual before the BCs and
+    project it after them."""
+    with timers("assembly"):
+        with b.localForm() as bl:
+            bl.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(b, L)
+        # x0 must have current ghost values: use the (scattered) solution vector
+        dolfinx.fem.petsc.apply_lifting(b, [a], bcs=[bcs], x0=[x0], scale=-1.0)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    if terms is None:  # a contributor refused this iterate: poison the residual
+        b.set(np.nan)
+        return
+    with timers("contact"):
+        for t in terms:
+            add_nodal_residual(b, t)
+    with timers("assembly"):
+        for c in constraints:
+            c.record_residual(b)
+        dolfinx.fem.petsc.set_bc(b, bcs, x0, -1.0)
+        for c in constraints:
+            c.apply_residual(b, w)
+
+
+def assemble_jacobian_with_terms(A: PETSc.Mat, a, bcs, terms, bc_marker, timers,
+                                 constraints=()):
+    """The Jacobian sequence (PLATFORM order): ``zeroEntries``, the nodal blocks, THEN the UFL
+    matrix (which inserts the BC diagonal), THEN the final ``assemble()``; ``constraints``
+    project the assembled matrix."""
+    A.zeroEntries()
+    if terms:
+        with timers("contact"):
+            for t in terms:
+                add_nodal_jacobian(A, t, bc_marker)
+    with timers("assembly"):
+        dolfinx.fem.petsc.assemble_matrix(A, a, bcs=bcs)
+        A.assemble()
+        for c in constraints:
+            c.apply_jacobian(A)
+
+
 class NonlinearProblem:
     """Residual/Jacobian callbacks for SNES: a UFL problem plus nodal contributors.
 
@@ -184,41 +228,15 @@ class NonlinearProblem:
         """SNES residual callback."""
         self._update(x)
         terms = self._evaluate_contributors(jacobian=False) if self.contributors else []
-        with self.timers("assembly"):
-            with b.localForm() as bl:
-                bl.set(0.0)
-            dolfinx.fem.petsc.assemble_vector(b, self.L)
-            # x0 must have current ghost values: use the (scattered) solution vector
-            dolfinx.fem.petsc.apply_lifting(b, [self.a], bcs=[self.bcs], x0=[self.w.vector],
-                                            scale=-1.0)
-            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        if terms is None:  # a contributor refused this iterate: poison the residual
-            b.set(np.nan)
-            return
-        with self.timers("contact"):
-            for t in terms:
-                add_nodal_residual(b, t)
-        with self.timers("assembly"):
-            for c in self.constraints:
-                c.record_residual(b)
-            dolfinx.fem.petsc.set_bc(b, self.bcs, self.w.vector, -1.0)
-            for c in self.constraints:
-                c.apply_residual(b, self.w)
+        assemble_residual_with_terms(b, self.L, self.a, self.bcs, self.w.vector, terms,
+                                     self.timers, self.constraints, self.w)
 
     def jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat):
         """SNES Jacobian callback."""
         self._update(x)
         terms = self._evaluate_contributors(jacobian=True) if self.contributors else []
-        A.zeroEntries()
-        if terms:
-            with self.timers("contact"):
-                for t in terms:
-                    add_nodal_jacobian(A, t, self.bc_marker)
-        with self.timers("assembly"):
-            dolfinx.fem.petsc.assemble_matrix(A, self.a, bcs=self.bcs)
-            A.assemble()
-            for c in self.constraints:
-                c.apply_jacobian(A)
+        assemble_jacobian_with_terms(A, self.a, self.bcs, terms, self.bc_marker, self.timers,
+                                     self.constraints)
         if terms is None:
             raise ContributorError(self.error)
 
@@ -351,33 +369,13 @@ class ContactProblem(dolfinx.fem.petsc.NonlinearProblem):
     def _residual(self, x: PETSc.Vec, b: PETSc.Vec):
         self._sync(x)
         terms = self._evaluate(jacobian=False)
-        with self.timers("assembly"):
-            with b.localForm() as bl:
-                bl.set(0.0)
-            dolfinx.fem.petsc.assemble_vector(b, self.L)
-            dolfinx.fem.petsc.apply_lifting(b, [self.a], bcs=[self.bcs], x0=[self.u.vector],
-                                            scale=-1.0)
-            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        if terms is None:  # a contributor refused this iterate: poison the residual
-            b.set(np.nan)
-            return
-        with self.timers("contact"):
-            for t in terms:
-                add_nodal_residual(b, t)
-        with self.timers("assembly"):
-            dolfinx.fem.petsc.set_bc(b, self.bcs, self.u.vector, -1.0)
+        assemble_residual_with_terms(b, self.L, self.a, self.bcs, self.u.vector, terms,
+                                     self.timers)
 
     def _jacobian(self, x: PETSc.Vec, A: PETSc.Mat):
         self._sync(x)
         terms = self._evaluate(jacobian=True)
-        A.zeroEntries()
-        if terms:
-            with self.timers("contact"):
-                for t in terms:
-                    add_nodal_jacobian(A, t, self.bc_marker)
-        with self.timers("assembly"):
-            dolfinx.fem.petsc.assemble_matrix(A, self.a, bcs=self.bcs)
-            A.assemble()
+        assemble_jacobian_with_terms(A, self.a, self.bcs, terms, self.bc_marker, self.timers)
         if terms is None:
             raise ContributorError(self.error)
 
