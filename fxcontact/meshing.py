@@ -280,7 +280,7 @@ def _sector_degrees(sector) -> float:
 def drawing_bar(comm: MPI.Comm, radius: float, length: float, h: float,
                 nose_length: float = 0.0, nose_radius: float = None,
                 nose_angle: float = 45.0, sector: float = None, h_nose: float = None,
-                periodic: bool = False, replicate: bool = False):
+                symmetric_mesh: bool = False, replicate: bool = False):
     """Round bar along z with a drawn nose, whole or a sector about the axis: the workpiece of
     wire or bar drawing (with ``nose_length = 0``, a plain cylinder: an upsetting billet).
 
@@ -305,14 +305,18 @@ def drawing_bar(comm: MPI.Comm, radius: float, length: float, h: float,
             ``symmetry_1`` (θ = φ); their outward normals are :func:`sector_plane_normals`.
             A half bar (180) has one symmetry face, the plane y = 0, tagged ``symmetry_0``.
         h_nose: element size in the nose and transition (default ``h``).
-        periodic: with a sector, mesh the face ``symmetry_1`` as the face ``symmetry_0`` turned
-            by the sector angle (gmsh periodic mesh constraint): the two symmetry faces then
-            carry the same triangles up to the rotation.
+        symmetric_mesh: with a sector, mesh one half of it (``0 ≤ θ ≤ φ/2``) and complete it
+            by its mirror image about the bisector plane θ = φ/2: the sector's mesh is then
+            mirror-symmetric about its bisector, and its two symmetry faces carry the same
+            triangles (in ``(r, z)``).
         replicate: with a sector whose angle divides 360°, build the **whole bar** from
-            ``360 / sector`` turned copies of the periodic sector mesh, merged on the former
-            symmetry faces (tags ``back``, ``front``, ``lateral``): a whole bar whose mesh has
-            the sector's rotational symmetry, so that a sector model and the whole model are
-            discretised alike (comparison of a symmetry model with the whole model).
+            ``360 / sector`` turned copies of the ``symmetric_mesh`` sector, merged on the
+            former symmetry faces (tags ``back``, ``front``, ``lateral``). The whole mesh is
+            then symmetric under every rotation and reflection that maps the sector's symmetry
+            planes onto each other, so that the discrete solution of a whole model with
+            symmetric loads *is* symmetric about those planes, and a sector model with
+            symmetry planes on the ``symmetric_mesh`` sector has the same discrete solution
+            (the check of a symmetry model against the whole model, to solver precision).
 
     Returns:
         ``(mesh, cell_tags, facet_tags)`` with facet tags :data:`DRAWING_BAR_TAGS`.
@@ -324,16 +328,20 @@ def drawing_bar(comm: MPI.Comm, radius: float, length: float, h: float,
     if not (np.isfinite(nose_length) and nose_length >= 0):
         raise ValueError(f"nose_length must be finite and >= 0, got {nose_length!r}")
     phi = None if sector is None else _sector_degrees(sector)
-    n_copies = 1
-    if (periodic or replicate) and (phi is None or phi == 180.0):
-        raise ValueError("periodic / replicate need a sector of less than 180 degrees, got "
-                         f"sector={sector!r}")
+    n_copies = 0                       # 0: a plain gmsh mesh of the sector / whole bar
+    if (symmetric_mesh or replicate) and (phi is None or phi == 180.0):
+        raise ValueError("symmetric_mesh / replicate need a sector of less than 180 degrees, "
+                         f"got sector={sector!r}")
+    if symmetric_mesh:
+        n_copies = 1
     if replicate:
         n_copies = int(round(360.0 / phi))
         if abs(n_copies * phi - 360.0) > 1e-9:
             raise ValueError(f"replicate needs a sector angle that divides 360 degrees, got "
                              f"{phi!r}")
-        periodic = True
+    full_phi = phi
+    if n_copies:
+        phi = 0.5 * phi                # mesh the half sector, mirrored below
     h_nose = h if h_nose is None else float(h_nose)
     if not h_nose > 0:
         raise ValueError(f"h_nose must be > 0, got {h_nose!r}")
@@ -387,8 +395,6 @@ def drawing_bar(comm: MPI.Comm, radius: float, length: float, h: float,
             for name, tags in groups.items():
                 if tags:
                     gmsh.model.addPhysicalGroup(2, tags, DRAWING_BAR_TAGS[name])
-            if periodic:
-                _periodic_sector_faces(gmsh, groups, phi, eps)
             gmsh.option.setNumber("Mesh.CharacteristicLengthMax", max(h, h_nose))
             gmsh.option.setNumber("Mesh.CharacteristicLengthMin", 0.5 * min(h, h_nose))
             if h_nose != h and nose_length > 0:
@@ -407,9 +413,11 @@ def drawing_bar(comm: MPI.Comm, radius: float, length: float, h: float,
                 gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
                 gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
             gmsh.model.mesh.generate(3)
-            if n_copies > 1:
-                _replicate_about_z(gmsh, phi, n_copies, eps)
+            if n_copies:
+                _mirror_and_replicate(gmsh, full_phi, n_copies, eps)
         return _finish(gmsh, comm, 3)
+
+
 
 
 def _rotation_z(angle_deg: float) -> np.ndarray:
@@ -418,50 +426,41 @@ def _rotation_z(angle_deg: float) -> np.ndarray:
                      [0.0, 0.0, 1.0]])
 
 
-def _periodic_sector_faces(gmsh, groups, phi, eps):
-    """gmsh periodic constraint: each ``symmetry_1`` surface is meshed as the ``symmetry_0``
-    surface that the rotation by φ about z maps on it (matched by centres of mass)."""
-    occ = gmsh.model.occ
-    rot = _rotation_z(phi)
-    masters = {t: rot @ np.array(occ.getCenterOfMass(2, t)) for t in groups["symmetry_0"]}
-    T = np.eye(4)
-    T[:3, :3] = rot
-    for t in groups["symmetry_1"]:
-        c = np.array(occ.getCenterOfMass(2, t))
-        m = [k for k, cm in masters.items() if np.linalg.norm(cm - c) < 10 * eps]
-        if len(m) != 1:
-            raise RuntimeError(f"periodic sector: no unique symmetry_0 face for surface {t}")
-        gmsh.model.mesh.setPeriodic(2, [t], m, T.ravel().tolist())
-
-
-def _replicate_about_z(gmsh, phi, n_copies, eps):
-    """Replace the meshed sector by ``n_copies`` copies turned by multiples of φ about z, merged
-    on the (periodic) symmetry faces, as a discrete gmsh model with the tags ``back``,
-    ``front`` and ``lateral``."""
+def _mirror_and_replicate(gmsh, phi, n_copies, eps):
+    """Replace the meshed half sector ``0 ≤ θ ≤ φ/2`` by the sector completed with its mirror
+    image about θ = φ/2 (``n_copies = 1``, tags ``symmetry_0``/``symmetry_1`` kept) or by the
+    whole bar made of ``n_copies`` turned copies of that sector (the symmetry faces become
+    interior), as a discrete gmsh model; coincident nodes are merged."""
     from scipy.spatial import cKDTree
 
     tags, coords, _ = gmsh.model.mesh.getNodes()
     X = coords.reshape(-1, 3)
-    index = {int(t): i for i, t in enumerate(tags)}
+    index = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
+    index[tags.astype(np.int64)] = np.arange(len(tags))
 
     def elements(dim, etype, phys):
         out = []
         for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, phys):
             types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
-            for ty, nd in zip(types, nodes):
-                if ty == etype:
-                    out.append(nd)
+            out += [nd for ty, nd in zip(types, nodes) if ty == etype]
         conn = np.concatenate(out).astype(np.int64) if out else np.zeros(0, np.int64)
         nper = {2: 3, 4: 4}[etype]          # gmsh types: 2 triangle, 4 tetrahedron
-        return np.array([index[int(t)] for t in conn], dtype=np.int64).reshape(-1, nper)
+        return index[conn].reshape(-1, nper)
 
     tets = elements(3, 4, 1)
-    faces = {name: elements(2, 2, DRAWING_BAR_TAGS[name])
-             for name in ("back", "front", "lateral")}
-    used = np.unique(tets)                  # drop gmsh's geometry-only nodes, if any
+    names = [k for k in ("back", "front", "lateral", "symmetry_0")
+             if gmsh.model.getEntitiesForPhysicalGroup(2, DRAWING_BAR_TAGS[k]).size]
+    faces = {k: elements(2, 2, DRAWING_BAR_TAGS[k]) for k in names}
+    a = np.radians(phi)                     # reflection about the bisector plane θ = φ/2
+    mirror = np.array([[np.cos(a), np.sin(a), 0.0], [np.sin(a), -np.cos(a), 0.0],
+                       [0.0, 0.0, 1.0]])
     n = len(X)
-    allX = np.concatenate([X @ _rotation_z(k * phi).T for k in range(n_copies)])
-    # merge coincident nodes (the former symmetry faces and the axis)
+    # copies: (linear map, orientation flip); the sector = half + mirrored half
+    maps = []
+    for k in range(n_copies):
+        R = _rotation_z(k * phi)
+        maps += [(R, False), (R @ mirror, True)]
+    allX = np.concatenate([X @ M.T for M, _ in maps])
     pairs = cKDTree(allX).query_pairs(10 * eps, output_type="ndarray")
     parent = np.arange(len(allX))
 
@@ -477,24 +476,36 @@ def _replicate_about_z(gmsh, phi, n_copies, eps):
             parent[max(ri, rj)] = min(ri, rj)
     root = np.array([find(i) for i in range(len(allX))])
     alive = np.zeros(len(allX), bool)
-    for k in range(n_copies):
-        alive[root[used + k * n]] = True
+    for c in range(len(maps)):
+        alive[root[np.unique(tets) + c * n]] = True
     keep = np.flatnonzero(alive)
     new_of_root = np.full(len(allX), -1, dtype=np.int64)
     new_of_root[keep] = np.arange(len(keep))
     new_index = new_of_root[root]
-    Y = allX[keep]
-    all_tets = np.concatenate([new_index[tets + k * n] for k in range(n_copies)])
-    all_faces = {name: np.concatenate([new_index[f + k * n] for k in range(n_copies)])
-                 for name, f in faces.items()}
+
+    def copy(conn, c, flip):
+        out = new_index[conn + c * n]
+        return out[:, [1, 0] + list(range(2, conn.shape[1]))] if flip else out
+
+    all_tets = np.concatenate([copy(tets, c, fl) for c, (_, fl) in enumerate(maps)])
+    groups = {k: [] for k in ("back", "front", "lateral", "symmetry_0", "symmetry_1")}
+    for c, (_, fl) in enumerate(maps):
+        for k, f in faces.items():
+            if k == "symmetry_0":
+                if n_copies == 1:           # the half's plane θ = 0 and its mirror θ = φ
+                    groups["symmetry_1" if fl else "symmetry_0"].append(copy(f, c, fl))
+            else:
+                groups[k].append(copy(f, c, fl))
     gmsh.model.remove()
-    gmsh.model.add("drawing_bar_whole")
+    gmsh.model.add("drawing_bar_symmetric")
     vol = gmsh.model.addDiscreteEntity(3)
+    Y = allX[keep]
     gmsh.model.mesh.addNodes(3, vol, list(range(1, len(Y) + 1)), Y.ravel().tolist())
     gmsh.model.mesh.addElementsByType(vol, 4, [], (all_tets + 1).ravel().tolist())
     gmsh.model.addPhysicalGroup(3, [vol], 1)
-    for name, f in all_faces.items():
-        if len(f):
+    for k, fl in groups.items():
+        if fl:
             s = gmsh.model.addDiscreteEntity(2)
-            gmsh.model.mesh.addElementsByType(s, 2, [], (f + 1).ravel().tolist())
-            gmsh.model.addPhysicalGroup(2, [s], DRAWING_BAR_TAGS[name])
+            gmsh.model.mesh.addElementsByType(s, 2, [], (np.concatenate(fl) + 1).ravel()
+                                              .tolist())
+            gmsh.model.addPhysicalGroup(2, [s], DRAWING_BAR_TAGS[k])
