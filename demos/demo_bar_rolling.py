@@ -105,7 +105,8 @@ from fxcontact.power import PlasticDissipation, PressurePower
 DEFAULTS = dict(R0=58.0, R1=48.0, groove_angle=50.0, roll_radius=180.0, K=50.0, m=0.03,
                 alpha_f=0.3, q=0.15, v_roll=100.0, dt=1.0e-3, h=9.0, length_factor=3.0,
                 nose=0.3, push_ratio=0.9, grip_travel=0.6, settle=0.8, window=0.5,
-                steady_tol=0.02, exit_offset=0.5, beta=10.0, regularization=1e-3, m_start=0.3, model="third", mesh="symmetric",
+                steady_tol=0.02, exit_offset=0.5, beta=10.0, regularization=1e-3, m_start=0.3,
+                slip_velocity=1e-3, model="third", mesh="symmetric",
                 scheme="implicit", line_search="bt", max_increments=5000,
                 output_dir="results/bar_rolling", pictures=True, comm=None)
 
@@ -361,7 +362,8 @@ def run(**parameters) -> dict:
         sim.add_symmetry_plane(f["symmetry_1"], normals["symmetry_1"], name="sym1")
     friction = {roll.name: fx.Norton(P["alpha_f"], P["q"]) for roll in rolls}
     rc = fx.NodalContact(fx.ContactBoundary(sp, ft, DRAWING_BAR_TAGS["lateral"]), rolls,
-                         scheme=P["scheme"], friction=friction, slip_velocity=1e-3 * v_R,
+                         scheme=P["scheme"], friction=friction,
+                         slip_velocity=P["slip_velocity"] * v_R,
                          beta=P["beta"], strain_rate=rate, element_size=P["h"],
                          name="roll_contact")
     A0 = math.pi * R0**2
@@ -396,8 +398,9 @@ def run(**parameters) -> dict:
     wall0 = time.perf_counter()
     win = max(3, int(math.ceil(P["window"] * L / (v_R * P["dt"]))))
     for it in range(int(P["max_increments"])):
+        if it == 1:
+            mat.exponent.value = P["m"]    # after the start-up increment
         res = sim.step(P["dt"])
-        mat.exponent.value = P["m"]        # after the start-up increment
         rr = res.row
         X = sim.vertex_positions()
         v = sim.w.x.array[sp.vertex_dofs]
