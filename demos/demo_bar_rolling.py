@@ -26,8 +26,8 @@
 # the bar axis**: ``d = R_w + r_g`` with ``R_w = R_b − h_g`` the groove-bottom (working) radius.
 # With ``r_g = R1 = 48 mm`` the three grooves are arcs of the circle of radius 48 mm, so the
 # **inscribed radius of the roll gap is R1 = 48 mm** exactly. The groove spans ±β about the
-# roll's direction (``h_g = r_g (1 − cos β)``, half-width ``r_g sin β``); β < 60° leaves a roll
-# gap: beside the groove the barrel shoulders of two neighbouring rolls (straight lines at the
+# roll's direction (``h_g = r_g (1 − cos β)``, half-width ``r_g sin β``); β < 60° leaves a
+# roll gap: beside the groove the barrel shoulders of two neighbouring rolls (straight lines at the
 # distance ``p = r_g cos β`` from the axis in the exit plane) meet on the plane between them at
 # the corner radius ``r_c = p / cos 60° = 2 r_g cos β``. Default β = 50°: h_g = 17.15 mm,
 # r_c = 61.7 mm > R0 (the incoming bar does not reach the corners: the shoulders form open
@@ -329,9 +329,12 @@ def _check(P):
         raise ValueError(f"unknown parameter(s) {sorted(unknown)}; known: {sorted(DEFAULTS)}")
     P = {**DEFAULTS, **P}
     for key in ("R0", "R1", "roll_radius", "K", "v_roll", "dt", "h", "length_factor",
-                "alpha_f", "push_ratio", "window", "exit_offset"):
+                "alpha_f", "push_ratio", "window", "exit_offset", "beta", "regularization",
+                "slip_velocity", "m_start"):
         if not (isinstance(P[key], (int, float)) and math.isfinite(P[key]) and P[key] > 0):
             raise ValueError(f"{key} must be a finite number > 0, got {P[key]!r}")
+    if not P["m_start"] <= 1.0:
+        raise ValueError(f"m_start must be in (0, 1], got {P['m_start']!r}")
     if not 0.0 < P["R1"] < P["R0"]:
         raise ValueError(f"need 0 < R1 < R0 (a reduction), got R0 = {P['R0']!r}, "
                          f"R1 = {P['R1']!r}")

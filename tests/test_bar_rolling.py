@@ -176,3 +176,16 @@ def test_steady_state(tmp_path):
     assert geo["A_inscribed"] / geo["A_pass"] < res["fill"] < upper, (res["fill"], upper)
     assert abs(res["power_balance"]) < 0.03
     assert math.isfinite(res["radius_gap"]) and res["radius_gap"] < geo["r_c"]
+
+
+def test_bad_parameters():
+    with pytest.raises(ValueError, match="unknown parameter"):
+        demo.run(radius=3.0)
+    with pytest.raises(ValueError, match="R1"):
+        demo.run(R1=60.0)
+    with pytest.raises(ValueError, match="groove_angle"):
+        demo.run(groove_angle=70.0)
+    with pytest.raises(ValueError, match="model"):
+        demo.run(model="half")
+    with pytest.raises(ValueError, match="m_start"):
+        demo.run(m_start=2.0)
