@@ -63,9 +63,11 @@
 # roll contact after the release), "no steady state" (tail at the bite, or
 # ``max_increments``), "steady" (the front ``settle`` × L_b past the exit and the roll force and
 # torque means of two consecutive windows of ``window`` × L_b of roll travel within
-# ``steady_tol``; the steady values are the last window's means).
+# ``steady_tol``; the steady values are the last window's means), "failed" (an increment
+# failed after its cut-backs, or an element would invert: the message says which; the history
+# up to there is kept and written).
 #
-# **Measured per increment** (``bar_rolling_diagnostics.csv`` and the result dict): per roll the
+# **Measured per increment** (``bar_rolling_{model}_diagnostics.csv`` and the result dict): per roll the
 # radial (separating) force ``F·e_r``, the axial force and the torque; contact area, true
 # penetration, Newton iterations, wall time, relative volume change, smallest element quality,
 # the exit cross-section (area and radii of the bar's section by the plane ``z_r + exit_offset
@@ -434,7 +436,11 @@ def run(**parameters) -> dict:
     for it in range(int(P["max_increments"])):
         if it == 1:
             mat.exponent.value = P["m"]    # after the start-up increment
-        res = sim.step(P["dt"])
+        try:
+            res = sim.step(P["dt"])
+        except fx.IncrementError as err:   # raised on every rank: no hang
+            status, message = "failed", str(err)
+            break
         rr = res.row
         X = sim.vertex_positions()
         v = sim.w.x.array[sp.vertex_dofs]
@@ -510,6 +516,8 @@ def run(**parameters) -> dict:
         status, message = "no steady state", "max_increments reached"
     wall = time.perf_counter() - wall0
     sim.close()
+    if not rows:
+        raise RuntimeError(f"bar rolling: no increment converged: {message}")
 
     result = dict(status=status, message=message, history=rows, pass_=geo, bite_length=L,
                   omega=omega, z_r=z_r, gripped_at=gripped_at, wall=wall, increments=len(rows),
