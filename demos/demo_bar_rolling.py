@@ -135,7 +135,7 @@ from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normal
 from fxcontact.power import PlasticDissipation, PressurePower
 
 #: the thesis case (lengths mm, stresses MPa, times s)
-DEFAULTS = dict(R0=58.0, R1=48.0, groove_angle=50.0, roll_radius=180.0, K=50.0, m=0.03,
+DEFAULTS = dict(R0=58.0, R1=48.0, groove_angle=50.0, roll_radius=180.0, edge_radius=5.0, K=50.0, m=0.03,
                 alpha_f=0.3, q=0.15, v_roll=100.0, dt=1.0e-3, h=9.0, length_factor=3.0,
                 nose=0.3, push_ratio=0.9, grip_travel=0.6, settle=0.8, window=0.5,
                 steady_tol=0.02, exit_offset=0.5, beta=10.0, regularization=1e-3, m_start=0.3,
@@ -173,14 +173,15 @@ def pass_geometry(R1, groove_angle_deg, roll_radius, n_rolls=N_ROLLS):
                 A_inscribed=math.pi * rg * rg)
 
 
-def make_rolls(geo, z_r, omega, thetas_deg):
-    """One :class:`fxcontact.RevolvedProfile` grooved roll per angle (names roll0, roll1, …)."""
+def make_rolls(geo, z_r, omega, thetas_deg, edge_radius=0.0):
+    """One :class:`fxcontact.RevolvedProfile` grooved roll per angle (names roll0, roll1, …),
+    the groove's edges rounded with ``edge_radius``."""
     rolls = []
     for k, th in enumerate(thetas_deg):
         t = math.radians(th)
         rolls.append(fx.RevolvedProfile.grooved_roll(
             barrel_radius=geo["R_b"], barrel_width=4.0 * geo["b"], groove_radius=geo["r_g"],
-            groove_depth=geo["h_g"], axis_point=(geo["d"] * math.cos(t), geo["d"] * math.sin(t),
+            groove_depth=geo["h_g"], edge_radius=edge_radius, axis_point=(geo["d"] * math.cos(t), geo["d"] * math.sin(t),
                                                  z_r),
             axis=(-math.sin(t), math.cos(t), 0.0), angular_velocity=omega, name=f"roll{k}"))
     return rolls
@@ -197,6 +198,19 @@ def pass_outline(geo, n_rolls=N_ROLLS, first_deg=60.0, n=200):
         pts.append(np.stack([r * np.cos(c + phi), r * np.sin(c + phi)], 1))
     P = np.concatenate(pts)
     return np.vstack([P, P[:1]])
+
+
+def pass_outline_of_rolls(rolls, z, r_max, n=3600):
+    """Closed outline (x, y) of the pass left by ``rolls`` in the plane z, sampled at n + 1
+    angles (θ = 0 included: the roll gaps of the default stand) by :func:`pass_radius`."""
+    th = np.linspace(0.0, 2.0 * np.pi, n + 1)
+    r = pass_radius(rolls, th, np.full_like(th, z), r_max, tol=1e-12)
+    return np.stack([r * np.cos(th), r * np.sin(th)], 1)
+
+
+def polygon_area(P):
+    """Area of a closed polygon (first point repeated last)."""
+    return 0.5 * abs(float(np.dot(P[:-1, 0], P[1:, 1]) - np.dot(P[:-1, 1], P[1:, 0])))
 
 
 def pass_radius(rolls, theta, z, r_max, tol=1e-9):
@@ -330,6 +344,8 @@ def _check(P):
     if unknown:
         raise ValueError(f"unknown parameter(s) {sorted(unknown)}; known: {sorted(DEFAULTS)}")
     P = {**DEFAULTS, **P}
+    if not (math.isfinite(P["edge_radius"]) and P["edge_radius"] >= 0):
+        raise ValueError(f"edge_radius must be >= 0, got {P['edge_radius']!r}")
     for key in ("R0", "R1", "roll_radius", "K", "v_roll", "dt", "h", "length_factor",
                 "alpha_f", "push_ratio", "window", "exit_offset", "beta", "regularization",
                 "slip_velocity", "m_start"):
@@ -377,7 +393,12 @@ def run(**parameters) -> dict:
         msh, _, ft = drawing_bar(comm, R0, length, P["h"], sector=120.0 if sym else None,
                                  replicate=sym)
         thetas = [60.0, 180.0, 300.0]
-    rolls = make_rolls(geo, z_r, omega, thetas)
+    rolls = make_rolls(geo, z_r, omega, thetas, P["edge_radius"])
+    if P["edge_radius"] > 0:     # the rounded edges open the pass: its area from the rolls
+        outline = pass_outline_of_rolls(make_rolls(geo, 0.0, 0.0, [60.0, 180.0, 300.0],
+                                                   P["edge_radius"]), 0.0, 2.0 * geo["r_c"])
+        geo = {**geo, "A_pass_sharp": geo["A_pass"], "A_pass": polygon_area(outline),
+               "outline": outline}
     # the nose: the lateral surface of the front part moved onto the rolls (radial scaling)
     g = msh.geometry.x
     th = np.arctan2(g[:, 1], g[:, 0])
@@ -577,7 +598,7 @@ def _section_picture(res, out):
     geo = res["pass_"]
     p = res["parameters"]
     fig, ax = plt.subplots(figsize=(7.5, 7.5))
-    P = pass_outline(geo)
+    P = geo["outline"] if "outline" in geo else pass_outline(geo)
     ax.fill(P[:, 0], P[:, 1], color="0.92", zorder=0, label=f"pass (A = {geo['A_pass']:.0f} mm²)")
     ax.plot(P[:, 0], P[:, 1], "k-", lw=1.2)
     t = np.linspace(0, 2 * np.pi, 361)
@@ -681,7 +702,7 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="the reduced size of the tests")
     ap.add_argument("--compare", type=int, default=0, metavar="N",
                     help="third against full model over N increments")
-    for k in ("R0", "R1", "groove_angle", "roll_radius", "alpha_f", "q", "v_roll", "dt", "h",
+    for k in ("R0", "R1", "groove_angle", "roll_radius", "edge_radius", "alpha_f", "q", "v_roll", "dt", "h",
               "length_factor", "nose", "settle", "window"):
         ap.add_argument(f"--{k}", type=float)
     ap.add_argument("--max_increments", type=int)

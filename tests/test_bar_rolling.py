@@ -170,7 +170,7 @@ def test_steady_state(tmp_path):
     assert res["status"] == "steady", res["message"]
     assert res["max_volume_change"] < 5e-3
     geo = res["pass_"]
-    P = demo.pass_outline(geo)
+    P = geo["outline"] if "outline" in geo else demo.pass_outline(geo)
     per = float(np.sum(np.linalg.norm(np.diff(P, axis=0), axis=1)))
     upper = 1.0 + per * res["max_penetration"] / geo["A_pass"]
     assert geo["A_inscribed"] / geo["A_pass"] < res["fill"] < upper, (res["fill"], upper)
@@ -189,3 +189,32 @@ def test_bad_parameters():
         demo.run(model="half")
     with pytest.raises(ValueError, match="m_start"):
         demo.run(m_start=2.0)
+
+
+def test_rounded_groove_edges():
+    """``edge_radius``: the groove's edges become arcs tangent to the barrel and to the groove
+    (every junction of the profile is a tangent junction, no kink), the inscribed radius of the
+    pass stays R1, the pass opens by a few mm² (the outline sampled from the rolls), and the
+    sharp pass's outline from the rolls has the formula's area."""
+    import fxcontact as fx
+    geo = demo.pass_geometry(48.0, 50.0, 180.0)
+    roll = fx.RevolvedProfile.grooved_roll(geo["R_b"], 4 * geo["b"], geo["r_g"], geo["h_g"],
+                                           edge_radius=5.0)
+    assert "kink" not in " ".join(roll.feature_names.values())
+    assert sum("tangent junction" in v for v in roll.feature_names.values()) == 4
+    # the edge arcs' centres are r_g + r_e from the groove centre and r_e below the barrel
+    pts = roll.points
+    c_groove = np.array([0.0, geo["R_b"] - geo["h_g"] + geo["r_g"]])
+    c_edge = np.array([pts[1, 0], geo["R_b"] - 5.0])
+    assert np.linalg.norm(c_edge - c_groove) == pytest.approx(geo["r_g"] + 5.0, rel=1e-12)
+    assert np.linalg.norm(pts[2] - c_edge) == pytest.approx(5.0, rel=1e-12)
+    areas = []
+    for e in (0.0, 5.0):
+        rolls = demo.make_rolls(geo, 0.0, 0.0, [60.0, 180.0, 300.0], e)
+        P = demo.pass_outline_of_rolls(rolls, 0.0, 2.0 * geo["r_c"])
+        assert np.min(np.hypot(P[:, 0], P[:, 1])) == pytest.approx(48.0, rel=1e-9)
+        areas.append(demo.polygon_area(P))
+    assert areas[0] == pytest.approx(geo["A_pass"], rel=1e-5)
+    assert 0.0 < areas[1] - areas[0] < 0.01 * areas[0]
+    with pytest.raises(ValueError, match="edge_radius"):
+        fx.RevolvedProfile.grooved_roll(200.0, 100.0, edge_radius=2.0)

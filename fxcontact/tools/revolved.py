@@ -828,12 +828,12 @@ class RevolvedProfile(_AnalyticTool):
     @classmethod
     def grooved_roll(cls, barrel_radius, barrel_width, groove_radius=0.0, groove_depth=0.0,
                      flange_height=0.0, flange_width=0.0, fillet_radius=0.0, s0=0.0,
-                     **kwargs) -> "RevolvedProfile":
+                     edge_radius=0.0, **kwargs) -> "RevolvedProfile":
         """Grooved / flanged roll (body outside) from :func:`grooved_roll_profile`; ``kwargs``
         go to the constructor (``axis_point``, ``axis``, ``angular_velocity``, ...)."""
         pts, arcs = grooved_roll_profile(barrel_radius, barrel_width, groove_radius,
                                          groove_depth, flange_height, flange_width,
-                                         fillet_radius, s0)
+                                         fillet_radius, s0, edge_radius)
         kwargs.setdefault("name", "roll")
         return cls(pts, arcs, inside=False, **kwargs)
 
@@ -922,7 +922,8 @@ def die_profile(entry_radius, exit_radius, half_angle, land_length, fillet_radiu
 
 
 def grooved_roll_profile(barrel_radius, barrel_width, groove_radius=0.0, groove_depth=0.0,
-                         flange_height=0.0, flange_width=0.0, fillet_radius=0.0, s0=0.0):
+                         flange_height=0.0, flange_width=0.0, fillet_radius=0.0, s0=0.0,
+                         edge_radius=0.0):
     """Profile of a grooved, optionally flanged roll (body outside): ``(points, arcs)``.
 
     Centred on ``s0``: a barrel of radius ``R_b`` and width ``W`` (from ``s0 − W/2`` to
@@ -931,6 +932,8 @@ def grooved_roll_profile(barrel_radius, barrel_width, groove_radius=0.0, groove_
     barrel a radial face rising by ``flange_height`` (joined to the barrel by a fillet of radius
     ``fillet_radius``, tangent to both) and a flange top of width ``flange_width``. Without
     flanges the barrel is continued to infinity on both sides; with flanges the flange tops are.
+    ``edge_radius > 0`` rounds the groove's edges: an arc of that radius tangent to the barrel
+    and to the groove replaces each sharp edge (the profile is then C¹ across the groove).
 
     Returns:
         ``(points (n + 1, 2), arcs list)`` for ``RevolvedProfile(points, arcs, inside=False)``.
@@ -942,7 +945,10 @@ def grooved_roll_profile(barrel_radius, barrel_width, groove_radius=0.0, groove_
     hf = _pos(flange_height, "flange_height", allow_zero=True)
     wf = _pos(flange_width, "flange_width", allow_zero=True)
     rc = _pos(fillet_radius, "fillet_radius", allow_zero=True)
+    re_ = _pos(edge_radius, "edge_radius", allow_zero=True)
     s0 = float(s0)
+    if re_ > 0 and not hg > 0:
+        raise ValueError("edge_radius needs a groove (groove_radius and groove_depth > 0)")
     if (hg > 0) != (rg > 0):
         raise ValueError("give both groove_radius and groove_depth (> 0) or neither")
     if hg > rg:
@@ -950,6 +956,13 @@ def grooved_roll_profile(barrel_radius, barrel_width, groove_radius=0.0, groove_
     if hg >= Rb:
         raise ValueError(f"groove_depth ({hg}) must be smaller than barrel_radius ({Rb})")
     b = math.sqrt(max(rg * rg - (rg - hg) ** 2, 0.0)) if hg > 0 else 0.0
+    if re_ > 0:
+        # edge arc: centre (s0 ± be, Rb − re) at the distance rg + re from the groove centre
+        # (s0, Rb − hg + rg); tangent to the barrel at s0 ± be, to the groove at ± (ge_s, ge_r)
+        be = math.sqrt((rg + re_) ** 2 - (rg + re_ - hg) ** 2)
+        k = rg / (rg + re_)
+        ge_s, ge_r = k * be, (Rb - hg + rg) + k * ((Rb - re_) - (Rb - hg + rg))
+        b = be
     if hf > 0 and not wf > 0:
         raise ValueError("flanges need flange_width > 0")
     if rc > 0 and not hf > 0:
@@ -978,7 +991,12 @@ def grooved_roll_profile(barrel_radius, barrel_width, groove_radius=0.0, groove_
             add((s0 - half, Rb))
     else:
         add((s0 - half, Rb))
-    if hg > 0:
+    if hg > 0 and re_ > 0:
+        add((s0 - be, Rb))
+        add((s0 - ge_s, ge_r), -re_)  # the edge: clockwise, from the barrel into the groove
+        add((s0 + ge_s, ge_r), rg)    # the groove: counter-clockwise below its centre
+        add((s0 + be, Rb), -re_)
+    elif hg > 0:
         add((s0 - b, Rb))
         add((s0 + b, Rb), rg)  # counter-clockwise below its centre
     if hf > 0:
