@@ -31,9 +31,13 @@
 # distance ``p = r_g cos β`` from the axis in the exit plane) meet on the plane between them at
 # the corner radius ``r_c = p / cos 60° = 2 r_g cos β``. Default β = 50°: h_g = 17.15 mm,
 # r_c = 61.7 mm > R0 (the incoming bar does not reach the corners: the shoulders form open
-# "ears" beside each groove, where the spread goes). The **groove's opening area** (the pass,
-# enclosed by the three rolls in the exit plane) is ``A_pass = 3 [β r_g² + p² (tan 60° − tan
-# β)]`` = 7575 mm² against π R1² = 7238 mm² for the inscribed circle. Roll: groove-bottom
+# "ears" beside each groove, where the spread goes). The groove's edges are rounded with
+# ``edge_radius`` = 5 mm (``grooved_roll(..., edge_radius=)``: arcs tangent to the barrel and
+# the groove; a sharp edge made an element turn inside out at h = 12 mm, see the results).
+# The **groove's opening area** (the pass, enclosed by the three rolls in the exit plane) is
+# ``A_pass = 3 [β r_g² + p² (tan 60° − tan β)]`` = 7575 mm² with sharp edges (7579 mm² with
+# the 5 mm edge radius: computed from the outline of the rolls, ``pass_outline_of_rolls``)
+# against π R1² = 7238 mm² for the inscribed circle. Roll: groove-bottom
 # radius **R_w = 180 mm** (barrel radius R_b = R_w + h_g = 197.15 mm); the rolling speed is the
 # peripheral speed at the groove bottom, ω = 100/180 rad/s. Bite length at the groove bottom
 # ``L_b = √(R_w² − (R_w − (R0 − R1))²)`` = 59.2 mm.
@@ -67,8 +71,8 @@
 # failed after its cut-backs, or an element would invert: the message says which; the history
 # up to there is kept and written).
 #
-# **Measured per increment** (``bar_rolling_{model}_diagnostics.csv`` and the result dict): per roll the
-# radial (separating) force ``F·e_r``, the axial force and the torque; contact area, true
+# **Measured per increment** (``bar_rolling_{model}_diagnostics.csv`` and the result dict): per
+# roll the radial (separating) force ``F·e_r``, the axial force and the torque; contact area, true
 # penetration, Newton iterations, wall time, relative volume change, smallest element quality,
 # the exit cross-section (area and radii of the bar's section by the plane ``z_r + exit_offset
 # × L_b``: exact plane cut of the tetrahedra), plastic dissipation ∫ s:D dV (minus the pressure
@@ -135,10 +139,11 @@ from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normal
 from fxcontact.power import PlasticDissipation, PressurePower
 
 #: the thesis case (lengths mm, stresses MPa, times s)
-DEFAULTS = dict(R0=58.0, R1=48.0, groove_angle=50.0, roll_radius=180.0, edge_radius=5.0, K=50.0, m=0.03,
+DEFAULTS = dict(R0=58.0, R1=48.0, groove_angle=50.0, roll_radius=180.0, edge_radius=5.0,
+                K=50.0, m=0.03,
                 alpha_f=0.3, q=0.15, v_roll=100.0, dt=1.0e-3, h=9.0, length_factor=3.0,
                 nose=0.3, push_ratio=0.9, grip_travel=0.6, settle=0.8, window=0.5,
-                steady_tol=0.02, exit_offset=0.5, beta=10.0, regularization=1e-3, m_start=0.3,
+                steady_tol=0.02, exit_offset=0.5, beta=10.0, regularization=1e-3, m_start=0.1,
                 slip_velocity=1e-3, model="third", mesh="symmetric",
                 scheme="implicit", line_search="bt", max_increments=5000,
                 output_dir="results/bar_rolling", pictures=True, comm=None)
@@ -181,8 +186,8 @@ def make_rolls(geo, z_r, omega, thetas_deg, edge_radius=0.0):
         t = math.radians(th)
         rolls.append(fx.RevolvedProfile.grooved_roll(
             barrel_radius=geo["R_b"], barrel_width=4.0 * geo["b"], groove_radius=geo["r_g"],
-            groove_depth=geo["h_g"], edge_radius=edge_radius, axis_point=(geo["d"] * math.cos(t), geo["d"] * math.sin(t),
-                                                 z_r),
+            groove_depth=geo["h_g"], edge_radius=edge_radius,
+            axis_point=(geo["d"] * math.cos(t), geo["d"] * math.sin(t), z_r),
             axis=(-math.sin(t), math.cos(t), 0.0), angular_velocity=omega, name=f"roll{k}"))
     return rolls
 
@@ -702,7 +707,8 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="the reduced size of the tests")
     ap.add_argument("--compare", type=int, default=0, metavar="N",
                     help="third against full model over N increments")
-    for k in ("R0", "R1", "groove_angle", "roll_radius", "edge_radius", "alpha_f", "q", "v_roll", "dt", "h",
+    for k in ("R0", "R1", "groove_angle", "roll_radius", "edge_radius", "m_start", "alpha_f",
+              "q", "v_roll", "dt", "h",
               "length_factor", "nose", "settle", "window"):
         ap.add_argument(f"--{k}", type=float)
     ap.add_argument("--max_increments", type=int)
