@@ -111,14 +111,24 @@
 # to 7.7 % in force and 18 % in torque (a discretisation difference: 16 contact nodes per roll
 # at that size).
 #
-# **Not reached: the thesis size** (9 mm elements, dt = 1 ms: 0.1 mm of roll travel per
-# increment, ~2000 increments to steady state). Its second increment failed (Newton, then
-# the cut-backs down to dt = 3e-5 s: ``DIVERGED_LINEAR_SOLVE``) on the loaded machine; at the
-# test size an increment costs 15 s with 30 Newton iterations on average, so even a converging
-# thesis-size run would take hours. Newton is the bottleneck of this case (m = 0.03: the
-# tangent along the flow is 2 m η, nodes entering the bite at nearly every increment, Norton
-# friction with q = 0.15); ``slip_velocity`` and ``regularization`` 10× larger did not reduce
-# the iterations (measured over 14 increments).
+# **Not reached: the thesis size to steady state** (9 mm elements, dt = 1 ms: 4864 cells and
+# 19 452 dofs in the third; 0.1 mm of roll travel per increment, ~1600 increments to steady
+# state). Measured on its first four increments (``run(max_increments=4)``): 13–20 Newton
+# iterations and 15–29 s per increment on the loaded machine, true penetration 0.004 mm,
+# radial force 233 kN per roll in the pusher phase — about 10 h to steady state here, so not
+# run. (With ``m_start = 0.3`` its second increment failed after all cut-backs; 0.1, the
+# default since, passes; with dt = 5 ms the four increments took 17–28 iterations.) At the
+# test size an increment costs ~15 s with 30 Newton iterations on average: Newton is the
+# bottleneck of this case (m = 0.03: the tangent along the flow is 2 m η, nodes enter the bite
+# at nearly every increment, Norton friction with q = 0.15); ``slip_velocity`` and
+# ``regularization`` 10× larger did not reduce the iterations (measured over 14 increments).
+#
+# **Known problem: sharp groove edges.** With sharp edges (``--edge_radius 0``) and 12 mm
+# elements (``--quick --h 12 --edge_radius 0``) the run stopped at t = 0.72 s (increment 41):
+# an element at the groove's edge in the bite (centroid r = 46.7 mm, θ = 11°, 51 mm before
+# the roll axes) would have turned inside out (``MeshInversionError``; no remeshing in this
+# library). The rounded edges (5 mm, the default now) remove the kink the material flows
+# around; the 12 mm run was not repeated with them.
 
 # %%
 from __future__ import annotations
