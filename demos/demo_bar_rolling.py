@@ -91,9 +91,9 @@
 #
 # | size (command) | per roll: radial force / torque | stand torque / power | exit area, fill of the pass (radius at the roll gap) | power bal. | max \|ΔV/V\| | penetration | Newton mean/max | wall |
 # |---|---|---|---|---|---|---|---|---|
-# | h 16 mm, dt 20 ms, 912 cells, 3868 dofs (``--quick``) | 624.8 kN (± 4.5 %) / 21.45 kN m | 64.35 kN m / 35.75 kW | 7569 mm², 99.92 % (60.4 of 61.7 mm) | −0.30 % | 3.4e-5 | 0.136 mm | 30.1 / 166 | 1212 s, 82 incr. |
+# | h 16 mm, dt 20 ms, 912 cells, 3868 dofs, sharp groove edges, m_start 0.3 (``--quick --edge_radius 0 --m_start 0.3``) | 624.8 kN (± 4.5 %) / 21.45 kN m | 64.35 kN m / 35.75 kW | 7569 mm², 99.92 % (60.4 of 61.7 mm) | −0.30 % | 3.4e-5 | 0.136 mm | 30.1 / 166 | 1212 s, 82 incr. |
 #
-# Steady from increment 67 (gripped at t = 0.315 s, the front 0.8 L_b past the roll axes);
+# Sharp-edge run: steady from increment 67 (gripped at t = 0.315 s, the front 0.8 L_b past the roll axes);
 # contact area of the stand 19 551 mm²; net axial force of the rolls 0 (the bar's ends are
 # free); smallest element quality 0.094. The exit section (``exit_section_third.png``) fills
 # the pass up to the penalty penetration: the inscribed circle and the grooves entirely, the
