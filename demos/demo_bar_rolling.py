@@ -91,23 +91,26 @@
 #
 # | size (command) | per roll: radial force / torque | stand torque / power | exit area, fill of the pass (radius at the roll gap) | power bal. | max \|ΔV/V\| | penetration | Newton mean/max | wall |
 # |---|---|---|---|---|---|---|---|---|
+# | h 16 mm, dt 20 ms, 912 cells, 3868 dofs, edges rounded 5 mm (``--quick``) | 616.7 kN (± 5.8 %) / 21.31 kN m | 63.94 kN m / 35.52 kW | 7513 mm², 99.13 % (57.9 of 61.7 mm) | −1.33 % | 3.2e-5 | 0.119 mm | 25.7 / 156 | 646 s, 94 incr. |
 # | h 16 mm, dt 20 ms, 912 cells, 3868 dofs, sharp groove edges, m_start 0.3 (``--quick --edge_radius 0 --m_start 0.3``) | 624.8 kN (± 4.5 %) / 21.45 kN m | 64.35 kN m / 35.75 kW | 7569 mm², 99.92 % (60.4 of 61.7 mm) | −0.30 % | 3.4e-5 | 0.136 mm | 30.1 / 166 | 1212 s, 82 incr. |
 #
-# Sharp-edge run: steady from increment 67 (gripped at t = 0.315 s, the front 0.8 L_b past the roll axes);
-# contact area of the stand 19 551 mm²; net axial force of the rolls 0 (the bar's ends are
-# free); smallest element quality 0.094. The exit section (``exit_section_third.png``) fills
-# the pass up to the penalty penetration: the inscribed circle and the grooves entirely, the
-# ears beside the grooves to 60.4 mm of the 61.7 mm corner radius; the underfill is 0.08 % of
-# the pass area (the bar lies 0.14 mm inside the rolls, which adds about 0.6 %). With these
-# settings the bar's spread fills the closed three-roll pass: the **expected underfill** is
-# the open tip of the ears only, between 0 and the ears' share of the pass (4.5 %) — the test
-# asserts A_inscribed/A_pass < fill < 1 + perimeter × penetration / A_pass.
+# Default (rounded edges): steady from increment 79 (gripped at t = 0.315 s, the front
+# 0.8 L_b past the roll axes); contact area of the stand 18 659 mm²; net axial force of the
+# rolls 0 (the bar's ends are free); smallest element quality 0.094 (that of the shaped nose at
+# the start). The exit section (``results/bar_rolling/exit_section_third.png``) fills the
+# inscribed circle and the grooves and spreads into the ears beside the grooves to 57.9 mm of
+# the 61.7 mm corner radius: the **underfill** is 0.87 % of the pass area (the bar lying
+# 0.12 mm inside the rolls adds about 0.5 %). With sharp edges the ears filled further
+# (60.4 mm, underfill 0.08 %). The expected underfill is the open tip of the ears only,
+# between 0 and the ears' share of the pass (4.5 %) — the slow test asserts
+# A_inscribed/A_pass < fill < 1 + perimeter × penetration / A_pass.
 #
 # **Third against the whole model** (``--quick --compare 3``): on the symmetric meshes (the
 # default) the per-roll radial force and torque of the third and of each of the whole model's
 # three rolls agree to 2e-8 (the solver tolerance) at every increment — far within the 1 %
 # acceptance; with independent gmsh meshes of the third and of the whole bar
-# (``--quick --compare 3 --mesh gmsh``, 16 mm elements, start-up increments) they differ by up
+# (``--quick --compare 3 --mesh gmsh``, 16 mm elements, start-up increments; measured with the
+# sharp edges and m_start = 0.3 of the first version) they differ by up
 # to 7.7 % in force and 18 % in torque (a discretisation difference: 16 contact nodes per roll
 # at that size).
 #
