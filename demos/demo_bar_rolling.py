@@ -390,7 +390,7 @@ def run(**parameters) -> dict:
     """Roll the bar to steady state (or report why not); returns the result dict.
 
     Keys: ``status``, ``message``, ``history`` (one dict per increment), the pass geometry
-    (``pass``), and at steady state the window means (``roll_force``, ``roll_torque``,
+    (``pass_``), and at steady state the window means (``roll_force``, ``roll_torque``,
     ``stand_torque``, ``exit_area``, ``fill``, ``power_balance`` …) and the outputs' paths."""
     P = _check(parameters)
     comm = P["comm"] or MPI.COMM_WORLD
