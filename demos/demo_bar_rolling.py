@@ -109,10 +109,11 @@
 # default) the per-roll radial force and torque of the third and of each of the whole model's
 # three rolls agree to 2e-8 (the solver tolerance) at every increment — far within the 1 %
 # acceptance; with independent gmsh meshes of the third and of the whole bar
-# (``--quick --compare 3 --mesh gmsh``, 16 mm elements, start-up increments; measured with the
-# sharp edges and m_start = 0.3 of the first version) they differ by up
-# to 7.7 % in force and 18 % in torque (a discretisation difference: 16 contact nodes per roll
-# at that size).
+# (``--quick --compare 3 --mesh gmsh``, 16 mm elements, the first three increments of the
+# pusher phase) each roll of the whole model differs from the third's by up to 8.5 % in force
+# and 13 % in torque; the three rolls of the whole model differ among themselves by up to 7 %
+# in force and their mean differs from the third's by 4–5 %: a discretisation difference
+# (16–18 contact nodes per roll at that size), which the symmetric meshes remove.
 #
 # **Not reached: the thesis size to steady state** (9 mm elements, dt = 1 ms: 4864 cells and
 # 19 452 dofs in the third; 0.1 mm of roll travel per increment, ~1600 increments to steady
