@@ -46,6 +46,31 @@ LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
                    "pc_fieldsplit_schur_precondition": "selfp",
                    "fieldsplit_u_ksp_type": "preonly", "fieldsplit_u_pc_type": "hypre",
                    "fieldsplit_p_ksp_type": "preonly", "fieldsplit_p_pc_type": "jacobi"},
+    # MINI bubble condensed element by element (fxcontact.condense.CondensedPC, an exact block
+    # elimination), the P1/P1 system solved by MUMPS under the prefix "condensed_"
+    "condensed-mumps": {"ksp_type": "preonly", "pc_type": "python",
+                        "condensed_ksp_type": "preonly", "condensed_pc_type": "lu",
+                        "condensed_pc_factor_mat_solver_type": "mumps",
+                        "condensed_mat_mumps_icntl_14": 200, "condensed_mat_mumps_icntl_24": 1},
+    # condensed P1/P1 system solved iteratively: FGMRES, Schur field split (upper), GAMG on the
+    # velocity block (block size gdim, rigid-body near-null space), Schur preconditioned by the
+    # condensed pressure block + the inverse-viscosity lumped pressure mass (Jacobi)
+    "condensed-amg": {"ksp_type": "preonly", "pc_type": "python",
+                      "condensed_ksp_type": "fgmres", "condensed_ksp_rtol": 1e-8,
+                      "condensed_ksp_atol": 1e-50, "condensed_ksp_max_it": 300,
+                      "condensed_ksp_gmres_restart": 100,
+                      "condensed_pc_type": "fieldsplit",
+                      "condensed_pc_fieldsplit_type": "schur",
+                      "condensed_pc_fieldsplit_schur_fact_type": "upper",
+                      "condensed_pc_fieldsplit_schur_precondition": "user",
+                      "condensed_fieldsplit_u_ksp_type": "preonly",
+                      "condensed_fieldsplit_u_pc_type": "gamg",
+                      "condensed_fieldsplit_u_pc_gamg_threshold": 0.02,
+                      "condensed_fieldsplit_u_pc_gamg_square_graph": 1,
+                      "condensed_fieldsplit_u_mg_levels_ksp_type": "chebyshev",
+                      "condensed_fieldsplit_u_mg_levels_pc_type": "jacobi",
+                      "condensed_fieldsplit_p_ksp_type": "preonly",
+                      "condensed_fieldsplit_p_pc_type": "jacobi"},
 }
 
 
@@ -115,6 +140,14 @@ class SolverOptions:
         """True if the preconditioner is a field split (it needs velocity/pressure ISs)."""
         return self.linear_options().get("pc_type") == "fieldsplit"
 
+    @property
+    def uses_condensation(self) -> bool:
+        """True if the linear solver condenses the cell-interior (bubble) dofs
+        (:class:`~fxcontact.condense.CondensedPC`: ``pc_type python`` without a
+        ``pc_python_type``)."""
+        lin = self.linear_options()
+        return lin.get("pc_type") == "python" and "pc_python_type" not in lin
+
 
 @dataclass
 class SolveInfo:
@@ -126,6 +159,9 @@ class SolveInfo:
     residual_norms: List[float]
     message: str = ""
     times: Dict[str, float] = field(default_factory=dict)
+    #: Krylov iterations of the solve (inner iterations of a condensed solver), summed over
+    #: the Newton iterations
+    linear_iterations: int = 0
 
 
 class NewtonSolver:
@@ -145,6 +181,11 @@ class NewtonSolver:
         if self.options.uses_fieldsplit and fieldsplit_is is None:
             raise ValueError("the field-split linear solver needs the velocity/pressure ISs")
         self._fieldsplit_is = fieldsplit_is
+        self._layout = None
+        self._condensed_pc = None
+        if self.options.uses_condensation:
+            from fxcontact.condense import CondensationLayout
+            self._layout = CondensationLayout(problem.w.function_space)
         self.A = problem.create_matrix()
         self.b = None
         self.snes = None
@@ -190,6 +231,15 @@ class NewtonSolver:
             ksp.getPC().setFieldSplitIS(("u", self._fieldsplit_is[0]),
                                         ("p", self._fieldsplit_is[1]))
         ksp.setFromOptions()
+        if self._layout is not None:
+            from fxcontact.condense import CondensedPC
+            if self._condensed_pc is not None:
+                self._condensed_pc.destroy()
+            self._condensed_pc = CondensedPC(self._layout, self.options.prefix + "condensed_",
+                                             getattr(self.problem, "schur_weight", None))
+            pc = ksp.getPC()
+            pc.setType(PETSc.PC.Type.PYTHON)
+            pc.setPythonContext(self._condensed_pc)
         self.snes = snes
 
     def reset(self):
@@ -292,6 +342,7 @@ class NewtonSolver:
         self._cycle_message = ""
         t0 = time.perf_counter()
         lin0 = self._linear_time()
+        inner0 = self._condensed_pc.inner_iterations if self._condensed_pc is not None else 0
         try:
             self.snes.solve(None, x)
             reason = self.snes.getConvergedReason()
@@ -311,6 +362,10 @@ class NewtonSolver:
             x.copy(w.vector)
             w.x.scatter_forward()
         x.destroy()
+        if self._condensed_pc is not None:
+            lin_its = self._condensed_pc.inner_iterations - inner0
+        else:
+            lin_its = self.snes.getLinearSolveIterations()
         if not converged:
             # a failed attempt must not poison the next one (factorisation, locked vectors)
             self.reset()
@@ -321,9 +376,11 @@ class NewtonSolver:
         times["total"] = wall
         if not converged and not msg:
             msg = f"SNES diverged: {_reason_name(reason)} after {its} iterations"
-        return SolveInfo(converged, its, reason, list(self._norms), msg, times)
+        return SolveInfo(converged, its, reason, list(self._norms), msg, times, lin_its)
 
     def destroy(self):
+        if self._condensed_pc is not None:
+            self._condensed_pc.destroy()
         self.snes.destroy()
         self.A.destroy()
         self.b.destroy()
