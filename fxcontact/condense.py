@@ -120,18 +120,29 @@ class CondensationLayout:
             if np.all(vd[own_v] >= 0) and int(vel_ret.sum()) == nodes.size:
                 self.vel_nodes = nodes
                 self.node_vertices = np.flatnonzero(own_v).astype(np.int32)
+        # PETSc's parallel MatCreateSubMatrix needs sorted index sets: both sets are in the
+        # increasing W order. dolfinx numbers the dofs of one entity consecutively, so the
+        # velocity dofs of a vertex stay consecutive (x, y, z) in that order: the velocity
+        # split of the condensed system is vertex-interlaced (block size gdim) — checked.
+        self.retained = np.flatnonzero(~is_int).astype(np.int32)
         if self.vel_nodes is not None:
-            rest = np.ones(nown, dtype=bool)
-            rest[interior.ravel()] = False
-            rest[self.vel_nodes.ravel()] = False
-            self.retained = np.concatenate([self.vel_nodes.ravel(),
-                                            np.flatnonzero(rest)]).astype(np.int32)
-            self.n_vel = self.vel_nodes.size
-        else:
-            self.retained = np.flatnonzero(~is_int).astype(np.int32)
-            self.n_vel = 0
-        self.is_b = PETSc.IS().createGeneral(
-            (self.rstart + self.interior.ravel()).astype(PETSc.IntType), comm=self.comm)
+            order = np.argsort(self.vel_nodes[:, 0], kind="stable")
+            self.vel_nodes = self.vel_nodes[order]
+            self.node_vertices = self.node_vertices[order]
+            pos = np.searchsorted(self.retained, self.vel_nodes)
+            if not np.all(np.diff(pos, axis=1) == 1):
+                self.vel_nodes = None
+            else:
+                self.vel_pos = pos.ravel().astype(np.int32)
+                mask = np.ones(len(self.retained), dtype=bool)
+                mask[self.vel_pos] = False
+                self.other_pos = np.flatnonzero(mask).astype(np.int32)
+        self.n_vel = 0 if self.vel_nodes is None else self.vel_nodes.size
+        b_sorted = np.sort(interior.ravel())
+        #: position of each (cell, interior dof) in the b numbering (local)
+        self.b_pos = np.searchsorted(b_sorted, interior).astype(np.int32)
+        self.is_b = PETSc.IS().createGeneral((self.rstart + b_sorted).astype(PETSc.IntType),
+                                             comm=self.comm)
         self.is_l = PETSc.IS().createGeneral(
             (self.rstart + self.retained).astype(PETSc.IntType), comm=self.comm)
         self.n_int = interior.shape[1]
@@ -149,11 +160,11 @@ class CondensationLayout:
         a vertex-velocity ordering)."""
         if self.vel_nodes is None:
             return None, None
-        n = len(self.retained)
-        iu = PETSc.IS().createStride(self.n_vel, first=self.l_start, step=1, comm=self.comm)
+        iu = PETSc.IS().createGeneral((self.l_start + self.vel_pos).astype(PETSc.IntType),
+                                      comm=self.comm)
         iu.setBlockSize(self.gdim)
-        ip = PETSc.IS().createStride(n - self.n_vel, first=self.l_start + self.n_vel, step=1,
-                                     comm=self.comm)
+        ip = PETSc.IS().createGeneral((self.l_start + self.other_pos).astype(PETSc.IntType),
+                                      comm=self.comm)
         return iu, ip
 
     def node_coordinates(self) -> np.ndarray:
@@ -214,6 +225,9 @@ class CondensedPC:
         self.schur_weight = schur_weight
         self.comm = layout.comm
         self.ksp = None
+        #: the outer KSP whose relative tolerance the inner solve follows (Eisenstat–Walker:
+        #: SNES sets the outer KSP's rtol before every Newton step), or None
+        self.follow_rtol_of = None
         self._mats = {}
         self._Sp = None
         self._wvec = None
@@ -233,19 +247,26 @@ class CondensedPC:
         lay = self.lay
         k = lay.n_int
         ai, aj, av = Abb.getValuesCSR()
-        r0 = Abb.getOwnershipRange()[0]
+        r0, r1 = Abb.getOwnershipRange()
         nrow = len(ai) - 1
+        ncell = lay.b_pos.shape[0]
+        cell_of = np.empty(nrow, dtype=np.int64)
+        comp_of = np.empty(nrow, dtype=np.int64)
+        cell_of[lay.b_pos.ravel()] = np.repeat(np.arange(ncell), k)
+        comp_of[lay.b_pos.ravel()] = np.tile(np.arange(k), ncell)
         rows = np.repeat(np.arange(nrow), np.diff(ai))
-        cell = rows // k
-        col = aj - r0 - cell * k
-        inside = (col >= 0) & (col < k)
+        col = aj.astype(np.int64) - r0
+        local = (col >= 0) & (col < nrow)
+        colc = np.where(local, col, 0)
+        inside = local & (cell_of[colc] == cell_of[rows])
         off = ~inside & (av != 0.0)
         if self.comm.allreduce(int(np.count_nonzero(off))):
             raise RuntimeError("the interior-interior block is not block diagonal by cell: a "
                                "term couples interior dofs of different cells, it cannot be "
                                "condensed element by element")
-        blocks = np.zeros((nrow // k, k, k))
-        blocks[cell[inside], rows[inside] % k, col[inside]] = av[inside]
+        blocks = np.zeros((ncell, k, k))
+        blocks[cell_of[rows[inside]], comp_of[rows[inside]], comp_of[colc[inside]]] = \
+            av[inside]
         try:
             inv = np.linalg.inv(blocks)
         except np.linalg.LinAlgError:
@@ -253,8 +274,17 @@ class CondensedPC:
         bad = int(np.count_nonzero(~np.isfinite(inv).all(axis=(1, 2))))
         if self.comm.allreduce(bad):
             raise RuntimeError("singular interior (bubble) block in a cell: degenerate element")
+        # row r (cell c, component i): columns pos(c, j) (sorted), values inv[c, i, j]
+        srt = np.argsort(lay.b_pos, axis=1)
+        cpos = np.take_along_axis(lay.b_pos, srt, axis=1)          # (ncell, k) sorted
+        vals = np.take_along_axis(inv, srt[:, None, :], axis=2)     # columns sorted
+        vrow = np.empty((nrow, k))
+        crow = np.empty((nrow, k), dtype=np.int64)
+        vrow[lay.b_pos.ravel()] = vals.reshape(-1, k)
+        crow[lay.b_pos.ravel()] = np.repeat(cpos, k, axis=0)
         indptr = (np.arange(nrow + 1) * k).astype(PETSc.IntType)
-        cols = (r0 + (np.arange(nrow) // k * k)[:, None] + np.arange(k)[None, :]).ravel()
+        cols = (r0 + crow).ravel()
+        inv = vrow
         D = self._mats.get("Dinv")
         if D is None:
             D = PETSc.Mat().createAIJ(size=((nrow, PETSc.DETERMINE), (nrow, PETSc.DETERMINE)),
@@ -350,7 +380,7 @@ class CondensedPC:
         dolfinx.fem.petsc.assemble_vector(b, self.schur_weight)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         arr = b.getArray(readonly=True)
-        return np.abs(arr[lay.retained[lay.n_vel:]])
+        return np.abs(arr[lay.retained[lay.other_pos]])
 
     def apply(self, pc, x, y):
         lay = self.lay
@@ -362,6 +392,8 @@ class CondensedPC:
         self._rl.aypx(-1.0, xl)               # r_l − A_lb A_bb⁻¹ r_b
         x.restoreSubVector(lay.is_b, xb)
         x.restoreSubVector(lay.is_l, xl)
+        if self.follow_rtol_of is not None:
+            self.ksp.setTolerances(rtol=self.follow_rtol_of.getTolerances()[0])
         self.ksp.solve(self._rl, self._yl)
         self.inner_iterations += self.ksp.getIterationNumber()
         self.inner_solves += 1

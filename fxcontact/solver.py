@@ -237,6 +237,8 @@ class NewtonSolver:
                 self._condensed_pc.destroy()
             self._condensed_pc = CondensedPC(self._layout, self.options.prefix + "condensed_",
                                              getattr(self.problem, "schur_weight", None))
+            if snes.getUseEW():   # Eisenstat–Walker: the inner solve follows the forcing term
+                self._condensed_pc.follow_rtol_of = ksp
             pc = ksp.getPC()
             pc.setType(PETSc.PC.Type.PYTHON)
             pc.setPythonContext(self._condensed_pc)
