@@ -360,11 +360,16 @@ class CondensedPC:
         sign = -1.0 if tr <= 0 else 1.0
         dm = d.duplicate()
         dm.setArray(m)
-        d.axpy(sign, dm)
+        scale = PETSc.Options().getReal(self.prefix + "schur_mass_scale", 1.0)
+        d.axpy(sign * scale, dm)
         Spp.setDiagonal(d)
         d.destroy()
         dm.destroy()
-        pc.setFieldSplitSchurPreType(PETSc.PC.SchurPreType.USER, Spp)
+        # the matrix is handed to the field split only when the options ask for it (the
+        # preset does): any other choice (selfp, a11, full) is left to PETSc
+        pre = PETSc.Options().getString(self.prefix + "pc_fieldsplit_schur_precondition", "")
+        if pre == "user":
+            pc.setFieldSplitSchurPreType(PETSc.PC.SchurPreType.USER, Spp)
 
     def _weighted_mass(self) -> np.ndarray:
         """Lumped pressure mass weighted by the inverse viscosity, in the order of the

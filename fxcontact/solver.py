@@ -19,17 +19,19 @@ iteration 0.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from fxcontact.petsc import NonlinearProblem
 
-__all__ = ["NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS"]
+__all__ = ["NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS", "choose_linear_solver"]
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +75,27 @@ LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
                       "condensed_fieldsplit_p_pc_type": "jacobi"},
 }
 
+#: Automatic choice (``linear_solver="auto"``, the default), from the figures of
+#: ``benchmarks/README.md`` (section "Condensed solvers"): spaces without cell-interior dofs
+#: (Taylor–Hood) always get ``"mumps"``; MINI problems below AUTO_CONDENSED_MIN_DOFS global
+#: dofs get ``"mumps"`` (the plain path: both direct solvers take well under a second there),
+#: up to AUTO_ITERATIVE_MIN_DOFS ``"condensed-mumps"``, above it ``"condensed-amg"``. Module
+#: attributes, so a user can move them; an explicit ``linear_solver`` is never overridden.
+AUTO_CONDENSED_MIN_DOFS = 20_000
+AUTO_ITERATIVE_MIN_DOFS = 400_000
+
+
+def choose_linear_solver(W) -> str:
+    """The preset that ``linear_solver="auto"`` picks for the mixed space ``W`` (collective)."""
+    tdim = W.mesh.topology.dim
+    n_int = W.mesh.comm.allreduce(len(W.dofmap.dof_layout.entity_dofs(tdim, 0)), op=MPI.MAX)
+    ndofs = W.dofmap.index_map.size_global * W.dofmap.index_map_bs
+    if n_int == 0 or W.dofmap.index_map_bs != 1 or ndofs < AUTO_CONDENSED_MIN_DOFS:
+        return "mumps"
+    if ndofs < AUTO_ITERATIVE_MIN_DOFS:
+        return "condensed-mumps"
+    return "condensed-amg"
+
 
 #: PETSc SNES line searches accepted by :class:`SolverOptions`
 LINE_SEARCHES = ("bt", "basic", "l2", "cp", "nleqerr")
@@ -96,7 +119,13 @@ class SolverOptions:
             residual norm can stall when contact nodes open and close and friction nodes pass
             between stick and slip in the same iteration (tiny accepted steps, or a 2-cycle);
             full Newton steps then converge in a few iterations. Default ``"basic"``.
-        linear_solver: key of :data:`LINEAR_SOLVERS` or a dict of PETSc options.
+        linear_solver: ``"auto"`` (default: :func:`choose_linear_solver` picks a preset from
+            the space and its size when the solver is built), a key of
+            :data:`LINEAR_SOLVERS` (``"mumps"``: MUMPS on the whole system;
+            ``"condensed-mumps"``: the MINI bubble condensed element by element, MUMPS on the
+            P1/P1 system; ``"condensed-amg"``: the condensed system by a Schur field split
+            with algebraic multigrid, :mod:`fxcontact.condense`; ``"fieldsplit"``) or a dict
+            of PETSc options.
         prefix: PETSc options prefix.
         petsc_options: extra PETSc options (without prefix) that override the presets.
     """
@@ -107,7 +136,7 @@ class SolverOptions:
     max_it: int = 30
     line_search: str = "bt"
     line_search_fallback: Optional[str] = "basic"
-    linear_solver: object = "mumps"
+    linear_solver: object = "auto"
     prefix: str = "fxc_"
     petsc_options: Dict[str, object] = field(default_factory=dict)
 
@@ -123,16 +152,21 @@ class SolverOptions:
             if ls not in LINE_SEARCHES and not (name == "line_search_fallback" and ls is None):
                 raise ValueError(f"unknown {name.replace('_', ' ')} {ls!r}; choose one of "
                                  f"{LINE_SEARCHES}")
-        if isinstance(self.linear_solver, str) and self.linear_solver not in LINEAR_SOLVERS:
-            raise ValueError(f"unknown linear solver {self.linear_solver!r}; choose one of "
-                             f"{sorted(LINEAR_SOLVERS)} or pass a dict of PETSc options")
+        if isinstance(self.linear_solver, str) and self.linear_solver not in LINEAR_SOLVERS \
+                and self.linear_solver != "auto":
+            raise ValueError(f"unknown linear solver {self.linear_solver!r}; choose 'auto', one "
+                             f"of {sorted(LINEAR_SOLVERS)} or pass a dict of PETSc options")
         if not isinstance(self.linear_solver, (str, dict)):
             raise ValueError("linear_solver must be a preset name or a dict of PETSc options")
 
     def linear_options(self) -> Dict[str, object]:
-        """PETSc options of the linear solver: the preset (or dict) with ``petsc_options``."""
-        lin = (LINEAR_SOLVERS[self.linear_solver] if isinstance(self.linear_solver, str)
-               else self.linear_solver)
+        """PETSc options of the linear solver: the preset (or dict) with ``petsc_options``
+        (``"auto"``, not resolved yet: the ``petsc_options`` alone)."""
+        if self.linear_solver == "auto":
+            lin = {}
+        else:
+            lin = (LINEAR_SOLVERS[self.linear_solver] if isinstance(self.linear_solver, str)
+                   else self.linear_solver)
         return {**lin, **self.petsc_options}
 
     @property
@@ -176,7 +210,12 @@ class NewtonSolver:
     def __init__(self, problem: NonlinearProblem, options: Optional[SolverOptions] = None,
                  fieldsplit_is=None):
         self.problem = problem
-        self.options = options or SolverOptions()
+        options = options or SolverOptions()
+        if options.linear_solver == "auto":
+            options = dataclasses.replace(
+                options, linear_solver=choose_linear_solver(problem.w.function_space))
+            log.info("linear solver (auto): %s", options.linear_solver)
+        self.options = options
         self.comm = problem.comm
         if self.options.uses_fieldsplit and fieldsplit_is is None:
             raise ValueError("the field-split linear solver needs the velocity/pressure ISs")

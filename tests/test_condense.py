@@ -162,3 +162,33 @@ def test_iterative_condensed_stiff_penalty():
     err = np.sqrt(comm.allreduce(float(np.sum((a - b) ** 2)))
                   / comm.allreduce(float(np.sum(a ** 2))))
     assert err < 1e-6, err
+
+
+def test_auto_choice(monkeypatch):
+    """linear_solver="auto" (default): MUMPS for small problems and for spaces without
+    interior dofs, the condensed direct then iterative solver above the thresholds; an
+    explicit choice is kept."""
+    import fxcontact.solver as solver_mod
+
+    comm = MPI.COMM_WORLD
+    msh = dolfinx.mesh.create_box(comm, [[0, 0, 0], [1, 1, 1]], [2, 2, 2],
+                                  dolfinx.mesh.CellType.tetrahedron)
+    mini, th = fx.MixedSpace(msh).W, fx.MixedSpace(msh, "taylor-hood").W
+    n = mini.dofmap.index_map.size_global
+    assert SolverOptions().linear_solver == "auto"
+    assert solver_mod.choose_linear_solver(mini) == "mumps"
+    monkeypatch.setattr(solver_mod, "AUTO_CONDENSED_MIN_DOFS", n)
+    assert solver_mod.choose_linear_solver(mini) == "condensed-mumps"
+    assert solver_mod.choose_linear_solver(th) == "mumps"
+    monkeypatch.setattr(solver_mod, "AUTO_ITERATIVE_MIN_DOFS", n)
+    assert solver_mod.choose_linear_solver(mini) == "condensed-amg"
+    sim = pressed_block(MATERIALS["norton-hoff"](), n=2, solver="auto", prefix="tauto_")
+    sim._build()
+    assert sim.solver.options.linear_solver == "condensed-amg"
+    assert sim.solver_options.linear_solver == "auto"
+    sim.solver.destroy()
+    sim = pressed_block(MATERIALS["norton-hoff"](), n=2, solver="mumps", prefix="tauto_")
+    sim._build()
+    assert sim.solver.options.linear_solver == "mumps"
+    with pytest.raises(ValueError, match="unknown linear solver"):
+        SolverOptions(linear_solver="condensed")
