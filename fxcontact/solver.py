@@ -54,16 +54,17 @@ LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
                         "condensed_ksp_type": "preonly", "condensed_pc_type": "lu",
                         "condensed_pc_factor_mat_solver_type": "mumps",
                         "condensed_mat_mumps_icntl_14": 200, "condensed_mat_mumps_icntl_24": 1},
-    # condensed P1/P1 system solved iteratively: FGMRES, Schur field split (upper), GAMG on the
-    # velocity block (block size gdim, rigid-body near-null space), Schur preconditioned by the
-    # condensed pressure block + the inverse-viscosity lumped pressure mass (Jacobi)
+    # condensed P1/P1 system solved iteratively: FGMRES, Schur field split (full
+    # factorisation), GAMG on the velocity block (block size gdim, rigid-body near-null space),
+    # Schur preconditioned by the condensed pressure block + the inverse-viscosity lumped
+    # pressure mass (Jacobi); the Newton step to rtol 1e-8 (snes_ksp_ew: Eisenstat–Walker)
     "condensed-amg": {"ksp_type": "preonly", "pc_type": "python",
                       "condensed_ksp_type": "fgmres", "condensed_ksp_rtol": 1e-8,
                       "condensed_ksp_atol": 1e-50, "condensed_ksp_max_it": 300,
                       "condensed_ksp_gmres_restart": 100,
                       "condensed_pc_type": "fieldsplit",
                       "condensed_pc_fieldsplit_type": "schur",
-                      "condensed_pc_fieldsplit_schur_fact_type": "upper",
+                      "condensed_pc_fieldsplit_schur_fact_type": "full",
                       "condensed_pc_fieldsplit_schur_precondition": "user",
                       "condensed_fieldsplit_u_ksp_type": "preonly",
                       "condensed_fieldsplit_u_pc_type": "gamg",
