@@ -232,6 +232,7 @@ class CondensedPC:
         self._Sp = None
         self._wvec = None
         self.times = {"condense": 0.0, "inner_setup": 0.0}
+        self.setups = 0
         self.inner_iterations = 0
         self.inner_solves = 0
 
@@ -301,6 +302,7 @@ class CondensedPC:
     # -- PC interface -------------------------------------------------------------------
     def setUp(self, pc):
         t0 = time.perf_counter()
+        self.setups += 1
         _, P = pc.getOperators()
         lay = self.lay
         Abb = self._sub(P, "bb", lay.is_b, lay.is_b)

@@ -83,7 +83,7 @@ LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
 #: up to AUTO_ITERATIVE_MIN_DOFS ``"condensed-mumps"``, above it ``"condensed-amg"``. Module
 #: attributes, so a user can move them; an explicit ``linear_solver`` is never overridden.
 AUTO_CONDENSED_MIN_DOFS = 20_000
-AUTO_ITERATIVE_MIN_DOFS = 400_000
+AUTO_ITERATIVE_MIN_DOFS = 300_000
 
 
 def choose_linear_solver(W) -> str:
@@ -384,7 +384,9 @@ class NewtonSolver:
         self._cycle_message = ""
         t0 = time.perf_counter()
         lin0 = self._linear_time()
-        inner0 = self._condensed_pc.inner_iterations if self._condensed_pc is not None else 0
+        cpc = self._condensed_pc
+        inner0 = cpc.inner_iterations if cpc is not None else 0
+        cond0 = cpc.times["condense"] if cpc is not None else 0.0
         try:
             self.snes.solve(None, x)
             reason = self.snes.getConvergedReason()
@@ -404,8 +406,9 @@ class NewtonSolver:
             x.copy(w.vector)
             w.x.scatter_forward()
         x.destroy()
-        if self._condensed_pc is not None:
-            lin_its = self._condensed_pc.inner_iterations - inner0
+        if cpc is not None:
+            lin_its = cpc.inner_iterations - inner0
+            cond = cpc.times["condense"] - cond0
         else:
             lin_its = self.snes.getLinearSolveIterations()
         if not converged:
@@ -416,6 +419,8 @@ class NewtonSolver:
                  "linear_solve": lin}
         times["other"] = max(wall - sum(times.values()), 0.0)
         times["total"] = wall
+        if cpc is not None:  # part of linear_solve: forming the condensed system
+            times["condensation"] = cond
         if not converged and not msg:
             msg = f"SNES diverged: {_reason_name(reason)} after {its} iterations"
         return SolveInfo(converged, its, reason, list(self._norms), msg, times, lin_its)
