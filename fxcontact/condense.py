@@ -232,6 +232,8 @@ class CondensedPC:
         self._Sp = None
         self._wvec = None
         self.times = {"condense": 0.0, "inner_setup": 0.0}
+        #: message of the last failed inner solve (None: none since the last reset)
+        self.error: Optional[str] = None
         self.setups = 0
         self.inner_iterations = 0
         self.inner_solves = 0
@@ -404,10 +406,14 @@ class CondensedPC:
         self.ksp.solve(self._rl, self._yl)
         self.inner_iterations += self.ksp.getIterationNumber()
         self.inner_solves += 1
-        if self.ksp.getConvergedReason() < 0:
-            # make the outer solve fail like a failed factorisation (collective reason)
-            y.set(np.nan)
-            return
+        reason = self.ksp.getConvergedReason()
+        if reason < 0:
+            # the reason is collective: every rank raises, the Newton solve fails with this
+            # message (NewtonSolver reads `error`) and is cut back like a failed factorisation
+            self.error = (f"the condensed linear solve failed (KSP reason {reason} after "
+                          f"{self.ksp.getIterationNumber()} iterations; options under "
+                          f"'{self.prefix}')")
+            raise RuntimeError(self.error)
         yl = y.getSubVector(lay.is_l)
         self._yl.copy(yl)
         y.restoreSubVector(lay.is_l, yl)

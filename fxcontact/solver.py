@@ -387,6 +387,8 @@ class NewtonSolver:
         cpc = self._condensed_pc
         inner0 = cpc.inner_iterations if cpc is not None else 0
         cond0 = cpc.times["condense"] if cpc is not None else 0.0
+        if cpc is not None:
+            cpc.error = None
         try:
             self.snes.solve(None, x)
             reason = self.snes.getConvergedReason()
@@ -399,6 +401,8 @@ class NewtonSolver:
         wall = time.perf_counter() - t0
         if prob.error and not msg:
             msg = prob.error
+        if cpc is not None and cpc.error:
+            msg = cpc.error
         if self._cycle_message and not msg:
             msg = self._cycle_message
         converged = reason > 0

@@ -199,3 +199,20 @@ def test_auto_choice(monkeypatch):
     assert sim.solver.options.linear_solver == "mumps"
     with pytest.raises(ValueError, match="unknown linear solver"):
         SolverOptions(linear_solver="condensed")
+
+
+def test_inner_failure_is_reported_and_reset():
+    """A failed inner (condensed) Krylov solve fails the Newton solve with a message naming it;
+    the solver is rebuilt, and with a working inner solver the same increment converges."""
+    sim = pressed_block(MATERIALS["norton-hoff"](), n=3, solver="condensed-amg", prefix="tfail_")
+    sim.solver_options.petsc_options["condensed_ksp_max_it"] = 2
+    sim._build()
+    info = sim._try_increment(0.1)
+    assert not info.converged
+    assert "condensed linear solve failed" in info.message
+    assert sim.solver.resets == 1
+    sim.solver.options.petsc_options["condensed_ksp_max_it"] = 300
+    sim.solver.reset()
+    info = sim._try_increment(0.1)
+    assert info.converged, info.message
+    assert info.linear_iterations > 0
