@@ -88,11 +88,14 @@ def worker(args):
     hist = sim.history[1:]
     tmax = lambda key: comm.allreduce(sum(r[key] for r in hist), op=MPI.MAX)  # noqa: E731
     pc = sim.solver._condensed_pc
+    ksp = pc.ksp if pc is not None else sim.solver.snes.getKSP()
+    direct = ksp.getType() == "preonly"
     row = {"solver": sim.solver.options.linear_solver if args.solver == "auto" else args.solver,
            "ranks": comm.size, "dofs": space.global_dofs(), "h_fine": args.h_fine,
            "steps_timed": len(hist), "newton_its": sum(r["newton_iterations"] for r in hist),
-           "krylov_its": (pc.inner_iterations if pc is not None
-                          else sim.solver.snes.getLinearSolveIterations()),
+           # Krylov iterations of all increments (iterative solvers; "" for direct ones)
+           "krylov_its": "" if direct else (pc.inner_iterations if pc is not None
+                                            else sim.solver.snes.getLinearSolveIterations()),
            "assembly_s": tmax("wall_assembly"), "contact_s": tmax("wall_contact"),
            "linear_s": tmax("wall_linear_solve"), "increment_s": float(sum(walls[1:])),
            "force": 4.0 * sim.history[-1]["sphere_force_z"]}
