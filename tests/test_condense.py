@@ -11,7 +11,6 @@ compares the two solvers on the same communicator).
 import numpy as np
 import pytest
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import dolfinx
 
