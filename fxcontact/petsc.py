@@ -170,10 +170,14 @@ class NonlinearProblem:
             (:class:`~fxcontact.symmetry.SymmetryPlanes`: ``setup(bc_marker)``,
             ``record_residual(b)`` before and ``apply_residual(b, w)`` after ``set_bc``,
             ``apply_jacobian(A)`` after the final assembly).
+        schur_weight: optional UFL linear form in the pressure test function, e.g.
+            ``(1/η(v)) q dx``: its pressure rows are the lumped, inverse-viscosity-weighted
+            pressure mass that the condensed iterative solver uses to precondition the Schur
+            complement (:mod:`fxcontact.condense`); None: not available.
     """
 
     def __init__(self, F, w, bcs=(), J=None, contributors: Sequence = (), jit_params=None,
-                 constraints: Sequence = ()):
+                 constraints: Sequence = (), schur_weight=None):
         import ufl
         self.w = w
         self.bcs = list(bcs)
@@ -181,6 +185,8 @@ class NonlinearProblem:
             J = ufl.derivative(F, w, ufl.TrialFunction(w.function_space))
         self.L = compat.form(F, jit_params=jit_params)
         self.a = compat.form(J, jit_params=jit_params)
+        self.schur_weight = (None if schur_weight is None
+                             else compat.form(schur_weight, jit_params=jit_params))
         self.contributors = list(contributors)
         self.timers = Timers()
         self.comm = w.function_space.mesh.comm

@@ -31,7 +31,7 @@ import dolfinx.fem.petsc
 
 from fxcontact import compat, console
 from fxcontact.kinematics import CartesianUpdate
-from fxcontact.materials import Material
+from fxcontact.materials import LinearElastic, Material, NortonHoff
 from fxcontact.petsc import NonlinearProblem
 from fxcontact.solver import NewtonSolver, SolveInfo, SolverOptions
 from fxcontact.spaces import MixedSpace, facets_with_tags, set_function_value, velocity_bc
@@ -97,6 +97,17 @@ def _time_value(value, t):
             return lambda x: value(x, t)
         return value
     return value
+
+
+def _shear_viscosity_ufl(material, v, dt):
+    """Secant shear viscosity of the velocity tangent (UFL) for the Schur preconditioner of
+    the condensed iterative solver (:mod:`fxcontact.condense`), or None if unknown:
+    ``K z^(m-1)`` for Norton–Hoff, ``μ dt`` for the velocity form of linear elasticity."""
+    if isinstance(material, NortonHoff):
+        return material.K * material.z_ufl(ufl.sym(ufl.grad(v))) ** (material.m - 1.0)
+    if isinstance(material, LinearElastic):
+        return material.mu * dt
+    return None
 
 
 class Simulation:
@@ -290,8 +301,11 @@ class Simulation:
                 if not any(b.bc is pb for pb in self._plane_bcs):
                     other[b.bc.dof_indices()[0]] = True
             self._symmetry.set_prescribed(other)
+        eta = _shear_viscosity_ufl(self.material, v, self.dt_c)
+        schur_weight = None if eta is None else q / eta * sp.dx
         self.problem = NonlinearProblem(F, self.w, [b.bc for b in self._bcs],
-                                        contributors=self.contributors, constraints=cons)
+                                        contributors=self.contributors, constraints=cons,
+                                        schur_weight=schur_weight)
         fs_is = self.fieldsplit_is() if self.solver_options.uses_fieldsplit else None
         self.solver = NewtonSolver(self.problem, self.solver_options, fs_is)
         # start-up problem: the linearised material without contributors gives the first guess
@@ -306,8 +320,10 @@ class Simulation:
                 F0 = F0 + vc
             opts = SolverOptions(**{**self.solver_options.__dict__, "prefix":
                                     self.solver_options.prefix + "startup_"})
-            self._startup = NewtonSolver(NonlinearProblem(F0, self.w, [b.bc for b in self._bcs],
-                                                          constraints=cons), opts, fs_is)
+            eta0 = _shear_viscosity_ufl(lin_mat, v, self.dt_c)
+            self._startup = NewtonSolver(NonlinearProblem(
+                F0, self.w, [b.bc for b in self._bcs], constraints=cons,
+                schur_weight=None if eta0 is None else q / eta0 * sp.dx), opts, fs_is)
         # cell averages of the strain rate, volume
         q0 = ufl.TestFunction(sp.DG0)
         epsd = self._strain_rate_expr(v)

@@ -19,17 +19,19 @@ iteration 0.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from fxcontact.petsc import NonlinearProblem
 
-__all__ = ["NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS"]
+__all__ = ["NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS", "choose_linear_solver"]
 
 log = logging.getLogger(__name__)
 
@@ -46,7 +48,54 @@ LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
                    "pc_fieldsplit_schur_precondition": "selfp",
                    "fieldsplit_u_ksp_type": "preonly", "fieldsplit_u_pc_type": "hypre",
                    "fieldsplit_p_ksp_type": "preonly", "fieldsplit_p_pc_type": "jacobi"},
+    # MINI bubble condensed element by element (fxcontact.condense.CondensedPC, an exact block
+    # elimination), the P1/P1 system solved by MUMPS under the prefix "condensed_"
+    "condensed-mumps": {"ksp_type": "preonly", "pc_type": "python",
+                        "condensed_ksp_type": "preonly", "condensed_pc_type": "lu",
+                        "condensed_pc_factor_mat_solver_type": "mumps",
+                        "condensed_mat_mumps_icntl_14": 200, "condensed_mat_mumps_icntl_24": 1},
+    # condensed P1/P1 system solved iteratively: FGMRES, Schur field split (full
+    # factorisation), GAMG on the velocity block (block size gdim, rigid-body near-null space),
+    # Schur preconditioned by the condensed pressure block + the inverse-viscosity lumped
+    # pressure mass (Jacobi); the Newton step to rtol 1e-8 (snes_ksp_ew: Eisenstat–Walker)
+    "condensed-amg": {"ksp_type": "preonly", "pc_type": "python",
+                      "condensed_ksp_type": "fgmres", "condensed_ksp_rtol": 1e-8,
+                      "condensed_ksp_atol": 1e-50, "condensed_ksp_max_it": 300,
+                      "condensed_ksp_gmres_restart": 100,
+                      "condensed_pc_type": "fieldsplit",
+                      "condensed_pc_fieldsplit_type": "schur",
+                      "condensed_pc_fieldsplit_schur_fact_type": "full",
+                      "condensed_pc_fieldsplit_schur_precondition": "user",
+                      "condensed_fieldsplit_u_ksp_type": "preonly",
+                      "condensed_fieldsplit_u_pc_type": "gamg",
+                      "condensed_fieldsplit_u_pc_gamg_threshold": 0.02,
+                      "condensed_fieldsplit_u_pc_gamg_square_graph": 1,
+                      "condensed_fieldsplit_u_mg_levels_ksp_type": "chebyshev",
+                      "condensed_fieldsplit_u_mg_levels_pc_type": "jacobi",
+                      "condensed_fieldsplit_p_ksp_type": "preonly",
+                      "condensed_fieldsplit_p_pc_type": "jacobi"},
 }
+
+#: Automatic choice (``linear_solver="auto"``, the default), from the figures of
+#: ``benchmarks/README.md`` (section "Condensed solvers"): spaces without cell-interior dofs
+#: (Taylor–Hood) always get ``"mumps"``; MINI problems below AUTO_CONDENSED_MIN_DOFS global
+#: dofs get ``"mumps"`` (the plain path: both direct solvers take well under a second there),
+#: up to AUTO_ITERATIVE_MIN_DOFS ``"condensed-mumps"``, above it ``"condensed-amg"``. Module
+#: attributes, so a user can move them; an explicit ``linear_solver`` is never overridden.
+AUTO_CONDENSED_MIN_DOFS = 20_000
+AUTO_ITERATIVE_MIN_DOFS = 300_000
+
+
+def choose_linear_solver(W) -> str:
+    """The preset that ``linear_solver="auto"`` picks for the mixed space ``W`` (collective)."""
+    tdim = W.mesh.topology.dim
+    n_int = W.mesh.comm.allreduce(len(W.dofmap.dof_layout.entity_dofs(tdim, 0)), op=MPI.MAX)
+    ndofs = W.dofmap.index_map.size_global * W.dofmap.index_map_bs
+    if n_int == 0 or W.dofmap.index_map_bs != 1 or ndofs < AUTO_CONDENSED_MIN_DOFS:
+        return "mumps"
+    if ndofs < AUTO_ITERATIVE_MIN_DOFS:
+        return "condensed-mumps"
+    return "condensed-amg"
 
 
 #: PETSc SNES line searches accepted by :class:`SolverOptions`
@@ -71,7 +120,13 @@ class SolverOptions:
             residual norm can stall when contact nodes open and close and friction nodes pass
             between stick and slip in the same iteration (tiny accepted steps, or a 2-cycle);
             full Newton steps then converge in a few iterations. Default ``"basic"``.
-        linear_solver: key of :data:`LINEAR_SOLVERS` or a dict of PETSc options.
+        linear_solver: ``"auto"`` (default: :func:`choose_linear_solver` picks a preset from
+            the space and its size when the solver is built), a key of
+            :data:`LINEAR_SOLVERS` (``"mumps"``: MUMPS on the whole system;
+            ``"condensed-mumps"``: the MINI bubble condensed element by element, MUMPS on the
+            P1/P1 system; ``"condensed-amg"``: the condensed system by a Schur field split
+            with algebraic multigrid, :mod:`fxcontact.condense`; ``"fieldsplit"``) or a dict
+            of PETSc options.
         prefix: PETSc options prefix.
         petsc_options: extra PETSc options (without prefix) that override the presets.
     """
@@ -82,7 +137,7 @@ class SolverOptions:
     max_it: int = 30
     line_search: str = "bt"
     line_search_fallback: Optional[str] = "basic"
-    linear_solver: object = "mumps"
+    linear_solver: object = "auto"
     prefix: str = "fxc_"
     petsc_options: Dict[str, object] = field(default_factory=dict)
 
@@ -98,22 +153,35 @@ class SolverOptions:
             if ls not in LINE_SEARCHES and not (name == "line_search_fallback" and ls is None):
                 raise ValueError(f"unknown {name.replace('_', ' ')} {ls!r}; choose one of "
                                  f"{LINE_SEARCHES}")
-        if isinstance(self.linear_solver, str) and self.linear_solver not in LINEAR_SOLVERS:
-            raise ValueError(f"unknown linear solver {self.linear_solver!r}; choose one of "
-                             f"{sorted(LINEAR_SOLVERS)} or pass a dict of PETSc options")
+        if isinstance(self.linear_solver, str) and self.linear_solver not in LINEAR_SOLVERS \
+                and self.linear_solver != "auto":
+            raise ValueError(f"unknown linear solver {self.linear_solver!r}; choose 'auto', one "
+                             f"of {sorted(LINEAR_SOLVERS)} or pass a dict of PETSc options")
         if not isinstance(self.linear_solver, (str, dict)):
             raise ValueError("linear_solver must be a preset name or a dict of PETSc options")
 
     def linear_options(self) -> Dict[str, object]:
-        """PETSc options of the linear solver: the preset (or dict) with ``petsc_options``."""
-        lin = (LINEAR_SOLVERS[self.linear_solver] if isinstance(self.linear_solver, str)
-               else self.linear_solver)
+        """PETSc options of the linear solver: the preset (or dict) with ``petsc_options``
+        (``"auto"``, not resolved yet: the ``petsc_options`` alone)."""
+        if self.linear_solver == "auto":
+            lin = {}
+        else:
+            lin = (LINEAR_SOLVERS[self.linear_solver] if isinstance(self.linear_solver, str)
+                   else self.linear_solver)
         return {**lin, **self.petsc_options}
 
     @property
     def uses_fieldsplit(self) -> bool:
         """True if the preconditioner is a field split (it needs velocity/pressure ISs)."""
         return self.linear_options().get("pc_type") == "fieldsplit"
+
+    @property
+    def uses_condensation(self) -> bool:
+        """True if the linear solver condenses the cell-interior (bubble) dofs
+        (:class:`~fxcontact.condense.CondensedPC`: ``pc_type python`` without a
+        ``pc_python_type``)."""
+        lin = self.linear_options()
+        return lin.get("pc_type") == "python" and "pc_python_type" not in lin
 
 
 @dataclass
@@ -126,6 +194,9 @@ class SolveInfo:
     residual_norms: List[float]
     message: str = ""
     times: Dict[str, float] = field(default_factory=dict)
+    #: Krylov iterations of the solve (inner iterations of a condensed solver), summed over
+    #: the Newton iterations
+    linear_iterations: int = 0
 
 
 class NewtonSolver:
@@ -140,11 +211,21 @@ class NewtonSolver:
     def __init__(self, problem: NonlinearProblem, options: Optional[SolverOptions] = None,
                  fieldsplit_is=None):
         self.problem = problem
-        self.options = options or SolverOptions()
+        options = options or SolverOptions()
+        if options.linear_solver == "auto":
+            options = dataclasses.replace(
+                options, linear_solver=choose_linear_solver(problem.w.function_space))
+            log.info("linear solver (auto): %s", options.linear_solver)
+        self.options = options
         self.comm = problem.comm
         if self.options.uses_fieldsplit and fieldsplit_is is None:
             raise ValueError("the field-split linear solver needs the velocity/pressure ISs")
         self._fieldsplit_is = fieldsplit_is
+        self._layout = None
+        self._condensed_pc = None
+        if self.options.uses_condensation:
+            from fxcontact.condense import CondensationLayout
+            self._layout = CondensationLayout(problem.w.function_space)
         self.A = problem.create_matrix()
         self.b = None
         self.snes = None
@@ -190,6 +271,17 @@ class NewtonSolver:
             ksp.getPC().setFieldSplitIS(("u", self._fieldsplit_is[0]),
                                         ("p", self._fieldsplit_is[1]))
         ksp.setFromOptions()
+        if self._layout is not None:
+            from fxcontact.condense import CondensedPC
+            if self._condensed_pc is not None:
+                self._condensed_pc.destroy()
+            self._condensed_pc = CondensedPC(self._layout, self.options.prefix + "condensed_",
+                                             getattr(self.problem, "schur_weight", None))
+            if snes.getUseEW():   # Eisenstat–Walker: the inner solve follows the forcing term
+                self._condensed_pc.follow_rtol_of = ksp
+            pc = ksp.getPC()
+            pc.setType(PETSc.PC.Type.PYTHON)
+            pc.setPythonContext(self._condensed_pc)
         self.snes = snes
 
     def reset(self):
@@ -292,6 +384,11 @@ class NewtonSolver:
         self._cycle_message = ""
         t0 = time.perf_counter()
         lin0 = self._linear_time()
+        cpc = self._condensed_pc
+        inner0 = cpc.inner_iterations if cpc is not None else 0
+        cond0 = cpc.times["condense"] if cpc is not None else 0.0
+        if cpc is not None:
+            cpc.error = None
         try:
             self.snes.solve(None, x)
             reason = self.snes.getConvergedReason()
@@ -304,6 +401,8 @@ class NewtonSolver:
         wall = time.perf_counter() - t0
         if prob.error and not msg:
             msg = prob.error
+        if cpc is not None and cpc.error:
+            msg = cpc.error
         if self._cycle_message and not msg:
             msg = self._cycle_message
         converged = reason > 0
@@ -311,6 +410,11 @@ class NewtonSolver:
             x.copy(w.vector)
             w.x.scatter_forward()
         x.destroy()
+        if cpc is not None:
+            lin_its = cpc.inner_iterations - inner0
+            cond = cpc.times["condense"] - cond0
+        else:
+            lin_its = self.snes.getLinearSolveIterations()
         if not converged:
             # a failed attempt must not poison the next one (factorisation, locked vectors)
             self.reset()
@@ -319,11 +423,15 @@ class NewtonSolver:
                  "linear_solve": lin}
         times["other"] = max(wall - sum(times.values()), 0.0)
         times["total"] = wall
+        if cpc is not None:  # part of linear_solve: forming the condensed system
+            times["condensation"] = cond
         if not converged and not msg:
             msg = f"SNES diverged: {_reason_name(reason)} after {its} iterations"
-        return SolveInfo(converged, its, reason, list(self._norms), msg, times)
+        return SolveInfo(converged, its, reason, list(self._norms), msg, times, lin_its)
 
     def destroy(self):
+        if self._condensed_pc is not None:
+            self._condensed_pc.destroy()
         self.snes.destroy()
         self.A.destroy()
         self.b.destroy()

@@ -1,0 +1,442 @@
+"""Static condensation of cell-interior dofs (the MINI bubble) inside the linear solve.
+
+The bubble dofs of the MINI element are interior to the cells: in the Newton matrix the
+bubble–bubble block is block diagonal by cell (one ``gdim × gdim`` block per cell), and the
+contact terms, the Dirichlet rows and the symmetry-plane projection act only on vertex dofs.
+Ordering the unknowns as l (vertex velocities and pressures) and b (bubbles),
+
+    [A_ll  A_lb] [x_l]   [r_l]
+    [A_bl  A_bb] [x_b] = [r_b],
+
+the b unknowns are eliminated cell by cell: ``S x_l = r_l − A_lb A_bb⁻¹ r_b`` with the condensed
+matrix ``S = A_ll − A_lb A_bb⁻¹ A_bl`` (P1/P1; its pressure block carries the stabilisation
+``−B_b A_bb⁻¹ B_bᵀ`` that the bubble gives), then ``x_b = A_bb⁻¹ (r_b − A_bl x_l)``. This is an
+exact block elimination, so the Newton step is the uncondensed one to round-off when ``S`` is
+solved exactly (MUMPS); the global system has about 5× fewer unknowns for tetrahedra.
+
+:class:`CondensedPC` does it as a petsc4py ``python`` preconditioner on the full Jacobian, so the
+SNES, the assembly and the line search are unchanged: with ``ksp_type preonly`` it is an exact
+solver. The condensed system is solved by an inner KSP under the prefix ``<prefix>condensed_``
+(any PETSc options). For the iterative inner solve (field split of ``S``: velocity | pressure)
+the preconditioner provides
+
+* the velocity split with its vertex-interlaced ordering, block size ``gdim`` and the rigid-body
+  modes as near-null space (attached to the split's IS: PCFieldSplit hands it to GAMG);
+* the Schur preconditioner matrix ``S_pp ± M_p/η`` (``pc_fieldsplit_schur_precondition user``):
+  the condensed pressure block (condensation stabilisation and any pressure–pressure term of the
+  material) plus the lumped pressure mass matrix weighted by the inverse local viscosity, a
+  linear form in the pressure test function supplied by the problem (``schur_weight``, e.g.
+  ``(1/η(v)) q dx``; the plain mass matrix without it). The sign is that of ``S_pp``'s diagonal
+  (the Schur complement of the saddle-point system has the sign of the stabilisation block).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Optional
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx.fem.petsc
+
+from fxcontact import compat
+
+__all__ = ["CondensationLayout", "CondensedPC", "rigid_body_modes"]
+
+log = logging.getLogger(__name__)
+
+
+class CondensationLayout:
+    """Index sets of a mixed space for the condensation of its cell-interior dofs.
+
+    Args:
+        W: a dolfinx function space of block size 1 (mixed); the dofs of the cell interiors
+            (``dof_layout.entity_dofs(tdim, 0)``, e.g. the MINI bubbles) are condensed.
+
+    Attributes:
+        interior: (num_owned_cells, n_int) local dofs of the cell interiors (owned cells).
+        vel_nodes: (num_owned_vertices, gdim) local velocity dofs of the owned vertices, or None
+            when the retained velocity dofs are not all at vertices (no block ordering).
+        retained: the local owned retained dofs in the order of the condensed system (vertex
+            velocities interlaced by vertex, then every other retained dof in increasing order).
+        n_vel: number of leading entries of ``retained`` that are vertex velocities.
+        is_b, is_l: parallel ISs (global W numbering) of the condensed and retained dofs.
+    """
+
+    def __init__(self, W):
+        msh = W.mesh
+        self.comm = msh.comm
+        if W.dofmap.index_map_bs != 1:
+            raise ValueError("the condensation needs a mixed space (dof block size 1)")
+        tdim = msh.topology.dim
+        self.gdim = msh.geometry.dim
+        lay = W.dofmap.dof_layout
+        loc_int = np.asarray(lay.entity_dofs(tdim, 0), dtype=np.int32)
+        n_int = self.comm.allreduce(len(loc_int), op=MPI.MAX)
+        if n_int == 0:
+            raise ValueError("the space has no cell-interior dofs to condense (the condensed "
+                             "solvers are for the MINI element)")
+        imap = W.dofmap.index_map
+        nown = imap.size_local
+        self.nown = nown
+        self.rstart = imap.local_range[0]
+        ncell = msh.topology.index_map(tdim).size_local
+        dm = compat.dofmap_array(W)
+        interior = dm[:ncell][:, loc_int]
+        if np.any(interior >= nown):
+            raise RuntimeError("cell-interior dofs of an owned cell are not owned")
+        self.interior = np.ascontiguousarray(interior)
+        is_int = np.zeros(nown, dtype=bool)
+        is_int[interior.ravel()] = True
+        # vertex velocities (sub(0) of the mixed space), interlaced by vertex
+        self.vel_nodes = None
+        self.node_vertices = None
+        try:
+            V0 = W.sub(0)
+            nsub = V0.num_sub_spaces
+        except Exception:  # pragma: no cover - not a mixed velocity-pressure space
+            nsub = 0
+        if nsub == self.gdim:
+            c2v = compat.cell_vertices(msh)
+            nvc = c2v.shape[1]
+            nvert = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
+            vd = np.full((nvert, self.gdim), -1, dtype=np.int64)
+            vel_mask = np.zeros(dm.max() + 1 if dm.size else 0, dtype=bool)
+            for k in range(self.gdim):
+                sk = V0.sub(k)
+                lk = sk.dofmap.dof_layout
+                vpos = [lk.entity_dofs(0, i) for i in range(nvc)]
+                cd = compat.dofmap_array(sk)
+                vel_mask[cd.ravel()] = True
+                if all(len(p) == 1 for p in vpos):
+                    cols = [p[0] for p in vpos]
+                    vd[c2v.ravel(), k] = cd[:, cols].ravel()
+            own_v = np.all((vd >= 0) & (vd < nown), axis=1)
+            vel_ret = vel_mask[:nown] & ~is_int
+            nodes = vd[own_v].astype(np.int32)
+            if np.all(vd[own_v] >= 0) and int(vel_ret.sum()) == nodes.size:
+                self.vel_nodes = nodes
+                self.node_vertices = np.flatnonzero(own_v).astype(np.int32)
+        # PETSc's parallel MatCreateSubMatrix needs sorted index sets: both sets are in the
+        # increasing W order. dolfinx numbers the dofs of one entity consecutively, so the
+        # velocity dofs of a vertex stay consecutive (x, y, z) in that order: the velocity
+        # split of the condensed system is vertex-interlaced (block size gdim) — checked.
+        self.retained = np.flatnonzero(~is_int).astype(np.int32)
+        if self.vel_nodes is not None:
+            order = np.argsort(self.vel_nodes[:, 0], kind="stable")
+            self.vel_nodes = self.vel_nodes[order]
+            self.node_vertices = self.node_vertices[order]
+            pos = np.searchsorted(self.retained, self.vel_nodes)
+            if not np.all(np.diff(pos, axis=1) == 1):
+                self.vel_nodes = None
+            else:
+                self.vel_pos = pos.ravel().astype(np.int32)
+                mask = np.ones(len(self.retained), dtype=bool)
+                mask[self.vel_pos] = False
+                self.other_pos = np.flatnonzero(mask).astype(np.int32)
+        self.n_vel = 0 if self.vel_nodes is None else self.vel_nodes.size
+        b_sorted = np.sort(interior.ravel())
+        #: position of each (cell, interior dof) in the b numbering (local)
+        self.b_pos = np.searchsorted(b_sorted, interior).astype(np.int32)
+        self.is_b = PETSc.IS().createGeneral((self.rstart + b_sorted).astype(PETSc.IntType),
+                                             comm=self.comm)
+        self.is_l = PETSc.IS().createGeneral(
+            (self.rstart + self.retained).astype(PETSc.IntType), comm=self.comm)
+        self.n_int = interior.shape[1]
+        self.l_start = self.comm.exscan(len(self.retained)) or 0
+        self.W = W
+
+    def num_global(self):
+        """(full, condensed) global numbers of unknowns."""
+        nl = self.comm.allreduce(len(self.retained))
+        nb = self.comm.allreduce(self.interior.size)
+        return nl + nb, nl
+
+    def split_is(self):
+        """(velocity IS, other IS) in the numbering of the condensed system (None, None without
+        a vertex-velocity ordering)."""
+        if self.vel_nodes is None:
+            return None, None
+        iu = PETSc.IS().createGeneral((self.l_start + self.vel_pos).astype(PETSc.IntType),
+                                      comm=self.comm)
+        iu.setBlockSize(self.gdim)
+        ip = PETSc.IS().createGeneral((self.l_start + self.other_pos).astype(PETSc.IntType),
+                                      comm=self.comm)
+        return iu, ip
+
+    def node_coordinates(self) -> np.ndarray:
+        """(num_owned_vertices, gdim) current positions of the vertices of ``vel_nodes``."""
+        msh = self.W.mesh
+        geo = compat.entities_to_geometry(msh, 0, self.node_vertices).ravel()
+        return msh.geometry.x[geo, : self.gdim].copy()
+
+
+def rigid_body_modes(comm, x: np.ndarray) -> PETSc.NullSpace:
+    """Near-null space of a vector Laplacian/elasticity block with vertex-interlaced dofs at
+    points ``x`` (n, gdim): gdim translations and the gdim(gdim−1)/2 rotations, orthonormalised
+    (collective)."""
+    n, d = x.shape
+    xc = x - comm.allreduce(x.sum(axis=0)) / max(comm.allreduce(n), 1)
+    modes = []
+    for k in range(d):
+        m = np.zeros((n, d))
+        m[:, k] = 1.0
+        modes.append(m)
+    if d == 2:
+        modes.append(np.stack([-xc[:, 1], xc[:, 0]], axis=1))
+    else:
+        for (i, j) in ((0, 1), (1, 2), (2, 0)):
+            m = np.zeros((n, d))
+            m[:, i], m[:, j] = -xc[:, j], xc[:, i]
+            modes.append(m)
+    # modified Gram-Schmidt (global dot products)
+    basis = []
+    for m in modes:
+        v = m.ravel().copy()
+        for b in basis:
+            v -= comm.allreduce(float(v @ b)) * b
+        nrm = np.sqrt(comm.allreduce(float(v @ v)))
+        basis.append(v / nrm)
+    vecs = []
+    for b in basis:
+        vec = PETSc.Vec().createMPI((n * d, PETSc.DECIDE), bsize=d, comm=comm)
+        vec.setArray(b)
+        vecs.append(vec)
+    return PETSc.NullSpace().create(vectors=vecs, comm=comm)
+
+
+class CondensedPC:
+    """petsc4py python-type PC: exact block elimination of the cell-interior dofs.
+
+    Args:
+        layout: the :class:`CondensationLayout` of the problem's space.
+        prefix: options prefix of the inner KSP on the condensed system.
+        schur_weight: optional compiled linear form on the mixed space whose pressure rows
+            give the lumped, inverse-viscosity-weighted pressure mass (see the module
+            docstring); used only when the inner PC is a field split.
+    """
+
+    def __init__(self, layout: CondensationLayout, prefix: str, schur_weight=None):
+        self.lay = layout
+        self.prefix = prefix
+        self.schur_weight = schur_weight
+        self.comm = layout.comm
+        self.ksp = None
+        #: the outer KSP whose relative tolerance the inner solve follows (Eisenstat–Walker:
+        #: SNES sets the outer KSP's rtol before every Newton step), or None
+        self.follow_rtol_of = None
+        self._mats = {}
+        self._Sp = None
+        self._wvec = None
+        self.times = {"condense": 0.0, "inner_setup": 0.0}
+        #: message of the last failed inner solve (None: none since the last reset)
+        self.error: Optional[str] = None
+        self.setups = 0
+        self.inner_iterations = 0
+        self.inner_solves = 0
+
+    # -- helpers ------------------------------------------------------------------------
+    def _sub(self, P, name, isr, isc):
+        old = self._mats.get(name)
+        M = P.createSubMatrix(isr, isc, submat=old)
+        self._mats[name] = M
+        return M
+
+    def _block_inverse(self, Abb: PETSc.Mat) -> PETSc.Mat:
+        """A_bb⁻¹ as an AIJ matrix of the b layout (per-cell dense inverses)."""
+        lay = self.lay
+        k = lay.n_int
+        ai, aj, av = Abb.getValuesCSR()
+        r0, r1 = Abb.getOwnershipRange()
+        nrow = len(ai) - 1
+        ncell = lay.b_pos.shape[0]
+        cell_of = np.empty(nrow, dtype=np.int64)
+        comp_of = np.empty(nrow, dtype=np.int64)
+        cell_of[lay.b_pos.ravel()] = np.repeat(np.arange(ncell), k)
+        comp_of[lay.b_pos.ravel()] = np.tile(np.arange(k), ncell)
+        rows = np.repeat(np.arange(nrow), np.diff(ai))
+        col = aj.astype(np.int64) - r0
+        local = (col >= 0) & (col < nrow)
+        colc = np.where(local, col, 0)
+        inside = local & (cell_of[colc] == cell_of[rows])
+        off = ~inside & (av != 0.0)
+        if self.comm.allreduce(int(np.count_nonzero(off))):
+            raise RuntimeError("the interior-interior block is not block diagonal by cell: a "
+                               "term couples interior dofs of different cells, it cannot be "
+                               "condensed element by element")
+        blocks = np.zeros((ncell, k, k))
+        blocks[cell_of[rows[inside]], comp_of[rows[inside]], comp_of[colc[inside]]] = \
+            av[inside]
+        try:
+            inv = np.linalg.inv(blocks)
+        except np.linalg.LinAlgError:
+            inv = np.full_like(blocks, np.nan)
+        bad = int(np.count_nonzero(~np.isfinite(inv).all(axis=(1, 2))))
+        if self.comm.allreduce(bad):
+            raise RuntimeError("singular interior (bubble) block in a cell: degenerate element")
+        # row r (cell c, component i): columns pos(c, j) (sorted), values inv[c, i, j]
+        srt = np.argsort(lay.b_pos, axis=1)
+        cpos = np.take_along_axis(lay.b_pos, srt, axis=1)          # (ncell, k) sorted
+        vals = np.take_along_axis(inv, srt[:, None, :], axis=2)     # columns sorted
+        vrow = np.empty((nrow, k))
+        crow = np.empty((nrow, k), dtype=np.int64)
+        vrow[lay.b_pos.ravel()] = vals.reshape(-1, k)
+        crow[lay.b_pos.ravel()] = np.repeat(cpos, k, axis=0)
+        indptr = (np.arange(nrow + 1) * k).astype(PETSc.IntType)
+        cols = (r0 + crow).ravel()
+        inv = vrow
+        D = self._mats.get("Dinv")
+        if D is None:
+            D = PETSc.Mat().createAIJ(size=((nrow, PETSc.DETERMINE), (nrow, PETSc.DETERMINE)),
+                                      csr=(indptr, cols.astype(PETSc.IntType), inv.ravel()),
+                                      comm=self.comm)
+            D.assemble()
+            self._mats["Dinv"] = D
+        else:
+            D.zeroEntries()
+            D.setValuesCSR(indptr, cols.astype(PETSc.IntType), inv.ravel())
+            D.assemble()
+        return D
+
+    # -- PC interface -------------------------------------------------------------------
+    def setUp(self, pc):
+        t0 = time.perf_counter()
+        self.setups += 1
+        _, P = pc.getOperators()
+        lay = self.lay
+        Abb = self._sub(P, "bb", lay.is_b, lay.is_b)
+        D = self._block_inverse(Abb)
+        Alb = self._sub(P, "lb", lay.is_l, lay.is_b)
+        Abl = self._sub(P, "bl", lay.is_b, lay.is_l)
+        # S = A_ll − A_lb D A_bl (A_ll extracted afresh: it is overwritten by S)
+        T = Alb.matMatMult(D, Abl, result=self._mats.get("T"))
+        self._mats["T"] = T
+        S = self._sub(P, "S", lay.is_l, lay.is_l)
+        S.axpy(-1.0, T, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        self.times["condense"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        first = self.ksp is None
+        if first:
+            self.ksp = PETSc.KSP().create(self.comm)
+            self.ksp.setOptionsPrefix(self.prefix)
+            self.ksp.setOperators(S, S)
+            self.ksp.setFromOptions()
+            if self.ksp.getPC().getType() == PETSc.PC.Type.FIELDSPLIT:
+                self._setup_fieldsplit(S, first=True)
+        else:
+            self.ksp.setOperators(S, S)
+            if self.ksp.getPC().getType() == PETSc.PC.Type.FIELDSPLIT:
+                self._setup_fieldsplit(S, first=False)
+        self.ksp.setUp()
+        self.times["inner_setup"] += time.perf_counter() - t0
+        self._xb = self._xb or Abb.createVecRight()
+        self._tb = self._tb or Abb.createVecRight()
+        self._rl = self._rl or S.createVecRight()
+        self._yl = self._yl or S.createVecRight()
+
+    _xb = _tb = _rl = _yl = None
+
+    def _setup_fieldsplit(self, S, first: bool):
+        lay = self.lay
+        pc = self.ksp.getPC()
+        if first:
+            iu, ip = lay.split_is()
+            if iu is None:
+                raise ValueError("the condensed field split needs vertex velocities (MINI)")
+            self._iu, self._ip = iu, ip
+            self._nsp = None
+            pc.setFieldSplitIS(("u", iu), ("p", ip))
+        # near-null space of the velocity block: rigid-body modes at the current vertices
+        nsp = rigid_body_modes(self.comm, lay.node_coordinates())
+        self._iu.compose("nearnullspace", nsp)
+        if self._nsp is not None:
+            self._nsp.destroy()
+        self._nsp = nsp
+        # Schur preconditioner: S_pp + sign · (lumped inverse-viscosity pressure mass)
+        Spp = S.createSubMatrix(self._ip, self._ip, submat=self._Sp)
+        self._Sp = Spp
+        m = self._weighted_mass()
+        d = Spp.getDiagonal()
+        tr = d.sum()
+        sign = -1.0 if tr <= 0 else 1.0
+        dm = d.duplicate()
+        dm.setArray(m)
+        scale = PETSc.Options().getReal(self.prefix + "schur_mass_scale", 1.0)
+        d.axpy(sign * scale, dm)
+        Spp.setDiagonal(d)
+        d.destroy()
+        dm.destroy()
+        # the matrix is handed to the field split only when the options ask for it (the
+        # preset does): any other choice (selfp, a11, full) is left to PETSc
+        pre = PETSc.Options().getString(self.prefix + "pc_fieldsplit_schur_precondition", "")
+        if pre == "user":
+            pc.setFieldSplitSchurPreType(PETSc.PC.SchurPreType.USER, Spp)
+
+    def _weighted_mass(self) -> np.ndarray:
+        """Lumped pressure mass weighted by the inverse viscosity, in the order of the
+        retained non-velocity dofs."""
+        lay = self.lay
+        if self.schur_weight is None:
+            raise ValueError("the condensed field split needs the problem's schur_weight form")
+        if self._wvec is None:
+            self._wvec = dolfinx.fem.petsc.create_vector(self.schur_weight)
+        b = self._wvec
+        with b.localForm() as bl:
+            bl.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(b, self.schur_weight)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        arr = b.getArray(readonly=True)
+        return np.abs(arr[lay.retained[lay.other_pos]])
+
+    def apply(self, pc, x, y):
+        lay = self.lay
+        Alb, Abl, D = self._mats["lb"], self._mats["bl"], self._mats["Dinv"]
+        xb = x.getSubVector(lay.is_b)
+        xl = x.getSubVector(lay.is_l)
+        D.mult(xb, self._tb)                  # A_bb⁻¹ r_b
+        Alb.mult(self._tb, self._rl)
+        self._rl.aypx(-1.0, xl)               # r_l − A_lb A_bb⁻¹ r_b
+        x.restoreSubVector(lay.is_b, xb)
+        x.restoreSubVector(lay.is_l, xl)
+        if self.follow_rtol_of is not None:
+            self.ksp.setTolerances(rtol=self.follow_rtol_of.getTolerances()[0])
+        self.ksp.solve(self._rl, self._yl)
+        self.inner_iterations += self.ksp.getIterationNumber()
+        self.inner_solves += 1
+        reason = self.ksp.getConvergedReason()
+        if reason < 0:
+            # the reason is collective: every rank raises, the Newton solve fails with this
+            # message (NewtonSolver reads `error`) and is cut back like a failed factorisation
+            self.error = (f"the condensed linear solve failed (KSP reason {reason} after "
+                          f"{self.ksp.getIterationNumber()} iterations; options under "
+                          f"'{self.prefix}')")
+            raise RuntimeError(self.error)
+        yl = y.getSubVector(lay.is_l)
+        self._yl.copy(yl)
+        y.restoreSubVector(lay.is_l, yl)
+        xb = x.getSubVector(lay.is_b)
+        Abl.mult(self._yl, self._xb)
+        self._xb.aypx(-1.0, xb)               # r_b − A_bl x_l
+        x.restoreSubVector(lay.is_b, xb)
+        yb = y.getSubVector(lay.is_b)
+        D.mult(self._xb, yb)
+        y.restoreSubVector(lay.is_b, yb)
+
+    def view(self, pc, viewer=None):
+        if self.ksp is not None:
+            self.ksp.view(viewer)
+
+    def destroy(self, pc=None):
+        for M in self._mats.values():
+            M.destroy()
+        self._mats = {}
+        for v in (self._xb, self._tb, self._rl, self._yl, self._wvec):
+            if v is not None:
+                v.destroy()
+        self._xb = self._tb = self._rl = self._yl = self._wvec = None
+        if self.ksp is not None:
+            self.ksp.destroy()
+            self.ksp = None
