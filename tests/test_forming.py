@@ -163,7 +163,7 @@ def test_ring_rolling_geometry_checks():
         # sagitta of each surface at the distance L from the bite line
         sag = sum(s * (Ri - math.sqrt(Ri * Ri - L * L)) for s, Ri in
                   ((1, R1), (1, R2), (1, R), (-1, r)))
-        assert sag == pytest.approx(dh, rel=0.01)   # first order in L/R
+        assert sag == pytest.approx(dh, rel=0.03)   # first order in L/R (L/R2 = 0.3 at 3 mm)
     w1 = 2 * math.pi * 0.5
     vf = ring_rolling_feed_speed(2.0, w1, R1, R)
     # time of one ring revolution 2πR/(ω1R1), times v_f = Δh
