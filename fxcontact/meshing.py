@@ -36,7 +36,7 @@ DRAWING_BAR_TAGS: Dict[str, int] = {"back": 1, "front": 2, "lateral": 3, "symmet
 RING_TAGS: Dict[str, int] = {"top": 1, "bottom": 2, "outer": 3, "inner": 4, "symmetry_x": 5,
                              "symmetry_y": 6, "mid_plane": 7}
 #: models of :func:`ring`: extent in plan and in height
-RING_SECTORS = ("eighth", "quarter", "full")
+RING_SECTORS = ("eighth", "quarter", "full", "upper")
 #: facet tags of :func:`block`
 BLOCK_TAGS: Dict[str, int] = {"xmin": 1, "xmax": 2, "ymin": 3, "ymax": 4, "zmin": 5, "zmax": 6}
 
@@ -147,7 +147,8 @@ def ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, height: float
         h: element size.
         sector: ``"eighth"`` (x ≥ 0, y ≥ 0, 0 ≤ z ≤ H/2: a quarter in plan, the upper half in
             height, with the symmetry planes x = 0, y = 0 and the mid-plane z = 0),
-            ``"quarter"`` (x ≥ 0, y ≥ 0, |z| ≤ H/2) or ``"full"`` (|z| ≤ H/2).
+            ``"quarter"`` (x ≥ 0, y ≥ 0, |z| ≤ H/2), ``"full"`` (|z| ≤ H/2) or ``"upper"``
+            (the whole plan, 0 ≤ z ≤ H/2 with the mid-plane z = 0: ring rolling).
     Returns ``(mesh, cell_tags, facet_tags)`` with facet tags :data:`RING_TAGS` (only those of
     the surfaces the model has).
     """
@@ -159,14 +160,15 @@ def ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, height: float
     if sector not in RING_SECTORS:
         raise ValueError(f"sector must be one of {RING_SECTORS}, got {sector!r}")
     Ro, Ri = float(outer_radius), float(inner_radius)
-    z0 = 0.0 if sector == "eighth" else -0.5 * height
+    z0 = 0.0 if sector in ("eighth", "upper") else -0.5 * height
+    planes = sector in ("eighth", "quarter")
     with gmsh_session("ring") as gmsh:
         if comm.rank == 0:
             occ = gmsh.model.occ
             outer = occ.addCylinder(0, 0, z0, 0, 0, 0.5 * height - z0, Ro)
             inner = occ.addCylinder(0, 0, z0 - 1, 0, 0, 0.5 * height - z0 + 2, Ri)
             body, _ = occ.cut([(3, outer)], [(3, inner)])
-            if sector != "full":
+            if planes:
                 box = occ.addBox(0, 0, z0 - 1, 2 * Ro, 2 * Ro, 0.5 * height - z0 + 2)
                 body, _ = occ.intersect(body, [(3, box)])
             occ.synchronize()
@@ -179,10 +181,10 @@ def ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, height: float
                 if abs(c[2] - 0.5 * height) < eps:
                     groups["top"].append(tag)
                 elif abs(c[2] - z0) < eps:
-                    groups["mid_plane" if sector == "eighth" else "bottom"].append(tag)
-                elif sector != "full" and abs(c[0]) < eps:
+                    groups["mid_plane" if z0 == 0.0 else "bottom"].append(tag)
+                elif planes and abs(c[0]) < eps:
                     groups["symmetry_x"].append(tag)
-                elif sector != "full" and abs(c[1]) < eps:
+                elif planes and abs(c[1]) < eps:
                     groups["symmetry_y"].append(tag)
                 else:
                     # a lateral surface (the centre of mass of a whole circle is on the axis:
