@@ -247,6 +247,8 @@ class IdleRotation:
         self.contact.evaluate(sim.w, False)     # the terms of the converged field
         T = self.contact.tool_torque(self.k)
         F, R = _lever_arm_and_force(self.contact, self.k)
+        log.debug("idle %s: omega = %.10g -> torque %.6e (|F| %.4e, arm %.4g, %d Newton its)",
+                  self.tool.name, omega, T, F, R, info.iterations)
         return info, T, F, R
 
     def solve(self, sim, begin):
@@ -318,6 +320,11 @@ class IdleRotation:
                 # do not extrapolate further than 4× the last step
                 step = 4.0 * abs(o2 - o1)
                 new = min(max(new, o2 - step), o2 + step)
+            # the root lies near the rolling speed of the contact nodes: stay within a factor 2
+            wf = rolling_speed(self.contact, self.k, sim.w)
+            if wf != 0.0:
+                lo_, hi_ = sorted((0.5 * wf, 2.0 * wf))
+                new = min(max(new, lo_), hi_)
             om = float(new)
         if info is not None and info.converged:
             info.converged = False
@@ -389,7 +396,9 @@ class RingCentring:
         line_point, line_direction: the mill line (through the main roll's and the mandrel's
             axes), in the plane normal to ``axis``.
         axis: ring axis.
-        clearance: radial clearance between a centred ring and the guide rolls.
+        clearance: radial clearance between a centred ring and the guide rolls (negative: a
+            small interference, the guide rolls press on the ring — a preload that gives the
+            centre's drift a penalty stiffness from the first increment on).
         update: a :class:`RingAxisUpdate` whose centre is set to the centroid each increment
             (optional: the cylindrical configuration update about the current centre).
 
@@ -417,8 +426,8 @@ class RingCentring:
         e = e - (e @ self.axis) * self.axis
         self.e = unit_vector(e, "mill line direction (normal to the axis)")
         self.p0 = np.asarray(line_point, dtype=np.float64).reshape(3)
-        if not math.isfinite(clearance) or clearance < 0:
-            raise ValueError(f"clearance must be >= 0, got {clearance!r}")
+        if not math.isfinite(clearance):
+            raise ValueError(f"clearance must be finite, got {clearance!r}")
         self.clearance = float(clearance)
         self.update = update
         self._forms = None
