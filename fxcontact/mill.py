@@ -227,17 +227,23 @@ class IdleRotation:
         self.omega = self.motion.current_angular_velocity()
         self._row: Dict[str, float] = {}
         self._t = 0.0
+        self._trial = None
 
     def begin_increment(self, sim, t: float, dt: float, x_t):
         self._t = t
-        self.motion.set_rates(t, angular_velocity=self.omega)
+        # the trial ω of the current evaluation (solve()), else the previous increment's
+        om = self.omega if self._trial is None else self._trial
+        self.motion.set_rates(t, angular_velocity=om)
 
     def _evaluate(self, sim, begin, omega: float, w_pred, w_warm):
         """One Newton solve with the tool at ω; returns (info, torque, |F|, R̄)."""
-        self.motion.set_rates(self._t, angular_velocity=omega)
+        self._trial = omega
         sim.w.x.array[:] = w_pred
         sim.w.x.scatter_forward()
-        begin()
+        try:
+            begin()     # restarts the contributors (and this controller, at ω = omega)
+        finally:
+            self._trial = None
         if w_warm is not None:
             sim.w.x.array[:] = w_warm
             sim.w.x.scatter_forward()
