@@ -332,7 +332,7 @@ def _summary(res, comm, msh) -> dict:
         max_strain=last["max_strain"], max_strain_rate=max(q["max_strain_rate"] for q in rows),
         newton_mean=float(np.mean([q["newton_iterations"] for q in rows])),
         newton_max=int(max(q["newton_iterations"] for q in rows)),
-        main_force_mean=float(np.mean([-q["main_force_x"] for q in second])),
+        main_force_mean=float(np.mean([q["main_force_x"] for q in second])),
         mandrel_torque_max=max(abs(q["mandrel_idle_torque"]) for q in rows),
         mandrel_torque_tol_max=max(q["mandrel_idle_tolerance"] for q in rows),
         mandrel_slip_max=max(abs(q["mandrel_surface_slip"]) for q in rows),
@@ -426,8 +426,8 @@ def _pictures(res, snaps, out, name) -> dict:
     ax.legend(fontsize=8)
     ax.set_title("diameters")
     ax = axs[1]
-    ax.plot(t, [-q["main_force_x"] / 1e3 for q in h], label="main roll, radial")
-    ax.plot(t, [q["mandrel_force_x"] / 1e3 for q in h], label="mandrel, radial")
+    ax.plot(t, [q["main_force_x"] / 1e3 for q in h], label="main roll, radial")
+    ax.plot(t, [-q["mandrel_force_x"] / 1e3 for q in h], label="mandrel, radial")
     ax.plot(t, [q["guide_force"] / 1e3 for q in h], label="guide rolls (sum |F|)")
     ax.axhline(res["force_estimate"] / 1e3, color="k", ls="--", label="2kHLQ estimate")
     ax.set_xlabel("t [s]")
