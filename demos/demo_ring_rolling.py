@@ -411,7 +411,17 @@ def _pictures(res, snaps, out, name) -> dict:
     paths["top_view"] = os.path.join(out, f"{name}_top.png")
     fig.savefig(paths["top_view"], dpi=100)
     plt.close(fig)
+    paths["curves"] = curves_png(res, os.path.join(out, f"{name}_curves.png"))
+    return paths
 
+
+def curves_png(res, path) -> str:
+    """Diameters, roll forces and rotation speeds against time (also from a saved CSV:
+    ``res = {"history": rows, "parameters": {...}, "force_estimate": F}``)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    P = res["parameters"]
     h = res["history"]
     t = np.array([q["time"] for q in h])
     fig, axs = plt.subplots(1, 3, figsize=(15, 4.3))
@@ -444,10 +454,9 @@ def _pictures(res, snaps, out, name) -> dict:
     ax.legend(fontsize=8)
     ax.set_title("rotation speeds")
     fig.tight_layout()
-    paths["curves"] = os.path.join(out, f"{name}_curves.png")
-    fig.savefig(paths["curves"], dpi=100)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
-    return paths
+    return path
 
 
 # %% [markdown]
