@@ -45,6 +45,9 @@ def main(argv=None):
     ap.add_argument("--revolutions", type=float, default=0.3)
     ap.add_argument("--n_theta", type=int, default=100)
     ap.add_argument("--increments_per_rev", type=int, default=50)
+    ap.add_argument("--gap_stiffness", type=float, default=None,
+                    help="penalty as a gap stiffness k [MPa/mm] (rho = k dt: the penalty "
+                         "penetration p/k does not depend on dt); default: the demo's beta")
     add_verbosity_arguments(ap)
     a = ap.parse_args(argv)
     configure_logging(verbose=a.verbose, quiet=a.quiet)
@@ -54,6 +57,7 @@ def main(argv=None):
         ipr = a.increments_per_rev // kw.pop("dt_factor", 1)
         res = demo.run(**{**demo.QUICK, "case": a.case, "n_theta": a.n_theta,
                           "increments_per_rev": ipr, "revolutions": a.revolutions,
+                          "gap_stiffness": a.gap_stiffness,
                           "output_dir": None, "pictures": False, **kw})
         rows.append((label, ipr, res))
         if MPI.COMM_WORLD.rank == 0:
@@ -61,7 +65,7 @@ def main(argv=None):
     if MPI.COMM_WORLD.rank == 0:
         print(f"\ncase {a.case}, ring {demo.QUICK['n_theta'] if a.n_theta is None else a.n_theta}"
               f" x {demo.QUICK['n_r']} x {demo.QUICK['n_z']}, {a.revolutions} revolution(s), "
-              f"{MPI.COMM_WORLD.size} rank(s)\n")
+              f"{MPI.COMM_WORLD.size} rank(s), gap stiffness {a.gap_stiffness}\n")
         print("| variant | incr./rev | revs done | max penetration mm | max strain | "
               "max strain rate 1/s | volume drift %/rev | Newton its/incr. | wall s/rev |")
         print("|---|---|---|---|---|---|---|---|---|")

@@ -65,8 +65,7 @@ from mpi4py import MPI
 import fxcontact as fx
 from fxcontact import forming
 from fxcontact.console import add_verbosity_arguments, configure_logging
-from fxcontact.mill import (ControlledMotion, IdleRotation, RingAxisUpdate, RingCentring,
-                            rolling_speed)
+from fxcontact.mill import ControlledMotion, IdleRotation, RingAxisUpdate, RingCentring
 
 #: the thesis's academic cases (THEORY §12.1): lengths mm, stresses MPa, times s
 CASES = {1: dict(rpm=20.0, feed_speed=1.5, main_friction=("norton", 0.5, 0.15),
@@ -75,11 +74,12 @@ CASES = {1: dict(rpm=20.0, feed_speed=1.5, main_friction=("norton", 0.5, 0.15),
                  mandrel_friction=("coulomb", 0.3, 0.6))}
 
 DEFAULTS = dict(case=2, R1=150.0, R2=40.0, R=100.0, r=60.0, H=40.0, Rg=40.0, guide_angle=60.0,
-                K=1900.0, m=0.14, n_theta=160, n_r=4, n_z=2, initial_bite=0.05, sticky_gap=0.0, max_it=60, guide_clearance=0.3, increments_per_rev=60, revolutions=2.0,
-                update="cylindrical", scheme="implicit", tools="analytic", facet_size=None,
-                volume_correction="none", mu_bite=0.3, max_increments=100000,
-                output_dir="results/ring_rolling", name=None, pictures=True, vtk_every=0,
-                comm=None)
+                K=1900.0, m=0.14, n_theta=160, n_r=4, n_z=2, initial_bite=0.05,
+                gap_stiffness=None, sticky_gap=0.0, max_it=60, guide_clearance=0.3,
+                increments_per_rev=60, revolutions=2.0, update="cylindrical",
+                scheme="implicit", tools="analytic", facet_size=None, volume_correction="none",
+                mu_bite=0.3, max_increments=100000, output_dir="results/ring_rolling", name=None,
+                pictures=True, vtk_every=0, comm=None)
 
 #: the reduced size of the tests: coarse ring, a quarter of a revolution
 QUICK = dict(n_theta=100, n_r=3, n_z=1, increments_per_rev=50, revolutions=0.2,
@@ -188,6 +188,7 @@ def run(**parameters) -> dict:
     tags = [fx.RING_TAGS["outer"], fx.RING_TAGS["inner"]]
     contact = fx.NodalContact(fx.ContactBoundary(sp, ft, tags), tools, scheme=P["scheme"],
                               friction=friction, slip_velocity=1e-3 * v_s, name="mill",
+                              gap_stiffness=P["gap_stiffness"],
                               sticky_gap=P["sticky_gap"])
     outer = fx.ContactBoundary(sp, ft, fx.RING_TAGS["outer"])
     inner = fx.ContactBoundary(sp, ft, fx.RING_TAGS["inner"])
@@ -505,6 +506,7 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="the reduced size of the tests")
     ap.add_argument("--case", type=int, choices=(1, 2))
     for k in ("R1", "R2", "R", "r", "H", "Rg", "K", "m", "revolutions", "facet_size",
+              "gap_stiffness",
               "guide_angle", "mu_bite"):
         ap.add_argument(f"--{k}", type=float)
     for k in ("increments_per_rev", "n_theta", "n_r", "n_z"):
