@@ -107,3 +107,39 @@ def test_bad_parameters():
         demo.run(case=3)
     with pytest.raises(ValueError, match="mandrel"):
         demo.run(R2=70.0)
+
+
+#: the penetration comparison: case 1 (no idle iteration), a dt-independent gap stiffness
+#: k = 5e5 MPa/mm (penalty penetration p/k ≈ 0.013 mm at the ~6.7 GPa of K = 1900 MPa)
+PEN = {**SHORT, "case": 1, "gap_stiffness": 5e5}
+
+
+@pytest.fixture(scope="module")
+def implicit_pen():
+    return demo.run(**PEN)
+
+
+@pytest.mark.serial   # three more short runs; the MPI path is test_one_and_two_ranks_agree
+def test_implicit_penetration_is_dt_insensitive(implicit_pen):
+    """Implicit contact, analytic tools, cylindrical update, gap stiffness k: the largest true
+    penetration over the same time at dt and 2 dt differs by less than 25 % (measured over
+    0.08 revolution in the benchmark: 0.0202 and 0.0181 mm)."""
+    twice = demo.run(**{**PEN, "increments_per_rev": demo.QUICK["increments_per_rev"] // 2,
+                        "revolutions": 2.0 / demo.QUICK["increments_per_rev"]})
+    p1, p2 = implicit_pen["max_penetration"], twice["max_penetration"]
+    print(f"implicit penetration dt {p1:.4f} mm, 2 dt {p2:.4f} mm")
+    assert p1 > 0 and abs(p2 / p1 - 1.0) < 0.25
+
+
+@pytest.mark.serial
+@pytest.mark.xfail(strict=True, reason="the thesis's ordering (implicit + analytic 0.014 mm vs "
+                   "explicit + faceted 0.33 mm) is not reproduced: measured against the tool "
+                   "each variant uses, flat facets with the explicit (tangent-plane) condition "
+                   "leave no node inside the facets (0.0000 mm over 0.08 rev), implicit + "
+                   "analytic 0.020 mm (the penalty compliance p/k); benchmarks/README.md")
+def test_implicit_penetration_below_a_tenth_of_explicit_faceted(implicit_pen):
+    explicit = demo.run(**{**PEN, "scheme": "explicit", "tools": "faceted",
+                           "update": "cartesian"})
+    p_imp, p_exp = implicit_pen["max_penetration"], explicit["max_penetration"]
+    print(f"penetration implicit + analytic {p_imp:.4f} mm, explicit + faceted {p_exp:.4f} mm")
+    assert p_imp <= 0.1 * p_exp
