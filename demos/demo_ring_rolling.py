@@ -386,8 +386,12 @@ def _pictures(res, snaps, out, name) -> dict:
     paths = {}
     radii = {"main_roll": P["R1"], "mandrel": P["R2"], "guide1": P["Rg"], "guide2": P["Rg"]}
     n = len(snaps)
-    fig, axs = plt.subplots(1, n, figsize=(4.2 * n, 4.6), squeeze=False)
-    for ax, s in zip(axs[0], snaps):
+    nc = 2 if n > 1 else 1
+    nr = (n + nc - 1) // nc
+    fig, axs = plt.subplots(nr, nc, figsize=(6.2 * nc, 4.4 * nr), squeeze=False)
+    for ax in axs.ravel()[n:]:
+        ax.axis("off")
+    for ax, s in zip(axs.ravel(), snaps):
         for key, col in (("outer", "C0"), ("inner", "C0")):
             p = s[key]
             if len(p):
@@ -427,15 +431,16 @@ def curves_png(res, path) -> str:
     t = np.array([q["time"] for q in h])
     fig, axs = plt.subplots(1, 3, figsize=(15, 4.3))
     ax = axs[0]
-    ax.plot(t, [q["outer_diameter"] for q in h], label="outer D")
-    ax.plot(t, [q["inner_diameter"] for q in h], label="inner d")
-    ax.plot(t, [q["mean_diameter"] for q in h], label="mean (D+d)/2")
-    ax.plot(t, [q["mean_diameter_volume"] for q in h], "k--",
-            label="mean, volume constancy V/(πHB)")
+    q0 = h[0]
+    for key, lab, st in (("outer_diameter", "outer D", "-"), ("inner_diameter", "inner d", "-"),
+                         ("mean_diameter", "mean (D+d)/2", "-"),
+                         ("mean_diameter_volume", "mean, volume constancy V/(πHB)", "k--")):
+        ax.plot(t, [q[key] - q0[key] for q in h], st, label=lab)
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("diameter [mm]")
+    ax.set_ylabel("change since the first increment [mm]")
     ax.legend(fontsize=8)
-    ax.set_title("diameters")
+    ax.set_title(f"diameters (initial D = {q0['outer_diameter']:.1f}, "
+                 f"d = {q0['inner_diameter']:.1f} mm)", fontsize=10)
     ax = axs[1]
     ax.plot(t, [q["main_force_x"] / 1e3 for q in h], label="main roll, radial")
     ax.plot(t, [-q["mandrel_force_x"] / 1e3 for q in h], label="mandrel, radial")
