@@ -240,10 +240,12 @@ def run(**parameters) -> dict:
         snaps.append(_snapshot(comm, sim, outer, inner, tools, 0.0, c0))
     wall0 = time.perf_counter()
     status, message = "done", ""
-    for it in range(n_inc):
-        # the ring's position before the increment (for the rotation speed)
+    t_end = P["revolutions"] * t_rev
+    for it in range(int(P["max_increments"])):
+        if sim.t >= t_end * (1.0 - 1e-9):
+            break
         try:
-            res = sim.step(dt)
+            res = sim.step(min(dt, t_end - sim.t))
         except fx.IncrementError as e:
             status, message = "failed", str(e)
             break
@@ -286,7 +288,7 @@ def run(**parameters) -> dict:
                        float(np.max(sim.strain_rate.x.array, initial=0.0)), op=MPI.MAX),
                    min_quality=q["min_quality"])
         rows.append(row)
-        if it + 1 in snap_at:
+        if (it + 1 in snap_at and it + 1 < n_inc) or sim.t >= t_end * (1.0 - 1e-9):
             snaps.append(_snapshot(comm, sim, outer, inner, tools, sim.t, c))
     sim.close()
     wall = time.perf_counter() - wall0
