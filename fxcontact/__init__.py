@@ -92,6 +92,7 @@ _API = {
     "sector_plane_normals": ("meshing", "outward normals of a sector's symmetry planes"),
     "ring": ("meshing", "gmsh flat ring (eighth, quarter or full model) with facet tags"),
     "RING_TAGS": ("meshing", "facet tags of ring"),
+    "structured_ring": ("meshing", "structured ring (n_theta x n_r x n_z), ring rolling"),
     # forming theory (validation references, pure numpy/scipy)
     "flow_stress": ("forming", "flow stress of the Norton-Hoff law at a strain rate (§14.1)"),
     "upsetting_upper_bound": ("forming", "upsetting mean die pressure, Tresca upper bound "
@@ -99,6 +100,14 @@ _API = {
     "upsetting_slab_coulomb": ("forming", "upsetting mean die pressure, Coulomb slab (§14.5)"),
     "ring_compression_upper_bound": ("forming", "Avitzur's ring-compression calibration curve "
                                      "and die pressure (§14.5)"),
+    # ring-rolling mill (controllers of the tools, fxcontact.mill)
+    "ControlledMotion": ("mill", "tool motion with rates set per increment by a controller"),
+    "IdleRotation": ("mill", "idle tool: rotation speed from zero torque about its axis"),
+    "RingCentring": ("mill", "guide rolls following a growing ring, centre on the mill line"),
+    "RingAxisUpdate": ("mill", "cylindrical update about the ring's current centre (§5)"),
+    "ring_rolling_feed_window": ("forming", "ring rolling: feed per revolution window "
+                                 "(penetration, bite-in) (§14.4)"),
+    "ring_rolling_force": ("forming", "ring rolling: roll force 2kHLQ (§14.4)"),
     # solver and assembly
     "SolverOptions": ("solver", "Newton and linear solver settings"),
     "NewtonSolver": ("solver", "SNES Newton with a stable-active-set test (§3.6)"),

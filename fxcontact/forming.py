@@ -11,6 +11,10 @@ biases: the FE answer is not expected to equal them but to fall in the band they
   :func:`ring_neutral_radius` (minimiser of the power) and :func:`ring_compression_upper_bound`
   (the calibration curve: change of the inner diameter against the height reduction, and the
   mean die pressure).
+* Radial ring rolling (§14.4): :func:`ring_rolling_curvature`, :func:`ring_rolling_contact_length`,
+  :func:`ring_rolling_feed_window` (Hawkyard's plastic penetration and the bite-in limit),
+  :func:`ring_rolling_feed_speed`, :func:`ring_rolling_mean_diameter` (volume constancy) and
+  :func:`ring_rolling_force` (2kHLQ).
 
 Units are free (consistent); pressures are returned over σ₀ and powers per unit σ₀ and closing
 speed unless stated.
@@ -25,7 +29,9 @@ import numpy as np
 from scipy import integrate, optimize
 
 __all__ = ["flow_stress", "upsetting_upper_bound", "upsetting_slab_coulomb", "ring_power",
-           "ring_power_quadrature", "ring_neutral_radius", "ring_compression_upper_bound"]
+           "ring_power_quadrature", "ring_neutral_radius", "ring_compression_upper_bound",
+           "ring_rolling_curvature", "ring_rolling_contact_length", "ring_rolling_feed_window",
+           "ring_rolling_feed_speed", "ring_rolling_mean_diameter", "ring_rolling_force"]
 
 SQRT3 = math.sqrt(3.0)
 
@@ -278,3 +284,100 @@ def ring_compression_upper_bound(outer_radius: float, inner_radius: float, heigh
             "neutral_radius": Rn, "id_change": 100.0 * (Ri / Ri0 - 1.0),
             "od_change": 100.0 * (Ro / Ro0 - 1.0),
             "pressure": J / (math.pi * (Ro ** 2 - Ri ** 2))}
+
+
+# ------------------------------------------------------------------------------ ring rolling
+def _ring_mill(main_radius, mandrel_radius, outer_radius, inner_radius):
+    R1 = _positive("main_radius", main_radius)
+    R2 = _positive("mandrel_radius", mandrel_radius)
+    R = _positive("outer_radius", outer_radius)
+    r = _positive("inner_radius", inner_radius)
+    if not r < R:
+        raise ValueError(f"need inner_radius < outer_radius, got {r!r} >= {R!r}")
+    if not R2 < r:
+        raise ValueError(f"the mandrel (radius {R2!r}) must fit in the bore (radius {r!r})")
+    return R1, R2, R, r
+
+
+def ring_rolling_curvature(main_radius: float, mandrel_radius: float, outer_radius: float,
+                           inner_radius: float) -> float:
+    """Σ = 1/R₁ + 1/R₂ + 1/R − 1/r of the bite of radial ring rolling (THEORY §14.4): main roll
+    R₁ on the outer surface R, mandrel R₂ in the bore r."""
+    R1, R2, R, r = _ring_mill(main_radius, mandrel_radius, outer_radius, inner_radius)
+    return 1.0 / R1 + 1.0 / R2 + 1.0 / R - 1.0 / r
+
+
+def ring_rolling_contact_length(feed_per_revolution: float, main_radius: float,
+                                mandrel_radius: float, outer_radius: float,
+                                inner_radius: float) -> float:
+    """Projected contact length of the bite L = √(2Δh/Σ) for the wall reduction Δh per
+    revolution of the ring (THEORY §14.4)."""
+    dh = _positive("feed_per_revolution", feed_per_revolution)
+    S = ring_rolling_curvature(main_radius, mandrel_radius, outer_radius, inner_radius)
+    if not S > 0:
+        raise ValueError(f"the bite curvature sum must be > 0, got {S!r}")
+    return math.sqrt(2.0 * dh / S)
+
+
+def ring_rolling_feed_window(main_radius: float, mandrel_radius: float, outer_radius: float,
+                             inner_radius: float, mu: float) -> Dict[str, float]:
+    """Window of the feed per revolution Δh of radial ring rolling (THEORY §14.4).
+
+    * plastic penetration through the wall (Hawkyard): Δh ≥ 6.55·10⁻³ B² Σ, B = R − r;
+    * bite-in (friction μ = tan β must draw the ring in):
+      Δh ≤ 2β²R₁ (1 + R₁/R₂ + R₁/R − R₁/r)/(1 + R₁/R₂)².
+
+    Returns ``{"min": ..., "max": ..., "curvature": Σ, "bite_angle": β}``.
+    """
+    R1, R2, R, r = _ring_mill(main_radius, mandrel_radius, outer_radius, inner_radius)
+    mu = float(mu)
+    if not (math.isfinite(mu) and mu > 0):
+        raise ValueError(f"the friction coefficient mu must be > 0 for the bite-in limit, "
+                         f"got {mu!r}")
+    S = ring_rolling_curvature(R1, R2, R, r)
+    beta = math.atan(mu)
+    lo = 6.55e-3 * (R - r) ** 2 * S
+    hi = 2.0 * beta ** 2 * R1 * (1.0 + R1 / R2 + R1 / R - R1 / r) / (1.0 + R1 / R2) ** 2
+    return {"min": lo, "max": hi, "curvature": S, "bite_angle": beta}
+
+
+def ring_rolling_feed_speed(feed_per_revolution: float, main_angular_velocity: float,
+                            main_radius: float, outer_radius: float) -> float:
+    """Mandrel feed speed v_f = Δh ω₁R₁/(2πR) giving the feed Δh per ring revolution: the ring
+    turns once while the main roll's surface covers 2πR (no slip, THEORY §14.4)."""
+    dh = _positive("feed_per_revolution", feed_per_revolution)
+    w = _positive("main_angular_velocity", main_angular_velocity)
+    R1 = _positive("main_radius", main_radius)
+    R = _positive("outer_radius", outer_radius)
+    return dh * w * R1 / (2.0 * math.pi * R)
+
+
+def ring_rolling_mean_diameter(volume: float, height, wall):
+    """Mean diameter D_m = V/(π H B) of a rectangular ring section of height H and wall B
+    (volume constancy, THEORY §14.4); arrays broadcast."""
+    V = _positive("volume", volume)
+    H = np.asarray(height, dtype=float)
+    B = np.asarray(wall, dtype=float)
+    if np.any(~np.isfinite(H)) or np.any(H <= 0) or np.any(~np.isfinite(B)) or np.any(B <= 0):
+        raise ValueError("height and wall must be finite and > 0")
+    return V / (math.pi * H * B)
+
+
+def ring_rolling_force(shear_yield: float, height: float, contact_length: float,
+                       wall: float) -> Dict[str, float]:
+    """Radial roll force F ≈ 2kHLQ of ring rolling (THEORY §14.4), with the factor
+    Q = 0.8 + 0.2B/L for 1 ≤ B/L < 8.74 and Q = π/4 + L/(4B) for B/L < 1.
+
+    Returns ``{"force": F, "Q": Q, "B_over_L": B/L}``. Raises ValueError for B/L ≥ 8.74 (outside
+    the range of the estimate: no plastic penetration of the wall).
+    """
+    k = _positive("shear_yield", shear_yield)
+    H = _positive("height", height)
+    L = _positive("contact_length", contact_length)
+    B = _positive("wall", wall)
+    ratio = B / L
+    if ratio >= 8.74:
+        raise ValueError(f"B/L = {ratio:.3g} >= 8.74: outside the range of the 2kHLQ estimate "
+                         f"(the deformation does not penetrate the wall)")
+    Q = 0.8 + 0.2 * ratio if ratio >= 1.0 else math.pi / 4.0 + 1.0 / (4.0 * ratio)
+    return {"force": 2.0 * k * H * L * Q, "Q": Q, "B_over_L": ratio}

@@ -15,7 +15,7 @@ from mpi4py import MPI
 
 from fxcontact import compat
 
-__all__ = ["cylinder_billet", "ring", "block", "drawing_bar", "sector_plane_normals",
+__all__ = ["cylinder_billet", "ring", "structured_ring", "block", "drawing_bar", "sector_plane_normals",
            "gmsh_session", "BILLET_TAGS", "RING_TAGS", "RING_SECTORS", "BLOCK_TAGS",
            "DRAWING_BAR_TAGS", "GMSH_MESH_DEFAULTS"]
 
@@ -36,7 +36,7 @@ DRAWING_BAR_TAGS: Dict[str, int] = {"back": 1, "front": 2, "lateral": 3, "symmet
 RING_TAGS: Dict[str, int] = {"top": 1, "bottom": 2, "outer": 3, "inner": 4, "symmetry_x": 5,
                              "symmetry_y": 6, "mid_plane": 7}
 #: models of :func:`ring`: extent in plan and in height
-RING_SECTORS = ("eighth", "quarter", "full")
+RING_SECTORS = ("eighth", "quarter", "full", "upper")
 #: facet tags of :func:`block`
 BLOCK_TAGS: Dict[str, int] = {"xmin": 1, "xmax": 2, "ymin": 3, "ymax": 4, "zmin": 5, "zmax": 6}
 
@@ -147,7 +147,8 @@ def ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, height: float
         h: element size.
         sector: ``"eighth"`` (x ≥ 0, y ≥ 0, 0 ≤ z ≤ H/2: a quarter in plan, the upper half in
             height, with the symmetry planes x = 0, y = 0 and the mid-plane z = 0),
-            ``"quarter"`` (x ≥ 0, y ≥ 0, |z| ≤ H/2) or ``"full"`` (|z| ≤ H/2).
+            ``"quarter"`` (x ≥ 0, y ≥ 0, |z| ≤ H/2), ``"full"`` (|z| ≤ H/2) or ``"upper"``
+            (the whole plan, 0 ≤ z ≤ H/2 with the mid-plane z = 0: ring rolling).
     Returns ``(mesh, cell_tags, facet_tags)`` with facet tags :data:`RING_TAGS` (only those of
     the surfaces the model has).
     """
@@ -159,14 +160,15 @@ def ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, height: float
     if sector not in RING_SECTORS:
         raise ValueError(f"sector must be one of {RING_SECTORS}, got {sector!r}")
     Ro, Ri = float(outer_radius), float(inner_radius)
-    z0 = 0.0 if sector == "eighth" else -0.5 * height
+    z0 = 0.0 if sector in ("eighth", "upper") else -0.5 * height
+    planes = sector in ("eighth", "quarter")
     with gmsh_session("ring") as gmsh:
         if comm.rank == 0:
             occ = gmsh.model.occ
             outer = occ.addCylinder(0, 0, z0, 0, 0, 0.5 * height - z0, Ro)
             inner = occ.addCylinder(0, 0, z0 - 1, 0, 0, 0.5 * height - z0 + 2, Ri)
             body, _ = occ.cut([(3, outer)], [(3, inner)])
-            if sector != "full":
+            if planes:
                 box = occ.addBox(0, 0, z0 - 1, 2 * Ro, 2 * Ro, 0.5 * height - z0 + 2)
                 body, _ = occ.intersect(body, [(3, box)])
             occ.synchronize()
@@ -179,16 +181,18 @@ def ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, height: float
                 if abs(c[2] - 0.5 * height) < eps:
                     groups["top"].append(tag)
                 elif abs(c[2] - z0) < eps:
-                    groups["mid_plane" if sector == "eighth" else "bottom"].append(tag)
-                elif sector != "full" and abs(c[0]) < eps:
+                    groups["mid_plane" if z0 == 0.0 else "bottom"].append(tag)
+                elif planes and abs(c[0]) < eps:
                     groups["symmetry_x"].append(tag)
-                elif sector != "full" and abs(c[1]) < eps:
+                elif planes and abs(c[1]) < eps:
                     groups["symmetry_y"].append(tag)
                 else:
-                    # a lateral surface (the centre of mass of a whole circle is on the axis:
-                    # use the corner of its bounding box farthest from the axis)
+                    # a lateral surface (the centre of mass of a whole circle is on the axis):
+                    # the largest in-plane coordinate of its bounding box is its radius (the
+                    # corner's distance is not: r√2 of a whole inner circle can exceed the
+                    # mean radius of a thick ring)
                     bb = gmsh.model.getBoundingBox(dim, tag)
-                    rmax = np.hypot(max(abs(bb[0]), abs(bb[3])), max(abs(bb[1]), abs(bb[4])))
+                    rmax = max(abs(bb[0]), abs(bb[3]), abs(bb[1]), abs(bb[4]))
                     groups["outer" if rmax > 0.5 * (Ri + Ro) else "inner"].append(tag)
             for name, tags in groups.items():
                 if tags:
@@ -197,6 +201,83 @@ def ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, height: float
             gmsh.option.setNumber("Mesh.CharacteristicLengthMin", 0.5 * h)
             gmsh.model.mesh.generate(3)
         return _finish(gmsh, comm, 3)
+
+
+def structured_ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, height: float,
+                    n_theta: int, n_r: int, n_z: int, sector: str = "upper"):
+    """Structured tetrahedral ring along z centred on the origin: ``n_theta × n_r × n_z``
+    curvilinear hexahedra (vertices on the true circles) each split in 6 tetrahedra (Kuhn
+    split, conforming across cells and across the closure θ = 2π).
+
+    For ring rolling, where every section passes through a bite much shorter than the wall:
+    the circumferential size 2πR/n_theta can be made several times smaller than the radial and
+    axial sizes at the cost of the circumferential direction only.
+
+    Args:
+        outer_radius, inner_radius, height: the ring.
+        n_theta, n_r, n_z: divisions around, through the wall and in height (of the model).
+        sector: ``"upper"`` (0 ≤ z ≤ H/2, mid-plane z = 0) or ``"full"`` (|z| ≤ H/2).
+    Returns ``(mesh, None, facet_tags)`` with facet tags :data:`RING_TAGS` (``top``, ``outer``,
+    ``inner`` and ``mid_plane`` or ``bottom``).
+    """
+    import dolfinx.mesh
+    import ufl
+    if not (outer_radius > 0 and height > 0):
+        raise ValueError("outer_radius and height must be > 0")
+    if not 0 < inner_radius < outer_radius:
+        raise ValueError(f"need 0 < inner_radius < outer_radius, got {inner_radius!r}, "
+                         f"{outer_radius!r}")
+    for name, n, lo in (("n_theta", n_theta, 3), ("n_r", n_r, 1), ("n_z", n_z, 1)):
+        if not (isinstance(n, (int, np.integer)) and n >= lo):
+            raise ValueError(f"{name} must be an integer >= {lo}, got {n!r}")
+    if sector not in ("upper", "full"):
+        raise ValueError(f"sector must be 'upper' or 'full', got {sector!r}")
+    Ro, Ri, H = float(outer_radius), float(inner_radius), float(height)
+    z0 = 0.0 if sector == "upper" else -0.5 * H
+    if comm.rank == 0:
+        th = 2.0 * np.pi * np.arange(n_theta) / n_theta
+        rr = np.linspace(Ri, Ro, n_r + 1)
+        zz = np.linspace(z0, 0.5 * H, n_z + 1)
+        T, Rr, Z = np.meshgrid(th, rr, zz, indexing="ij")
+        x = np.c_[(Rr * np.cos(T)).ravel(), (Rr * np.sin(T)).ravel(), Z.ravel()]
+
+        def vid(i, j, k):
+            return ((i % n_theta) * (n_r + 1) + j) * (n_z + 1) + k
+
+        i, j, k = (a.ravel() for a in np.meshgrid(np.arange(n_theta), np.arange(n_r),
+                                                  np.arange(n_z), indexing="ij"))
+        corner = {(a, b, c): vid(i + a, j + b, k + c) for a in (0, 1) for b in (0, 1)
+                  for c in (0, 1)}
+        tets = []
+        for p in ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0)):
+            path = [(0, 0, 0)]
+            for ax in p:
+                q = list(path[-1])
+                q[ax] = 1
+                path.append(tuple(q))
+            tets.append(np.c_[[corner[v] for v in path]].T)
+        cells = np.vstack(tets).astype(np.int64)
+    else:
+        x = np.zeros((0, 3))
+        cells = np.zeros((0, 4), dtype=np.int64)
+    domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.tetrahedron, 1))
+    msh = dolfinx.mesh.create_mesh(comm, cells, x, domain)
+    fdim = 2
+    msh.topology.create_connectivity(fdim, 3)
+    eps = 1e-9 * Ro
+    preds = {"top": lambda y: np.abs(y[2] - 0.5 * H) < eps,
+             ("mid_plane" if sector == "upper" else "bottom"): lambda y: np.abs(y[2] - z0) < eps,
+             "outer": lambda y: np.abs(np.hypot(y[0], y[1]) - Ro) < 1e-6 * Ro,
+             "inner": lambda y: np.abs(np.hypot(y[0], y[1]) - Ri) < 1e-6 * Ro}
+    idx, val = [], []
+    for name, f in preds.items():
+        ent = dolfinx.mesh.locate_entities_boundary(msh, fdim, f)
+        idx.append(ent)
+        val.append(np.full(len(ent), RING_TAGS[name], dtype=np.int32))
+    idx, val = np.concatenate(idx), np.concatenate(val)
+    order = np.argsort(idx, kind="stable")
+    ft = dolfinx.mesh.meshtags(msh, fdim, idx[order].astype(np.int32), val[order])
+    return msh, None, ft
 
 
 def block(comm: MPI.Comm, lower, upper, h: float, refine_box=None, h_fine: float = None,

@@ -208,6 +208,7 @@ class Simulation:
         self._init_mesh_health()
         self._symmetry = None
         self._plane_bcs: List = []
+        self.controllers: List = []
 
     # ------------------------------------------------------------------------ set-up
     def _p1_vertex_dofs(self) -> np.ndarray:
@@ -273,6 +274,18 @@ class Simulation:
         self._check_not_built()
         self.contributors.append(contributor)
         return contributor
+
+    def add_controller(self, controller):
+        """Register a controller of the tools (:mod:`fxcontact.mill`): an object with optional
+        ``begin_increment(sim, t, dt, x_t)`` (called at the start of each increment, before the
+        contributors), ``solve(sim, begin)`` (replaces the increment's Newton solve: it may
+        solve several times, calling ``begin()`` to restart the contributors; at most one
+        controller may have it), ``end_increment(sim, dt)`` and ``diagnostics()``."""
+        self._check_not_built()
+        if hasattr(controller, "solve") and any(hasattr(c, "solve") for c in self.controllers):
+            raise ValueError("only one controller may take over the Newton solve (solve())")
+        self.controllers.append(controller)
+        return controller
 
     def _check_not_built(self):
         if self._built:
@@ -465,9 +478,15 @@ class Simulation:
                 dolfinx.fem.petsc.set_bc(self.w.vector, self.problem.bcs)
                 self.w.x.scatter_forward()
         x_t = self.vertex_positions()
-        for c in self.contributors:
-            if hasattr(c, "begin_increment"):
-                c.begin_increment(self, self.t, dt, x_t)
+
+        def begin():
+            for c in self.controllers + self.contributors:
+                if hasattr(c, "begin_increment"):
+                    c.begin_increment(self, self.t, dt, x_t)
+        begin()
+        for c in self.controllers:
+            if hasattr(c, "solve"):
+                return c.solve(self, begin)
         return self.solver.solve()
 
     def _commit(self, dt: float, info: SolveInfo) -> Dict[str, float]:
@@ -513,7 +532,7 @@ class Simulation:
         for name, F in reactions.items():
             for k, c in enumerate("xyz"[: sp.gdim]):
                 row[f"{name}_{c}"] = F[k]
-        for c in self.contributors:
+        for c in self.contributors + self.controllers:
             if hasattr(c, "end_increment"):
                 c.end_increment(self, dt)
             if hasattr(c, "diagnostics"):

@@ -134,3 +134,43 @@ def test_ring_power_slope_by_finite_differences():
             fd = (ring_power(math.sqrt(b + db), Ri, Ro, T, mbar)
                   - ring_power(math.sqrt(b - db), Ri, Ro, T, mbar)) / (2 * db)
             assert _ring_power_slope(Rn, Ri, Ro, T, mbar) == pytest.approx(fd, rel=1e-6, abs=1e-9)
+
+
+# ------------------------------------------------------------------------------ ring rolling
+def test_ring_rolling_worked_example():
+    """THEORY §14.4 example: R1 = 150, R2 = 40, R = 100, r = 60, H = 40 mm, μ = 0.3,
+    σ₀ = 100 MPa: window 0.26–4.24 mm/rev, L = 8.94 mm at 1 mm/rev, F ≈ 70 kN."""
+    from fxcontact.forming import (ring_rolling_contact_length, ring_rolling_feed_window,
+                                   ring_rolling_force)
+    w = ring_rolling_feed_window(150.0, 40.0, 100.0, 60.0, mu=0.3)
+    assert w["min"] == pytest.approx(0.26, abs=0.005)
+    assert w["max"] == pytest.approx(4.24, abs=0.005)
+    L = ring_rolling_contact_length(1.0, 150.0, 40.0, 100.0, 60.0)
+    assert L == pytest.approx(8.94, abs=0.005)
+    F = ring_rolling_force(100.0 / math.sqrt(3.0), 40.0, L, 40.0)
+    assert F["force"] == pytest.approx(70e3, rel=0.01)
+
+
+def test_ring_rolling_geometry_checks():
+    """L is the chord of the two arcs (outer on the main roll, inner on the mandrel) meeting
+    with the wall reduced by Δh: L² (1/(2R1) + 1/(2R) + 1/(2R2) − 1/(2r)) = Δh to first order;
+    the feed speed makes Δh per ring revolution; D_m from the volume of a rectangular ring."""
+    from fxcontact.forming import (ring_rolling_contact_length, ring_rolling_feed_speed,
+                                   ring_rolling_mean_diameter, ring_rolling_force)
+    R1, R2, R, r = 300.0, 60.0, 250.0, 180.0
+    for dh in (0.1, 1.0, 3.0):
+        L = ring_rolling_contact_length(dh, R1, R2, R, r)
+        # sagitta of each surface at the distance L from the bite line
+        sag = sum(s * (Ri - math.sqrt(Ri * Ri - L * L)) for s, Ri in
+                  ((1, R1), (1, R2), (1, R), (-1, r)))
+        assert sag == pytest.approx(dh, rel=0.03)   # first order in L/R (L/R2 = 0.3 at 3 mm)
+    w1 = 2 * math.pi * 0.5
+    vf = ring_rolling_feed_speed(2.0, w1, R1, R)
+    # time of one ring revolution 2πR/(ω1R1), times v_f = Δh
+    assert vf * 2 * math.pi * R / (w1 * R1) == pytest.approx(2.0)
+    V = math.pi * (R**2 - r**2) * 40.0
+    assert ring_rolling_mean_diameter(V, 40.0, R - r) == pytest.approx(R + r)
+    with pytest.raises(ValueError, match="8.74"):
+        ring_rolling_force(50.0, 40.0, 1.0, 10.0)
+    with pytest.raises(ValueError, match="mandrel"):
+        ring_rolling_contact_length(1.0, R1, 200.0, R, r)

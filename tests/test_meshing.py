@@ -158,7 +158,7 @@ def _integral(msh, measure):
 
 
 @pytest.mark.parametrize("sector, plan, half", [("eighth", 0.25, 0.5), ("quarter", 0.25, 1.0),
-                                                ("full", 1.0, 1.0)])
+                                                ("full", 1.0, 1.0), ("upper", 1.0, 0.5)])
 def test_ring_volume_and_tags(sector, plan, half):
     """6:3:2 ring (R_o 30, R_i 15, H 20): volume and area of every tagged surface against the
     exact values (the circles are faceted: relative error of order h²/R_i² ≈ 1 %), and only the
@@ -171,11 +171,12 @@ def test_ring_volume_and_tags(sector, plan, half):
     fraction = plan * half
     assert V == pytest.approx(fraction * np.pi * (Ro ** 2 - Ri ** 2) * H, rel=1e-2)
     annulus = np.pi * (Ro ** 2 - Ri ** 2) * plan
-    expected = {"top": annulus, "bottom": 0.0 if sector == "eighth" else annulus,
-                "mid_plane": annulus if sector == "eighth" else 0.0,
+    mid = sector in ("eighth", "upper")
+    expected = {"top": annulus, "bottom": 0.0 if mid else annulus,
+                "mid_plane": annulus if mid else 0.0,
                 "outer": 2 * np.pi * Ro * H * fraction, "inner": 2 * np.pi * Ri * H * fraction,
-                "symmetry_x": 0.0 if sector == "full" else (Ro - Ri) * H * half,
-                "symmetry_y": 0.0 if sector == "full" else (Ro - Ri) * H * half}
+                "symmetry_x": 0.0 if plan == 1.0 else (Ro - Ri) * H * half,
+                "symmetry_y": 0.0 if plan == 1.0 else (Ro - Ri) * H * half}
     for name, tag in RING_TAGS.items():
         area = _integral(msh, ds(tag))
         if expected[name] == 0.0:
@@ -188,7 +189,7 @@ def test_ring_volume_and_tags(sector, plan, half):
                                   rel=1e-12)
     x = msh.geometry.x
     zmin = msh.comm.allreduce(np.min(x[:, 2]), op=MPI.MIN)
-    assert zmin == pytest.approx(0.0 if sector == "eighth" else -0.5 * H, abs=1e-12)
+    assert zmin == pytest.approx(0.0 if mid else -0.5 * H, abs=1e-12)
 
 
 def test_ring_bad_input():

@@ -638,6 +638,13 @@ class NodalContact:
         self._h, self._tool, self._feature = h, tool_idx, feature
         self._point = self._cur_proj.point
         self._r = r
+        if not isinstance(self.kin, CartesianUpdate) and \
+                self.scheme in ("implicit", "implicit-exact"):
+            # r = S ρ[h]₊ ∇h is the force conjugate to v: with a non-Cartesian update
+            # ∇h = −Jᵀn/dt is n turned back by the increment's rotation; the force on the tool
+            # (outputs: tool_force, tool_torque) is the physical one, −S ρ[h]₊ n at X(v)
+            self._r = -(b.areas * self.rho * np.maximum(h, 0.0))[:, None] * \
+                self._cur_proj.normal[:, : self.gdim]
         if self.has_friction:
             rf, Kf = self._friction_terms(v, h, g, tool_idx, jacobian)
             self._rf = rf

@@ -1,0 +1,145 @@
+"""Ring rolling (demos/demo_ring_rolling.py, fxcontact.mill): controlled tool motion, the idle
+mandrel (zero torque about its axis), centring by guide rolls, the cylindrical update's volume
+and the volume-constancy growth, on a short coarse run (two increments of the thesis's case 2);
+the ring-rolling theory itself is tested in test_forming.py."""
+
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "demos"))
+import demo_ring_rolling as demo  # noqa: E402
+
+from fxcontact.mill import ControlledMotion  # noqa: E402
+
+#: two increments of the quick (coarse) case 2: Coulomb friction on the main roll and the mandrel
+SHORT = {**demo.QUICK, "case": 2, "revolutions": 2.0 / demo.QUICK["increments_per_rev"],
+         "output_dir": None, "pictures": False}
+
+
+def test_controlled_motion_is_integrated_exactly():
+    """Piecewise-constant rates set per increment: translation and angle are the exact sums,
+    a second call at the same time overwrites the stage (a retried increment), the past cannot
+    be changed."""
+    m = ControlledMotion(velocity=(1.0, 0.0, 0.0), angular_velocity=2.0, axis_point=(0, 0, 0))
+    m.set_rates(0.5, velocity=(0.0, 3.0, 0.0), angular_velocity=-1.0)
+    m.set_rates(0.5, angular_velocity=4.0)          # the same increment, another trial
+    m.set_rates(0.75, velocity=(0.0, 0.0, 1.0))
+    assert np.allclose(m.translation(1.0), [0.5, 0.75, 0.25])
+    assert m.angle(1.0) == pytest.approx(2.0 * 0.5 + 4.0 * 0.5)
+    assert m.angle(0.25) == pytest.approx(0.5)      # earlier stages are kept
+    # rates are right-continuous; the axis moved with the tool to (0.5, 0.75, 0)
+    v = m.point_velocity(np.array([[1.0, 0.0, 0.0]]), 0.75)[0]
+    assert np.allclose(v, np.array([0.0, 0.0, 1.0]) + 4.0 * np.cross([0, 0, 1.0],
+                                                                      [0.5, -0.75, 0.0]))
+    with pytest.raises(ValueError, match="before the current stage"):
+        m.set_rates(0.6, angular_velocity=0.0)
+    with pytest.raises(ValueError, match="constant initial rates"):
+        ControlledMotion(angular_velocity=lambda t: t)
+
+
+@pytest.fixture(scope="module")
+def short():
+    return demo.run(**SHORT)
+
+
+def test_idle_mandrel_zero_torque_and_rolling_speed(short):
+    """The idle mandrel's torque is zero to its tolerance (the Newton tolerance × |F| R̄) at
+    every increment, and its surface speed is the bore's rolling speed: the slip left is the
+    friction's regularisation scale (v₀ = 1e-3 of the roll speed), not a free-wheeling
+    mismatch."""
+    h = short["history"]
+    assert short["status"] == "done" and len(h) == 2
+    v0 = 1e-3 * 2 * math.pi * 150.0          # 60 rpm main roll R1 = 150
+    for q in h:
+        assert q["nodes_mandrel"] > 0
+        assert 0 < q["mandrel_idle_tolerance"] < 1e-3 * abs(q["mandrel_force_x"]) * 40.0
+        assert abs(q["mandrel_idle_torque"]) <= q["mandrel_idle_tolerance"]
+        assert abs(q["mandrel_surface_slip"]) < 5 * v0, q["mandrel_surface_slip"]
+        # the mandrel's ω R2 against the bore's speed (ring ω × inner radius)
+        assert q["mandrel_omega"] * 40.0 == pytest.approx(q["bore_speed"], rel=0.02)
+
+
+def test_ring_stays_centred_and_keeps_its_volume(short):
+    """The centroid stays on the mill line within a fraction of the circumferential spacing;
+    the cylindrical update keeps the volume (no volume correction in the demo) to 0.5 %, and
+    the mean diameter equals the volume-constancy value V/(πHB) of the measured section within
+    2 %."""
+    h = short["history"]
+    for q in h:
+        assert q["center_offset"] < 0.1 * short["h_theta"], q["center_offset"]
+        assert abs(q["volume_change"]) < 5e-3
+        assert q["mean_diameter"] == pytest.approx(q["mean_diameter_volume"], rel=0.02)
+
+
+def test_main_roll_force_order_of_2kHLQ(short):
+    """The main roll's radial force (whole ring) is of the order of the 2kHLQ estimate with the
+    bite's contact length (THEORY §14.4): within a factor 3 either way after the bite-in (the
+    estimate uses σ₀ at a nominal strain rate; the first increments are not steady)."""
+    F = short["history"][-1]["main_force_x"]      # the ring pushes the main roll towards +x
+    ratio = F / short["force_estimate"]
+    print(f"main roll force {F / 1e3:.0f} kN, 2kHLQ {short['force_estimate'] / 1e3:.0f} kN, "
+          f"ratio {ratio:.2f}")
+    assert 1.0 / 3.0 < ratio < 3.0
+
+
+def test_one_and_two_ranks_agree(short):
+    """The first increment on all ranks (the module's run) and on COMM_SELF agree to 1e-8
+    (serially: the same computation twice)."""
+    res = demo.run(**{**SHORT, "revolutions": 1.0 / demo.QUICK["increments_per_rev"],
+                      "comm": MPI.COMM_SELF})
+    hs = [short["history"][:1], res["history"]]
+    assert len(hs[1]) == 1
+    for a, b in zip(*hs):
+        for k in ("main_force_x", "main_torque", "mandrel_force_x", "mandrel_omega",
+                  "ring_omega", "outer_diameter"):
+            assert abs(a[k] - b[k]) <= 1e-8 * abs(b[k]), (k, a[k], b[k])
+
+
+def test_bad_parameters():
+    with pytest.raises(ValueError, match="unknown parameter"):
+        demo.run(radius=3.0)
+    with pytest.raises(ValueError, match="case"):
+        demo.run(case=3)
+    with pytest.raises(ValueError, match="mandrel"):
+        demo.run(R2=70.0)
+
+
+#: the penetration comparison: case 1 (no idle iteration), a dt-independent gap stiffness
+#: k = 5e5 MPa/mm (penalty penetration p/k ≈ 0.013 mm at the ~6.7 GPa of K = 1900 MPa)
+PEN = {**SHORT, "case": 1, "gap_stiffness": 5e5}
+
+
+@pytest.fixture(scope="module")
+def implicit_pen():
+    return demo.run(**PEN)
+
+
+@pytest.mark.serial   # three more short runs; the MPI path is test_one_and_two_ranks_agree
+def test_implicit_penetration_is_dt_insensitive(implicit_pen):
+    """Implicit contact, analytic tools, cylindrical update, gap stiffness k: the largest true
+    penetration over the same time at dt and 2 dt differs by less than 25 % (measured over
+    0.08 revolution in the benchmark: 0.0202 and 0.0181 mm)."""
+    twice = demo.run(**{**PEN, "increments_per_rev": demo.QUICK["increments_per_rev"] // 2,
+                        "revolutions": 2.0 / demo.QUICK["increments_per_rev"]})
+    p1, p2 = implicit_pen["max_penetration"], twice["max_penetration"]
+    print(f"implicit penetration dt {p1:.4f} mm, 2 dt {p2:.4f} mm")
+    assert p1 > 0 and abs(p2 / p1 - 1.0) < 0.25
+
+
+@pytest.mark.serial
+@pytest.mark.xfail(strict=True, reason="the thesis's ordering (implicit + analytic 0.014 mm vs "
+                   "explicit + faceted 0.33 mm) is not reproduced: measured against the tool "
+                   "each variant uses, flat facets with the explicit (tangent-plane) condition "
+                   "leave no node inside the facets (0.0000 mm over 0.08 rev), implicit + "
+                   "analytic 0.020 mm (the penalty compliance p/k); benchmarks/README.md")
+def test_implicit_penetration_below_a_tenth_of_explicit_faceted(implicit_pen):
+    explicit = demo.run(**{**PEN, "scheme": "explicit", "tools": "faceted",
+                           "update": "cartesian"})
+    p_imp, p_exp = implicit_pen["max_penetration"], explicit["max_penetration"]
+    print(f"penetration implicit + analytic {p_imp:.4f} mm, explicit + faceted {p_exp:.4f} mm")
+    assert p_imp <= 0.1 * p_exp
