@@ -37,12 +37,30 @@
 # reaches the bite first, ``status = "no steady state"`` (a longer strip is needed); if the
 # strip leaves the roll after the pusher let go, ``status = "lost"`` (see the results).
 #
+# **Pseudo-inertia.** Once the pusher has let go, nothing but the roll's friction holds the
+# quasi-static strip along x (a free rigid translation), and the regularised Coulomb law gives
+# almost no tangential stiffness where the nodes slip (|Δv| ≫ the regularisation velocity):
+# while the strip is being gripped (no neutral point yet) Newton's x-translation mode is nearly
+# singular (steps of 10³–10⁵ mm/s, no convergence even with dt/32 at 7.5 mm elements and
+# dt = 1.9 ms), and on a finer mesh an increment converged to a spurious solution of the
+# quasi-static equations — the strip thrown back out of the bite, rigidly, with no contact
+# (``status = "lost"``, 3.5 mm elements, t = 15 ms). The strip's tail face therefore carries a
+# lagged dashpot ``σ = −c (v − v̄_prev)``, v̄_prev the tail's mean velocity of the previous
+# increment, ``c = tail_damping × σ0 / v_R`` (a change of the strip's speed by v_R within one
+# increment costs ``tail_damping × σ0`` on the tail face): a mass ``c A dt`` that makes the
+# strip accelerate over a few increments instead of jumping (pseudo-transient continuation).
+# It vanishes at steady state (constant entry speed), removes the ejected solution (a rigid
+# backward jump is no longer free) and its power is counted in the power balance
+# (``damper_power``). The strip's true inertia (ρ ≈ 7.8·10⁻⁹ t/mm³) is three orders of
+# magnitude smaller and could not do this. ``tail_damping = 0`` switches it off.
+#
 # **Measured per increment** (history CSV ``flat_rolling_diagnostics.csv`` and the result
 # dict): roll separating force and torque per unit width, forward slip (mean v_x of the nodes
 # 0.3–1.2 L past the exit over v_R, − 1), spread (half-width of the side face there, mean and
 # largest), contact length (x-extent of the roll's contact nodes), true penetration, Newton
 # iterations, wall time, relative volume change, smallest element quality, plastic dissipation
-# ∫ s:D dV, friction power and the power balance ``(−M ω + P_pusher)/(D + P_friction) − 1``.
+# ∫ s:D dV, friction power, the pseudo-inertia's power and the power balance
+# ``(−M ω + P_pusher)/(D + P_friction + P_damper) − 1``; the max equivalent strain.
 # **At steady state**: the classical band (THEORY §14.3: slab/Orowan with the same Coulomb–Tresca
 # law, Sims, Ford–Alexander; σ0 = √3 K (√3 ε̄̇)^m at the mean strain rate (v_R/L) ln(h0/h1) of
 # the bite), slab forward slip and neutral point, Hill's spread; the PNG of the pressure and
@@ -115,7 +133,8 @@ from fxcontact.power import PlasticDissipation, PressurePower
 #: the thesis case (lengths mm, stresses MPa, times s)
 DEFAULTS = dict(R=300.0, h0=25.0, reduction=0.28, width=100.0, K=30.0, m=0.3, mu=0.3, mbar=1.0,
                 v_roll=500.0, dt=0.75e-3, h_x=3.0, ny=8, nz=4, length_factor=3.2, nose=0.3,
-                push_ratio=0.9, grip_travel=0.6, settle=0.8, window=0.6, steady_tol=0.03,
+                push_ratio=0.9, grip_travel=0.6, tail_damping=2.0, settle=0.8, window=0.6,
+                steady_tol=0.03,
                 roll="analytic", facet_size=None, scheme="implicit", line_search="bt",
                 max_increments=2000, output_dir="results/flat_rolling",
                 pictures=True, vtk_every=0, comm=None)
@@ -226,6 +245,9 @@ def run(**parameters) -> dict:
     for key in ("R", "h0", "width", "K", "v_roll", "dt", "h_x", "length_factor"):
         if not (isinstance(P[key], (int, float)) and math.isfinite(P[key]) and P[key] > 0):
             raise ValueError(f"{key} must be a finite number > 0, got {P[key]!r}")
+    if not (isinstance(P["tail_damping"], (int, float)) and math.isfinite(P["tail_damping"])
+            and P["tail_damping"] >= 0):
+        raise ValueError(f"tail_damping must be a finite number >= 0, got {P['tail_damping']!r}")
     if not 0.0 < P["reduction"] < 0.8:
         raise ValueError(f"reduction must be in (0, 0.8), got {P['reduction']!r}")
     if not 0.0 < P["nose"] < 1.0:
@@ -279,6 +301,13 @@ def run(**parameters) -> dict:
                          scheme=P["scheme"], name="pusher_contact")
     sim.add_contributor(rc)
     sim.add_contributor(pc)
+    # pseudo-inertia on the tail face (see "Pseudo-inertia" above): c (v - v_prev), v_prev the
+    # tail's mean velocity of the previous increment
+    tail_b = fx.ContactBoundary(sp, ft, fx.BLOCK_TAGS["xmin"])
+    c_tail = P["tail_damping"] * sigma0 / v_R
+    damper = fx.NodalSprings(tail_b, c_tail) if c_tail > 0 else None
+    if damper is not None:
+        sim.add_contributor(damper)
     dissipation = PlasticDissipation(sim)
     pressure_power = PressurePower(sim)
     V0 = sim.volume()
@@ -286,6 +315,7 @@ def run(**parameters) -> dict:
     side = np.zeros(len(pos0), bool)            # vertices of the side face y = b0/2
     side[np.abs(pos0[:, 1] - 0.5 * P["width"]) < 1e-9 * P["width"]] = True
     nown = msh.topology.index_map(0).size_local
+    ncell = msh.topology.index_map(3).size_local
 
     rows, status, message = [], "rolling", ""
     gripped_at, steady_from = None, None
@@ -301,6 +331,13 @@ def run(**parameters) -> dict:
         # the volume correction's divergence makes the pressure work (THEORY §1.5)
         D -= _on_start_configuration(sim, X - r["dt"] * v, pressure_power)
         P_pen = _penalty_power(rc, v, sim.t) + _penalty_power(pc, v, sim.t)
+        P_damp = 0.0
+        if damper is not None:
+            vt = v[tail_b.vertices]
+            P_damp = comm.allreduce(float(np.sum(tail_b.areas[:, None] * c_tail
+                                                 * (vt - damper.v0) * vt)), op=MPI.SUM)
+            n_t = comm.allreduce(len(vt), op=MPI.SUM)
+            damper.v0 = comm.allreduce(np.sum(vt, axis=0), op=MPI.SUM) / max(n_t, 1)
         own = np.arange(len(X)) < nown
         front = comm.allreduce(float(np.max(X[:, 0], initial=-np.inf)), op=MPI.MAX)
         tail = comm.allreduce(float(np.min(X[:, 0], initial=np.inf)), op=MPI.MIN)
@@ -311,6 +348,8 @@ def run(**parameters) -> dict:
         n_sx = comm.allreduce(int(np.sum(sx)), op=MPI.SUM)
         y_mean = comm.allreduce(float(np.sum(X[sx, 1])), op=MPI.SUM) / max(n_sx, 1)
         y_max = comm.allreduce(float(np.max(X[sx, 1], initial=-np.inf)), op=MPI.MAX)
+        eps_max = comm.allreduce(float(np.max(sim.strain.x.array[:ncell], initial=0.0)),
+                                 op=MPI.MAX)
         xa, pa, ta = _contact_arc(comm, rc, sim)
         act = pa > 0
         clen = float(np.ptp(xa[act, 0])) if np.any(act) else 0.0
@@ -329,10 +368,13 @@ def run(**parameters) -> dict:
                    pusher_force=-r["pusher_force_x"], pusher_nodes=r["pusher_contact_nodes"],
                    newton_iterations=r["newton_iterations_all"], cutbacks=r["cutbacks"],
                    wall=r["wall_increment_all"], volume_change=r["volume"] / V0 - 1.0,
-                   min_quality=r["min_quality"], dissipation=D, friction_power=Pf,
+                   min_quality=r["min_quality"], max_strain=eps_max, dissipation=D,
+                   friction_power=Pf,
                    roll_power=P_roll, pusher_power=P_push, penalty_power=P_pen,
-                   power_balance=(P_roll + P_push) / (D + Pf) - 1.0 if D + Pf > 0 else math.nan,
-                   power_balance_penalty=(P_roll + P_push) / (D + Pf + P_pen) - 1.0
+                   damper_power=P_damp,
+                   power_balance=(P_roll + P_push) / (D + Pf + P_damp) - 1.0
+                   if D + Pf > 0 else math.nan,
+                   power_balance_penalty=(P_roll + P_push) / (D + Pf + P_damp + P_pen) - 1.0
                    if D + Pf > 0 else math.nan,
                    stick=r.get("roll_contact_stick", 0), slip=r.get("roll_contact_slip", 0))
         rows.append(row)
@@ -394,7 +436,8 @@ def run(**parameters) -> dict:
         mean = {k: float(np.mean([q[k] for q in last])) for k in (
             "force_per_width", "torque_per_width", "forward_slip", "half_width_exit",
             "half_width_exit_max", "contact_length", "power_balance", "power_balance_penalty",
-            "penetration", "dissipation", "friction_power", "roll_power", "penalty_power")}
+            "penetration", "dissipation", "friction_power", "roll_power", "penalty_power",
+            "damper_power")}
         result.update(mean)
         result["steady_from"] = steady_from
         Fw = np.array([q["force_per_width"] for q in last])
@@ -572,7 +615,8 @@ def report(res) -> str:
             f"spread FE {100 * res['spread']:.2f} % (Hill {100 * res['spread_hill']:.2f} %)",
             f"contact length FE {res['contact_length']:.1f} mm (theory "
             f"{res['contact_length_theory']:.1f}); penetration {res['penetration']:.3g} mm",
-            f"power balance (-M w + P_push)/(D + P_f) - 1 = {100 * res['power_balance']:.2f} %"
+            f"power balance (-M w + P_push)/(D + P_f + P_damper) - 1 = "
+            f"{100 * res['power_balance']:.2f} %"
             f" (with the penalty work {100 * res['power_balance_penalty']:.2f} %); force "
             f"oscillation +-{100 * res['force_oscillation']:.1f} %"]
     lines += [f"Newton its mean {res['newton_mean']:.1f} max {res['newton_max']}; wall "
@@ -585,7 +629,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="the reduced size of the tests")
     for k in ("R", "h0", "reduction", "width", "mu", "mbar", "v_roll", "dt", "h_x",
-              "length_factor"):
+              "length_factor", "tail_damping"):
         ap.add_argument(f"--{k}", type=float)
     ap.add_argument("--ny", type=int)
     ap.add_argument("--nz", type=int)
