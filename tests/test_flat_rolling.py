@@ -137,12 +137,12 @@ def test_finer_mesh_not_lost_after_release(tmp_path):
     elements with dt = 1.9 ms fail at the second increment with dt/32, and 3.5 mm elements were
     thrown out of the bite at t = 15 ms). The strip stays in the bite and moves forward at every
     increment, faster than the pusher pushed it, and the pseudo-inertia's force is small."""
-    res = _run(tmp_path, h_x=5.0, nz=3, dt=1.5e-3, max_increments=12)
+    res = _run(tmp_path, h_x=5.0, nz=3, dt=1.5e-3, max_increments=9)
     assert res["status"] == "no steady state" and res["message"] == "max_increments reached"
     h = res["history"]
     assert res["gripped_at"] is not None and res["gripped_at"] <= 4 * 1.5e-3
     after = [q for q in h if q["time"] > res["gripped_at"]]
-    assert len(after) >= 8
+    assert len(after) >= 6
     assert all(q["contact_nodes"] > 0 and q["pusher_nodes"] == 0 for q in after)
     v_push = demo.DEFAULTS["push_ratio"] * demo.DEFAULTS["v_roll"] * (1 - 0.28)
     fronts = [q["front"] for q in h]
