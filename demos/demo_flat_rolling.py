@@ -57,7 +57,9 @@
 # **Measured per increment** (history CSV ``flat_rolling_diagnostics.csv`` and the result
 # dict): roll separating force and torque per unit width, forward slip (mean v_x of the nodes
 # 0.3–1.2 L past the exit over v_R, − 1), spread (half-width of the side face there, mean and
-# largest), contact length (x-extent of the roll's contact nodes), true penetration, Newton
+# largest), contact length (x-extent of the roll's contact nodes), true penetration (against
+# the tool used), the largest penetration into the true cylinder and the largest gap of the
+# nodes in contact from it (whatever the roll's discretisation), Newton
 # iterations, wall time, relative volume change, smallest element quality, plastic dissipation
 # ∫ s:D dV, friction power, the pseudo-inertia's power and the power balance
 # ``(−M ω + P_pusher)/(D + P_friction + P_damper) − 1``; the max equivalent strain.
@@ -376,6 +378,13 @@ def run(**parameters) -> dict:
         y_max = comm.allreduce(float(np.max(X[sx, 1], initial=-np.inf)), op=MPI.MAX)
         eps_max = comm.allreduce(float(np.max(sim.strain.x.array[:ncell], initial=0.0)),
                                  op=MPI.MAX)
+        # distances of the roll's boundary nodes to the true cylinder (whatever the roll's
+        # discretisation): the largest penetration, and the largest gap of the nodes in contact
+        xb = X[rc.boundary.vertices]
+        dist = np.hypot(xb[:, 0], xb[:, 2] - (0.5 * h1 + R)) - R
+        pen_cyl = comm.allreduce(float(np.max(-dist, initial=0.0)), op=MPI.MAX)
+        gap_cyl = comm.allreduce(float(np.max(dist[rc.pressures() > 0], initial=0.0)),
+                                 op=MPI.MAX)
         xa, pa, ta = _contact_arc(comm, rc, sim)
         act = pa > 0
         clen = float(np.ptp(xa[act, 0])) if np.any(act) else 0.0
@@ -391,6 +400,7 @@ def run(**parameters) -> dict:
                    half_width_exit_max=y_max if n_sx else float("nan"),
                    contact_length=clen, contact_nodes=r["roll_contact_nodes"],
                    penetration=r["roll_contact_penetration_true"],
+                   penetration_cylinder=pen_cyl, contact_gap_cylinder=gap_cyl,
                    pusher_force=-r["pusher_force_x"], pusher_nodes=r["pusher_contact_nodes"],
                    newton_iterations=r["newton_iterations_all"], cutbacks=r["cutbacks"],
                    wall=r["wall_increment_all"], volume_change=r["volume"] / V0 - 1.0,

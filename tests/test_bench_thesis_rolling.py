@@ -38,7 +38,7 @@ def test_table_complete_and_finite():
         assert r["increments"] == 2 and r["contact_nodes"] > 0 and r["eps_end"] > 0
     assert rows[0]["force_ratio"] == 1.0
     acc = bench.acceptance(rows)
-    assert set(acc) == {"nagata closer, force_per_width, implicit",
+    assert set(acc) >= {"nagata closer, force_per_width, implicit",
                         "nagata closer, eps_end, implicit",
                         "penetration implicit <= explicit/3, analytic"}
     text = bench.table(rows) + bench.table(rows, markdown=True) + bench.acceptance_text(acc)
