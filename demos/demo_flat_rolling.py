@@ -88,7 +88,8 @@
 # elements across the quarter section, dt = 0.75 ms; **not run to steady state**: 17 s per
 # increment serially on an idle machine (11–22 Newton iterations, 1 s each), and about 330
 # increments to steady state (the front 0.8 L past the exit, then two windows of 0.6 L), i.e.
-# about 1.5 h; the thesis's 0.5 s of process is 667 increments), ``--quick`` the reduced size of the tests, ``--mu``,
+# about 1.5 h; the thesis's 0.5 s of process is 667 increments), ``--quick`` the reduced
+# size of the tests, ``--tail_damping``, ``--slip_ratio``, ``--mu``,
 # ``--reduction``, ``--R``, ``--h_x``, ``--nz``, ``--dt`` … (``--help``); on 2 ranks with
 # ``mpirun -n 2``. Outputs in ``results/flat_rolling``.
 #
