@@ -57,6 +57,8 @@ def _acceptance(res):
     assert abs(res["power_balance"]) < 0.03, res["power_balance"]
     # ... and with the penalty work the balance is the discrete virtual-power identity
     assert abs(res["power_balance_penalty"]) < 1e-3, res["power_balance_penalty"]
+    # the tail's pseudo-inertia does no work on average at steady state
+    assert abs(res["damper_power"]) < 0.02 * abs(res["roll_power"]), res["damper_power"]
     assert res["max_volume_change"] < 5e-3
     assert res["min_quality"] > 0.05
     assert res["gripped_at"] is not None          # the pusher let go: the roll drives alone
@@ -125,3 +127,31 @@ def test_bad_parameters():
         demo.run(radius=3.0)
     with pytest.raises(ValueError, match="reduction"):
         demo.run(reduction=1.2)
+
+
+@pytest.mark.serial   # a dozen increments of a finer mesh; the MPI path: the 1 vs 2 ranks test
+def test_finer_mesh_not_lost_after_release(tmp_path):
+    """A finer mesh and a shorter increment than the test size (5 mm elements, 3 through the
+    half-thickness, dt = 1.5 ms): once the pusher has let go the roll alone drives the strip
+    (without the tail's pseudo-inertia, Newton has a nearly free x-translation there: 7.5 mm
+    elements with dt = 1.9 ms fail at the second increment with dt/32, and 3.5 mm elements were
+    thrown out of the bite at t = 15 ms). The strip stays in the bite and moves forward at every
+    increment, faster than the pusher pushed it. (This mesh also runs these 9 increments without
+    the pseudo-inertia, with a cut-back at t = 6 ms and 69 Newton iterations there: the test
+    guards the release on a finer mesh, it does not single out the cure; the runs that need
+    the cure are too long for the suite.)"""
+    res = _run(tmp_path, h_x=5.0, nz=3, dt=1.5e-3, max_increments=9)
+    assert res["status"] == "no steady state" and res["message"] == "max_increments reached"
+    h = res["history"]
+    assert res["gripped_at"] is not None and res["gripped_at"] <= 4 * 1.5e-3
+    after = [q for q in h if q["time"] > res["gripped_at"]]
+    assert len(after) >= 6
+    assert all(q["contact_nodes"] > 0 and q["pusher_nodes"] == 0 for q in after)
+    v_push = demo.DEFAULTS["push_ratio"] * demo.DEFAULTS["v_roll"] * (1 - 0.28)
+    fronts = [q["front"] for q in h]
+    for a, b in zip(fronts[:-1], fronts[1:]):
+        assert b - a > 0
+    assert (h[-1]["tail"] - h[-2]["tail"]) / 1.5e-3 > v_push
+    # (the pseudo-inertia still works here, 4 % of the roll's power over the last 6
+    # increments, while the bite fills; that it does no work at steady state is checked with
+    # the whole passes, _acceptance)
