@@ -1,0 +1,171 @@
+"""Wire drawing (demos/demo_wire_drawing.py) and the thesis comparison harness
+(benchmarks/bench_thesis_wire_drawing.py) at a reduced size: R₀ 5 → 3.75 mm (the thesis's
+reduction), h = 1.5 mm, one third of the bar with an inclined symmetry plane, m = 0.016.
+
+Checked against classical theory computed by the demo (THEORY §14.2): the steady drawing stress
+F/A₁ lies between the ideal work and 1.1 × Avitzur's upper bound (σ₀ of the Norton–Hoff law at
+the die's mean strain rate), for the default die (10°, 43.75 %) and another one (15°, 27.75 %);
+volume and element quality; the thesis's contact claims on the harness's own runs (implicit
+against explicit penetration, dt × 4, Nagata against flat facets, true penetration measured
+against the exact die); 1 vs 2 ranks."""
+
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, os.path.join(ROOT, "demos"))
+sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+import demo_wire_drawing as demo  # noqa: E402
+import bench_thesis_wire_drawing as bench  # noqa: E402
+
+
+def _run(**kw):
+    return demo.run(**{**demo.QUICK, "output_dir": None, "pictures": False, **kw})
+
+
+@pytest.fixture(scope="module")
+def default_case():
+    res = _run()
+    if MPI.COMM_WORLD.rank == 0:
+        print("\n" + demo.report(res))
+    return res
+
+
+@pytest.fixture(scope="module")
+def other_case():
+    res = _run(alpha=15.0, R1=4.25)
+    if MPI.COMM_WORLD.rank == 0:
+        print("\n" + demo.report(res))
+    return res
+
+
+@pytest.fixture(scope="module")
+def harness():
+    """The harness at the test size: the thesis's dt (2.5 ms), 4 increments at dt, one at 4 dt."""
+    rows = bench.run(quick=True, dt=2.5e-3, t_end=0.01, verbose=False)
+    if MPI.COMM_WORLD.rank == 0:
+        print("\n" + bench.table(rows))
+    return {(r["variant"], r["dt_factor"]): r for r in rows}
+
+
+def _band(res):
+    assert res["status"] == "completed", res["message"]
+    assert res["steady_stress"] is not None, "no steady state"
+    th = res["theory"]
+    sd = res["steady_stress"]
+    assert th["ideal"] < sd < 1.1 * th["avitzur"], (sd, th["ideal"], th["avitzur"])
+    assert res["max_volume_change"] < 5e-3
+    assert res["min_quality"] > 0.05
+    assert all(q["symmetry_violation"] < 1e-9 * res["parameters"]["speed"]
+               for q in res["history"])
+
+
+@pytest.mark.serial   # a run to steady state; the MPI path: test_one_and_two_ranks_agree
+def test_default_drawing_stress_in_band(default_case):
+    _band(default_case)
+
+
+@pytest.mark.serial
+def test_other_angle_and_reduction_in_band(other_case):
+    _band(other_case)
+    assert other_case["theory"]["reduction"] == pytest.approx(1 - 0.85 ** 2)
+
+
+@pytest.mark.serial   # ten runs; the MPI path of the demo: test_one_and_two_ranks_agree
+def test_harness_table_complete(harness):
+    """Every variant at dt and 4 dt ran to the end with finite figures; the table has them."""
+    assert len(harness) == 2 * len(bench.VARIANTS)
+    for (label, k), r in harness.items():
+        assert r["status"] == "completed", (label, k, r["message"])
+        assert r["time"] == pytest.approx(0.01)
+        for key in ("max_penetration", "max_penetration_tool", "steady_force", "newton_mean",
+                    "wall"):
+            assert math.isfinite(r[key]), (label, k, key)
+        assert r["contact_nodes_01"] > 0
+        assert r["max_volume_change"] < 5e-3 and r["min_quality"] > 0.05
+        th = r["ideal"], 1.1 * r["avitzur"]
+        assert th[0] < r["steady_stress"] < th[1], (label, k, r["steady_stress"], th)
+    text = bench.table(list(harness.values()))
+    for label in bench.VARIANTS:
+        assert text.count(f"| {label}") == 2
+
+
+@pytest.mark.serial
+@pytest.mark.xfail(strict=True, reason=(
+    "measured at the test size (h = 1.5 mm, dt = 2.5 ms, 4 increments, beta = 100): true "
+    "penetration explicit + flat 7.9e-4 mm, implicit + flat 1.9e-3 mm; every variant "
+    "penetrates 0.6-2e-3 mm (0.04-0.13 % of h), the level of the penalty: the bar's nodes "
+    "slide along the straight generators of the cone and leave it where the die turns away "
+    "from the bar (fillet, land), so the explicit scheme's tangent-plane error, which needs a "
+    "surface bending into the body along the node's path, hardly appears in this die"))
+def test_implicit_penetration_below_a_third_of_explicit(harness):
+    """The thesis (Tab. V-4): implicit + facets penetrates 1/3 of explicit + facets."""
+    ex = harness[("explicit + flat (Forge standard)", 1)]["max_penetration"]
+    im = harness[("implicit + flat", 1)]["max_penetration"]
+    assert im <= ex / 3.0, (im, ex)
+
+
+@pytest.mark.serial
+@pytest.mark.xfail(strict=True, reason=(
+    "measured at the test size (same gap stiffness at dt and 4 dt): implicit + exact die "
+    "9.31e-4 -> 9.30e-4 mm (holds), implicit + Nagata 1.63e-3 -> 1.18e-3 mm (-28 %, fails; "
+    "both runs needed a cut-back; the maximum is one node at 0.1 % of h, cause not "
+    "investigated)"))
+def test_implicit_penetration_independent_of_dt(harness):
+    """The thesis (Tab. V-5): with 4 dt the implicit penetration does not change (< 25 %)."""
+    for label in ("implicit + Nagata", "implicit + exact die"):
+        a, b = (harness[(label, k)]["max_penetration"] for k in (1, 4))
+        assert abs(b - a) < 0.25 * a, (label, a, b)
+
+
+@pytest.mark.serial
+@pytest.mark.xfail(strict=True, reason=(
+    "measured at the test size (implicit, dt): true penetration exact 9.3e-4, Nagata 1.6e-3, "
+    "flat 1.9e-3 mm (Nagata closer: holds); contact nodes at t = 0.01 s exact 49, Nagata 50, "
+    "flat 49 (fails by one node; the flat die's chords are within 0.027 mm of the exact "
+    "surface, 1.8 % of h, and the zones are the same to a node)"))
+def test_nagata_closer_to_exact_than_flat(harness):
+    """Nagata's penetration (against the exact die) and contact zone are closer to the exact
+    die's than the flat facets' (implicit scheme, dt)."""
+    ex = harness[("implicit + exact die", 1)]
+    na = harness[("implicit + Nagata", 1)]
+    fl = harness[("implicit + flat", 1)]
+    for key in ("max_penetration", "contact_nodes_01"):
+        assert abs(na[key] - ex[key]) < abs(fl[key] - ex[key]), (key, ex[key], na[key],
+                                                                   fl[key])
+
+
+def test_one_and_two_ranks_agree():
+    """Three increments on all ranks and on COMM_SELF agree to 1e-8 (meaningful under
+    ``mpirun -n 2``; serially the two runs are the same computation)."""
+    if MPI.COMM_WORLD.size == 1:
+        pytest.skip("compares the ranks of COMM_WORLD with one rank: run under mpirun -n 2")
+    hs = []
+    for comm in (MPI.COMM_WORLD, MPI.COMM_SELF):
+        res = _run(comm=comm, t_end=3 * demo.QUICK["dt"], stop_at_steady=False)
+        hs.append(res["history"])
+    assert len(hs[0]) == len(hs[1]) == 3
+    for a, b in zip(*hs):
+        for k in ("drawing_force", "penetration_true"):
+            assert abs(a[k] - b[k]) <= 1e-8 * abs(b[k]), (k, a[k], b[k])
+        assert a["contact_nodes"] == b["contact_nodes"]
+        assert abs(a["volume_change"] - b["volume_change"]) <= 1e-11
+
+
+def test_bad_parameters():
+    with pytest.raises(ValueError, match="unknown parameter"):
+        demo.run(radius=3.0)
+    with pytest.raises(ValueError, match="R1"):
+        demo.run(R1=12.0)
+    with pytest.raises(ValueError, match="die"):
+        demo.run(die="smooth")
+    with pytest.raises(ValueError, match="implicit-exact"):
+        demo.run(die="flat", scheme="implicit-exact")
+    with pytest.raises(ValueError, match="too short"):
+        demo.run(length=10.0)
