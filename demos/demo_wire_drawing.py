@@ -57,7 +57,8 @@
 # over the last window of ``window`` mm of pull and over the window before differ by less than
 # ``steady_tol`` (two windows, not the range in one: the nodal force oscillates by a few % as
 # the nodes pass the die's kinks; the oscillation is reported); the steady drawing stress
-# σ_d = F/A₁ (A₁ the exit area of the modelled third) is the last window's mean, compared with the classical band of THEORY §14.2
+# σ_d = F/A₁ (A₁ the exit area of the modelled third) is the last window's mean, compared
+# with the classical band of THEORY §14.2
 # computed here with :mod:`fxcontact.forming`: the ideal work σ₀ ln(A₀/A₁) (a lower bound),
 # Sachs (with friction) and Avitzur's upper bound, σ₀ = √3 K (√3 ε̄̇)^m at the die's mean
 # strain rate. Pictures: the equivalent strain and strain rate on the longitudinal section
@@ -72,6 +73,10 @@
 # | R₀ 5 → 3.75, h = 1.5 mm (``--quick``) | 3434 | 508.9 | 1.106 | 0.895 | ±3.3 % | 2.8e-3 | 21.3 / 32 |
 # | R₀ 5 → 4.25, α = 15° (``--quick --R1 4.25 --alpha 15``) | 3771 | 363.9 | 1.388 | 0.853 | ±6.6 % | 4.2e-3 | 19.1 / 37 |
 #
+# With friction (``--quick --t_end 0.01``, 2 increments, not yet steady): Tresca m̄ = 0.1
+# gives 657 MPa (ideal 460, Avitzur 744), Coulomb μ = 0.05 605 MPa (Sachs 545, Avitzur with
+# m̄ = √3 μ 720).
+#
 # The FE drawing stress is 9–39 % above the ideal work and 11–15 % below Avitzur's bound
 # (upper bounds are typically 5–10 % above FE at small angles, THEORY §14.2; these meshes are
 # coarse, 3 elements over the radius). The nodal force oscillates by a few % as the nodes pass
@@ -82,7 +87,7 @@
 # (h = 1.9 mm), ``--quick`` (the reduced size of the tests), ``--die``, ``--scheme``,
 # ``--alpha``, ``--R0``, ``--R1`` … (``--help``); on 2 ranks with ``mpirun -n 2``. Outputs in
 # ``results/wire_drawing``. The main demo (``bash scripts/setup.sh --demo``) runs
-# ``--size 0.4 --t_end 0.12`` on 2 ranks.
+# ``--size 0.25 --t_end 0.1 --vtk_every 10`` on 2 ranks (the thesis size: see benchmarks/README.md).
 
 # %%
 from __future__ import annotations
@@ -104,7 +109,8 @@ from fxcontact.console import add_verbosity_arguments, configure_logging
 DEFAULTS = dict(R0=10.0, R1=7.5, length=38.0, sector=120.0, K=445.0, m=0.016, speed=100.0,
                 alpha=10.0, land=2.0, fillet=2.0, relief_angle=20.0, relief_length=1.0,
                 nose_ratio=0.96, h=0.75, facet=0.5, size=1.0, dt=2.5e-3, t_end=0.37,
-                die="exact", scheme="implicit", penalty="gap", beta=100.0, penalty_dt=None, mu=0.0, mbar=0.0, max_it=60,
+                die="exact", scheme="implicit", penalty="gap", beta=100.0, penalty_dt=None,
+                mu=0.0, mbar=0.0, max_it=60,
                 window=3.0, steady_tol=0.02, settle=None, stop_at_steady=False,
                 output_dir="results/wire_drawing", pictures=True, vtk_every=0,
                 max_cutbacks=4, comm=None)
@@ -182,7 +188,7 @@ def _gather(comm, arr):
 
 def _true_penetration(comm, exact, contact, sim):
     """Largest depth of the lateral nodes inside the exact die at the current time (all
-    ranks), and the number of nodes within 1e-3 h of it or inside (the exact contact zone)."""
+    ranks; 0 if none is inside)."""
     b = contact.boundary
     X = sim.vertex_positions()[b.vertices]
     gap = exact.project(X, sim.t, hessian=False).gap if len(X) else np.zeros(0)
@@ -219,7 +225,6 @@ def _pictures(comm, sim, ft, contact, exact, res, out):
 
     P = res["parameters"]
     s = np.linspace(zr[..., 0].min() - 2, zr[..., 0].max() + 2, 800)
-    prof = exact.profile
     die_r = _die_radius(exact, s)
     fig, axs = plt.subplots(2, 1, figsize=(11, 6.4), sharex=True)
     for ax, val, lab, cmap in ((axs[0], eps, "equivalent strain", "viridis"),
@@ -232,13 +237,13 @@ def _pictures(comm, sim, ft, contact, exact, res, out):
         ax.set_aspect("equal")
         ax.set_ylabel("r [mm]")
         ax.legend(loc="upper left", fontsize=8)
-    del prof
     axs[0].set_xlim(zr[..., 0].min() - 1, zr[..., 0].max() + 1)
     axs[1].set_xlabel("z [mm] (drawing direction →)")
     th = res["theory"]
+    sd = res["steady_stress"] if res["steady_stress"] is not None else float("nan")
     axs[0].set_title(f"Drawing R₀ {P['R0']:g} → {P['R1']:g} mm, α = {P['alpha']:g}°, "
                      f"t = {res['time']:.3f} s, die {P['die']}, {P['scheme']}: θ = 0 section; "
-                     f"σ_d = {res.get('steady_stress', float('nan')):.0f} MPa "
+                     f"σ_d = {sd:.0f} MPa "
                      f"(ideal {th['ideal']:.0f}, Avitzur {th['avitzur']:.0f})", fontsize=9)
     fig.tight_layout()
     f1 = os.path.join(out, "wire_drawing_strain.png")
@@ -267,7 +272,7 @@ def _pictures(comm, sim, ft, contact, exact, res, out):
     axs[1].plot(t, [q["drawing_stress"] for q in hist], "b.-", label="FE σ_d = F/A₁")
     for key, ls in (("ideal", "--"), ("avitzur", "-.")):
         axs[1].axhline(th[key], color="k", ls=ls, label=f"{key} {th[key]:.0f} MPa")
-    if P["mu"] > 0:
+    if th["mu_ref"] > 0:
         axs[1].axhline(th["sachs"], color="g", ls=":", label=f"Sachs {th['sachs']:.0f} MPa")
     if res.get("steady_from") is not None:
         axs[1].axvspan(hist[res["steady_from"]]["time"], hist[res["steady_to"]]["time"],
@@ -351,11 +356,16 @@ def run(**parameters) -> dict:
     comm = P["comm"] or MPI.COMM_WORLD
     g = geometry(P)
     a = math.radians(P["alpha"])
-    # the friction of the references: Tresca m̄, or Coulomb μ (Sachs) with Avitzur's m̄ taken
-    # as min(m̄, √3 μ) (τ = μp with p ≈ σ₀ in the die: an approximation, stated)
-    mbar_ref = P["mbar"] if P["mu"] == 0 else min(P["mbar"] or 1.0, math.sqrt(3) * P["mu"])
+    # the friction of the references: Sachs needs a Coulomb μ, Avitzur a Tresca m̄; the other
+    # one is converted with the pressure p ≈ σ₀ in the die (τ = μp = m̄σ₀/√3: an approximation,
+    # stated in the report): Coulomb μ gives m̄ = min(m̄_cap, √3 μ), Tresca m̄ gives μ = m̄/√3
+    if P["mu"] > 0:
+        mu_ref, mbar_ref = P["mu"], min(P["mbar"] or 1.0, math.sqrt(3) * P["mu"])
+    else:
+        mu_ref, mbar_ref = P["mbar"] / math.sqrt(3), P["mbar"]
     theory = forming.drawing_theory(P["K"], P["m"], P["R0"], P["R1"], a, P["speed"],
-                                    mu=P["mu"], mbar=mbar_ref, land_length=P["land"])
+                                    mu=mu_ref, mbar=mbar_ref, land_length=P["land"])
+    theory.update(mu_ref=mu_ref, mbar_ref=mbar_ref)
     mat = fx.NortonHoff(K=P["K"], m=P["m"], regularization=1e-3 * theory["strain_rate"])
     msh, _, ft = fx.drawing_bar(comm, P["R0"], P["length"], g["h"],
                                 nose_length=g["nose_length"], nose_radius=g["nose_radius"],
@@ -487,7 +497,10 @@ def report(res) -> str:
         f"{P['dt']:g} s to t = {res['time']:.4g} s",
         f"theory (THEORY 14.2): sigma0 = {th['sigma0']:.1f} MPa at the die's mean strain rate "
         f"{th['strain_rate']:.3f} 1/s; ideal {th['ideal']:.1f}, Sachs {th['sachs']:.1f}, "
-        f"Avitzur {th['avitzur']:.1f} MPa (1.1 x Avitzur {1.1 * th['avitzur']:.1f})"]
+        f"Avitzur {th['avitzur']:.1f} MPa (1.1 x Avitzur {1.1 * th['avitzur']:.1f})"
+        + (f"; friction of the references mu {th['mu_ref']:.3g} (Sachs), mbar "
+           f"{th['mbar_ref']:.3g} (Avitzur), converted with p = sigma0"
+           if th["mu_ref"] > 0 else "")]
     if res["steady_stress"] is not None:
         t0, t1 = res["steady_time"]
         lines.append(f"steady drawing stress F/A1 = {res['steady_stress']:.1f} MPa (t {t0:.3f}-"
