@@ -48,7 +48,7 @@
 # gap Hessian: exact die or Nagata). Friction is optional: ``--mbar`` (Tresca m̄) and/or
 # ``--mu`` (Coulomb μ limited by Tresca m̄, default m̄ = 1 then).
 #
-# **Measured per increment** (``wire_drawing_history.csv`` and the result dict): drawing force
+# **Measured per increment** (``wire_drawing_diagnostics.csv`` and the result dict): drawing force
 # (reaction on the pulled face along z), the **true maximum penetration** (depth of the lateral
 # nodes inside the exact die, measured with the analytic profile for every die variant), the
 # penetration against the die actually used, contact nodes, Newton iterations, wall time split
@@ -470,7 +470,7 @@ def run(**parameters) -> dict:
                       ratio_avitzur=None)
     if comm.rank == 0 and out and rows:
         os.makedirs(out, exist_ok=True)
-        with open(os.path.join(out, "wire_drawing_history.csv"), "w", newline="") as fh:
+        with open(os.path.join(out, "wire_drawing_diagnostics.csv"), "w", newline="") as fh:
             wr = csv.DictWriter(fh, fieldnames=list(rows[0]))
             wr.writeheader()
             wr.writerows(rows)
