@@ -157,10 +157,13 @@ def main(argv=None):
     ap.add_argument("--exact_scheme", default="implicit-exact",
                     choices=("implicit", "implicit-exact"))
     ap.add_argument("--variants", nargs="*", choices=list(VARIANTS), default=None)
+    ap.add_argument("--die_mesh", default="structured", choices=("structured", "gmsh"),
+                    help="faceted dies: structured sector (edges along the generators) or "
+                    "an unstructured gmsh mesh of the same surface")
     ap.add_argument("--csv", default="benchmarks/results/thesis_wire_drawing.csv")
     a = ap.parse_args(argv)
     rows = run(size=a.size, t_end=a.t_end, quick=a.quick, dt=a.dt, variants=a.variants,
-               exact_scheme=a.exact_scheme)
+               exact_scheme=a.exact_scheme, die_mesh=a.die_mesh)
     if MPI.COMM_WORLD.rank == 0:
         print()
         print(table(rows))

@@ -109,7 +109,7 @@ from fxcontact.console import add_verbosity_arguments, configure_logging
 DEFAULTS = dict(R0=10.0, R1=7.5, length=38.0, sector=120.0, K=445.0, m=0.016, speed=100.0,
                 alpha=10.0, land=2.0, fillet=2.0, relief_angle=20.0, relief_length=1.0,
                 nose_ratio=0.96, h=0.75, facet=0.5, size=1.0, dt=2.5e-3, t_end=0.37,
-                die="exact", scheme="implicit", penalty="gap", beta=100.0, penalty_dt=None,
+                die="exact", die_mesh="structured", scheme="implicit", penalty="gap", beta=100.0, penalty_dt=None,
                 mu=0.0, mbar=0.0, max_it=60,
                 window=3.0, steady_tol=0.02, settle=None, stop_at_steady=False,
                 output_dir="results/wire_drawing", pictures=True, vtk_every=0,
@@ -154,7 +154,72 @@ def geometry(P: dict) -> dict:
                 A1=math.radians(P["sector"]) / 2 * R1 ** 2)
 
 
-def make_die(P: dict, g: dict):
+def gmsh_die_sector(exact, sector_deg: float, facet: float, extension: float, comm):
+    """The die's sector meshed by gmsh (unstructured triangles, size ``facet``): each profile
+    segment (entry cone with ``extension`` before it, fillet arc, land, relief with
+    ``extension`` after it) revolved by ``sector_deg`` about the axis with OpenCASCADE and
+    meshed by the frontal-Delaunay mesher — the triangles are not aligned with the generators
+    (as a die from a CAD mesher; the structured :func:`fxcontact.faceted_revolved` sector has
+    its edges along the generators and rings). The vertices are moved onto the exact surface;
+    the triangles are oriented towards free space. Built on rank 0, broadcast."""
+    V = T = None
+    if comm.rank == 0:
+        pts = np.asarray(exact.points, float)
+        arcs = exact.arcs or (None,) * (len(pts) - 1)
+        with fx.gmsh_session("die") as gmsh:
+            occ = gmsh.model.occ
+            curves = []
+            n = len(pts) - 1
+            for i in range(n):
+                p0, p1 = pts[i].copy(), pts[i + 1].copy()
+                if arcs[i] is None:
+                    u = (p1 - p0) / np.linalg.norm(p1 - p0)
+                    if i == 0:
+                        p0 = p0 - extension * u
+                    if i == n - 1:
+                        p1 = p1 + extension * u
+                    a = occ.addPoint(p0[1], 0.0, p0[0])
+                    b = occ.addPoint(p1[1], 0.0, p1[0])
+                    curves.append(occ.addLine(a, b))
+                else:   # arc of signed radius r: centre on the left of the chord if r > 0
+                    r = arcs[i]
+                    c = p1 - p0
+                    half = 0.5 * np.linalg.norm(c)
+                    left = np.array([-c[1], c[0]]) / (2 * half)
+                    ctr = 0.5 * (p0 + p1) + np.sign(r) * math.sqrt(r * r - half * half) * left
+                    a = occ.addPoint(p0[1], 0.0, p0[0])
+                    b = occ.addPoint(p1[1], 0.0, p1[0])
+                    o = occ.addPoint(ctr[1], 0.0, ctr[0])
+                    curves.append(occ.addCircleArc(a, o, b))
+            occ.revolve([(1, c) for c in curves], 0, 0, 0, 0, 0, 1,
+                        math.radians(sector_deg))
+            occ.removeAllDuplicates()
+            occ.synchronize()
+            gmsh.option.setNumber("Mesh.CharacteristicLengthMax", facet)
+            gmsh.option.setNumber("Mesh.CharacteristicLengthMin", 0.5 * facet)
+            gmsh.option.setNumber("Mesh.Algorithm", 6)
+            gmsh.model.mesh.generate(2)
+            tags, X, _ = gmsh.model.mesh.getNodes()
+            index = {int(t): k for k, t in enumerate(tags)}
+            V = X.reshape(-1, 3).copy()
+            tri = []
+            for et, _, conn in zip(*gmsh.model.mesh.getElements(2)):
+                if et == 2:
+                    tri.append(np.array([index[int(t)] for t in conn]).reshape(-1, 3))
+            T = np.concatenate(tri)
+        used = np.unique(T)
+        remap = -np.ones(len(V), int)
+        remap[used] = np.arange(len(used))
+        V, T = V[used], remap[T]
+        V = exact.project(V, 0.0, hessian=False).point          # onto the exact surface
+        nrm = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
+        free = exact.project(V[T].mean(axis=1), 0.0, hessian=False).normal
+        flip = np.einsum("ij,ij->i", nrm, free) < 0
+        T[flip] = T[flip][:, [0, 2, 1]]
+    return comm.bcast(V, root=0), comm.bcast(T, root=0)
+
+
+def make_die(P: dict, g: dict, comm=MPI.COMM_WORLD):
     """(exact die, die used, facet sag) — the die used is the exact one or its faceted sector."""
     a = math.radians(P["alpha"])
     exact = fx.RevolvedProfile.die(entry_radius=g["entry_radius"], exit_radius=P["R1"],
@@ -166,6 +231,12 @@ def make_die(P: dict, g: dict):
         return exact, exact, 0.0
     if P["die"] not in DIES:
         raise ValueError(f"die must be one of {DIES}, got {P['die']!r}")
+    if P["die_mesh"] == "gmsh":
+        V, T = gmsh_die_sector(exact, P["sector"], g["facet"], 2.0 * g["h"], comm)
+        tool = fx.FacetedTool(V, T, mode=P["die"], name="die")
+        e = np.linalg.norm(V[T[:, 1]] - V[T[:, 0]], axis=1)
+        sag = float(np.max(e)) ** 2 / (8.0 * P["R1"])
+        return exact, tool, sag
     r_mid = 0.5 * (P["R0"] + P["R1"])
     n_theta = max(2, int(math.ceil(math.radians(P["sector"]) * r_mid / g["facet"])))
     tool = fx.FacetedTool.from_revolved(exact, n_theta, sector=(0.0, P["sector"]),
@@ -327,6 +398,8 @@ def _check(P):
         raise ValueError(f"m must be in (0, 1], got {P['m']}")
     if P["die"] not in DIES:
         raise ValueError(f"die must be one of {DIES}, got {P['die']!r}")
+    if P["die_mesh"] not in ("structured", "gmsh"):
+        raise ValueError(f"die_mesh must be 'structured' or 'gmsh', got {P['die_mesh']!r}")
     if P["scheme"] not in fx.SCHEMES:
         raise ValueError(f"scheme must be one of {fx.SCHEMES}, got {P['scheme']!r}")
     if P["scheme"] == "implicit-exact" and P["die"] == "flat":
@@ -382,7 +455,7 @@ def run(**parameters) -> dict:
     sim.add_symmetry_plane(f["symmetry_1"], normals["symmetry_1"], name="sym1")
     sim.add_velocity_bc(f["front"], P["speed"], 2)
     sim.add_reaction("pull", f["front"])
-    exact, die, sag = make_die(P, g)
+    exact, die, sag = make_die(P, g, comm)
     friction = None
     if P["mu"] > 0:
         friction = fx.Coulomb(P["mu"], mbar=P["mbar"] or 1.0)
@@ -535,6 +608,7 @@ def main(argv=None):
               "steady_tol"):
         ap.add_argument(f"--{k}", type=float)
     ap.add_argument("--die", choices=DIES)
+    ap.add_argument("--die_mesh", choices=("structured", "gmsh"))
     ap.add_argument("--scheme", choices=fx.SCHEMES)
     ap.add_argument("--penalty", choices=("gap", "velocity"))
     ap.add_argument("--max_it", type=int)
