@@ -178,6 +178,25 @@ def test_harness_on_all_ranks():
     assert bench.table(rows).count("|") > 20
 
 
+def test_gmsh_die_sector_lies_on_the_exact_die():
+    """The unstructured (gmsh) die sector: vertices on the exact surface, spanning 0-120°,
+    oriented so that the faceted gap has the exact gap's sign (inside the bar's side > 0)."""
+    P = {**demo.DEFAULTS, **demo.QUICK, "die": "flat", "die_mesh": "gmsh"}
+    g = demo.geometry(P)
+    exact, tool, sag = demo.make_die(P, g, MPI.COMM_WORLD)
+    V = tool.vertices
+    assert np.max(np.abs(exact.project(V, 0.0, hessian=False).gap)) < 1e-10
+    th = np.degrees(np.arctan2(V[:, 1], V[:, 0]))
+    assert th.min() == pytest.approx(0.0, abs=1e-9) and th.max() == pytest.approx(120.0)
+    rng = np.random.default_rng(1)
+    r, t = rng.uniform(1.0, 3.5, 50), np.radians(rng.uniform(5, 115, 50))
+    z = rng.uniform(exact.points[0, 0], exact.points[-1, 0], 50)
+    x = np.stack([r * np.cos(t), r * np.sin(t), z], 1)
+    ge, gt = exact.project(x, 0.0).gap, tool.project(x, 0.0).gap
+    assert np.all(np.sign(ge) == np.sign(gt))
+    assert np.max(np.abs(ge - gt)) < 2 * sag + 1e-12
+
+
 def test_bad_parameters():
     with pytest.raises(ValueError, match="unknown parameter"):
         demo.run(radius=3.0)
