@@ -157,7 +157,7 @@ def main(argv=None):
     ap.add_argument("--exact_scheme", default="implicit-exact",
                     choices=("implicit", "implicit-exact"))
     ap.add_argument("--variants", nargs="*", choices=list(VARIANTS), default=None)
-    ap.add_argument("--die_mesh", default="structured", choices=("structured", "gmsh"),
+    ap.add_argument("--die_mesh", default="gmsh", choices=("structured", "gmsh"),
                     help="faceted dies: structured sector (edges along the generators) or "
                     "an unstructured gmsh mesh of the same surface")
     ap.add_argument("--csv", default="benchmarks/results/thesis_wire_drawing.csv")

@@ -109,7 +109,7 @@ from fxcontact.console import add_verbosity_arguments, configure_logging
 DEFAULTS = dict(R0=10.0, R1=7.5, length=38.0, sector=120.0, K=445.0, m=0.016, speed=100.0,
                 alpha=10.0, land=2.0, fillet=2.0, relief_angle=20.0, relief_length=1.0,
                 nose_ratio=0.96, h=0.75, facet=0.5, size=1.0, dt=2.5e-3, t_end=0.37,
-                die="exact", die_mesh="structured", scheme="implicit", penalty="gap", beta=100.0, penalty_dt=None,
+                die="exact", die_mesh="gmsh", scheme="implicit", penalty="gap", beta=100.0, penalty_dt=None,
                 mu=0.0, mbar=0.0, max_it=60,
                 window=3.0, steady_tol=0.02, settle=None, stop_at_steady=False,
                 output_dir="results/wire_drawing", pictures=True, vtk_every=0,
