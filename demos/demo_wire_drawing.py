@@ -25,8 +25,14 @@
 # 2 mm** at R = 7.5 mm and a 20° exit relief (1 mm long) so that the drawn bar does not rub on
 # an endless land. The die is the analytic surface of revolution :class:`fxcontact.RevolvedProfile`
 # (``--die exact``), or the same surface triangulated on its 120° sector with facets of
-# ≈ 0.5 mm (vertices on the exact surface, mirror-symmetric triangulation) and projected on the
-# flat facets (``--die flat``, Forge's standard) or on Nagata patches (``--die nagata``).
+# ≈ 0.5 mm (vertices on the exact surface) and projected on the flat facets (``--die flat``,
+# Forge's standard) or on Nagata patches (``--die nagata``). The triangulation is by default
+# an unstructured gmsh mesh of the revolved profile (``--die_mesh gmsh``, as a die from a CAD
+# mesher: its edges cross the paths of the bar's nodes), or the structured, mirror-symmetric
+# sector of :meth:`fxcontact.FacetedTool.from_revolved` (``--die_mesh structured``: its edges
+# run along the generators and rings, and on a cone its quads are planar, so a node sliding
+# down a generator meets no facet edge — the explicit scheme then hardly errs, see
+# ``benchmarks/README.md``).
 #
 # **Start.** The bar is meshed with a pointed nose already through the die: the conical
 # transition of the bar has the die's angle and lies 2 % of an element behind the die's cone
