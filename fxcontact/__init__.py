@@ -108,6 +108,17 @@ _API = {
     "ring_rolling_feed_window": ("forming", "ring rolling: feed per revolution window "
                                  "(penetration, bite-in) (§14.4)"),
     "ring_rolling_force": ("forming", "ring rolling: roll force 2kHLQ (§14.4)"),
+    "drawing_ideal_stress": ("forming", "drawing: ideal work sigma0 ln(A0/A1), a lower bound "
+                             "(§14.2)"),
+    "drawing_sachs_stress": ("forming", "drawing stress, Sachs slab with Coulomb friction "
+                             "(§14.2)"),
+    "avitzur_f": ("forming", "Avitzur's factor f(alpha) of the drawing upper bound (§14.2)"),
+    "drawing_upper_bound": ("forming", "Avitzur's upper bound of the drawing stress (Tresca, "
+                            "land) (§14.2)"),
+    "drawing_mean_strain_rate": ("forming", "mean strain rate in a conical drawing die "
+                                 "(§14.2)"),
+    "drawing_optimal_angle": ("forming", "die semi-angle minimising Avitzur's bound (§14.2)"),
+    "drawing_theory": ("forming", "drawing-stress band of a Norton-Hoff material (§14.2)"),
     # solver and assembly
     "SolverOptions": ("solver", "Newton and linear solver settings"),
     "NewtonSolver": ("solver", "SNES Newton with a stable-active-set test (§3.6)"),

@@ -15,6 +15,12 @@ biases: the FE answer is not expected to equal them but to fall in the band they
   :func:`ring_rolling_feed_window` (Hawkyard's plastic penetration and the bite-in limit),
   :func:`ring_rolling_feed_speed`, :func:`ring_rolling_mean_diameter` (volume constancy) and
   :func:`ring_rolling_force` (2kHLQ).
+* Drawing through a conical die (THEORY §14.2): :func:`drawing_ideal_stress` (ideal work, a
+  lower bound), :func:`drawing_sachs_stress` (Coulomb μ, slab), :func:`avitzur_f` and
+  :func:`drawing_upper_bound` (Avitzur's upper bound with Tresca m̄ and a bearing land),
+  :func:`drawing_mean_strain_rate` (the rate at which σ₀ of a power law is taken),
+  :func:`drawing_optimal_angle` and :func:`drawing_theory` (the whole band for a Norton–Hoff
+  material).
 
 Units are free (consistent); pressures are returned over σ₀ and powers per unit σ₀ and closing
 speed unless stated.
@@ -31,7 +37,9 @@ from scipy import integrate, optimize
 __all__ = ["flow_stress", "upsetting_upper_bound", "upsetting_slab_coulomb", "ring_power",
            "ring_power_quadrature", "ring_neutral_radius", "ring_compression_upper_bound",
            "ring_rolling_curvature", "ring_rolling_contact_length", "ring_rolling_feed_window",
-           "ring_rolling_feed_speed", "ring_rolling_mean_diameter", "ring_rolling_force"]
+           "ring_rolling_feed_speed", "ring_rolling_mean_diameter", "ring_rolling_force",
+           "drawing_ideal_stress", "drawing_sachs_stress", "avitzur_f", "drawing_upper_bound",
+           "drawing_mean_strain_rate", "drawing_optimal_angle", "drawing_theory"]
 
 SQRT3 = math.sqrt(3.0)
 
@@ -381,3 +389,151 @@ def ring_rolling_force(shear_yield: float, height: float, contact_length: float,
                          f"(the deformation does not penetrate the wall)")
     Q = 0.8 + 0.2 * ratio if ratio >= 1.0 else math.pi / 4.0 + 1.0 / (4.0 * ratio)
     return {"force": 2.0 * k * H * L * Q, "Q": Q, "B_over_L": ratio}
+# ------------------------------------------------------------------------------ drawing
+def _drawing_radii(initial_radius, final_radius):
+    R0 = _positive("initial_radius", initial_radius)
+    Rf = _positive("final_radius", final_radius)
+    if not Rf < R0:
+        raise ValueError(f"final_radius ({Rf}) must be smaller than initial_radius ({R0})")
+    return R0, Rf
+
+
+def _half_angle(half_angle) -> float:
+    a = float(half_angle)
+    if not (math.isfinite(a) and 0.0 < a < 0.5 * math.pi):
+        raise ValueError(f"the die semi-angle must be in (0, π/2) radians, got {half_angle!r}")
+    return a
+
+
+def drawing_ideal_stress(sigma0: float, initial_radius: float, final_radius: float) -> float:
+    """Ideal (homogeneous) work of drawing, σ_d = σ₀ ln(A₀/A_f) = 2σ₀ ln(R₀/R_f) (THEORY
+    §14.2): a lower bound of the drawing stress (no friction, no redundant work)."""
+    s0 = _positive("sigma0", sigma0)
+    R0, Rf = _drawing_radii(initial_radius, final_radius)
+    return 2.0 * s0 * math.log(R0 / Rf)
+
+
+def drawing_sachs_stress(sigma0: float, initial_radius: float, final_radius: float,
+                         half_angle: float, mu: float) -> float:
+    """Sachs' slab estimate of the drawing stress with Coulomb friction μ on the cone
+    (THEORY §14.2): σ_d = σ₀ (1 + B)/B [1 − (A_f/A₀)^B], B = μ cot α; no redundant work, no
+    back tension. μ = 0 gives the ideal work (the B → 0 limit, taken by its series)."""
+    s0 = _positive("sigma0", sigma0)
+    R0, Rf = _drawing_radii(initial_radius, final_radius)
+    a = _half_angle(half_angle)
+    mu = float(mu)
+    if not (math.isfinite(mu) and mu >= 0):
+        raise ValueError(f"the Coulomb coefficient mu must be >= 0, got {mu!r}")
+    lnr = math.log((R0 / Rf) ** 2)          # ln(A₀/A_f)
+    B = mu / math.tan(a)
+    if B * lnr < 1e-6:  # (1+B)/B (1 − e^{−B ln r}) = (1 + B)(ln r − B ln²r/2 + B² ln³r/6 …)
+        return s0 * (1.0 + B) * lnr * (1.0 - 0.5 * B * lnr + (B * lnr) ** 2 / 6.0)
+    return s0 * (1.0 + B) / B * -math.expm1(-B * lnr)
+
+
+_F_SERIES = 1e-2  # α below which avitzur_f uses its series
+
+
+def avitzur_f(half_angle):
+    """Avitzur's factor f(α) of the internal deformation (THEORY §14.2), α in radians:
+
+    f(α) = 1/sin²α {1 − cos α √(1 − (11/12) sin²α)
+           + 1/√132 ln[(1 + √(11/12)) / (√(11/12) cos α + √(1 − (11/12) sin²α))]},
+
+    f → 1 as α → 0. The closed form loses about ε/α² to cancellation; below α = 1e-2 the
+    series f = 1 + α²/48 + 23α⁴/3456 + O(α⁶) is used (coefficients from the expansion of the
+    braces; the two agree to ~1e-12 at the switch). A scalar gives a float, an array an
+    array.
+    """
+    a = np.asarray(half_angle, dtype=float)
+    if np.any(~np.isfinite(a)) or np.any(a < 0) or np.any(a >= 0.5 * math.pi):
+        raise ValueError(f"the die semi-angle must be in [0, π/2) radians, got {half_angle!r}")
+    c = 11.0 / 12.0
+    big = np.maximum(a, _F_SERIES)                  # no 0/0 in the unused branch
+    s2b = np.sin(big) ** 2
+    rootb = np.sqrt(1.0 - c * s2b)
+    closed = (1.0 - np.cos(big) * rootb + np.log((1.0 + math.sqrt(c))
+              / (math.sqrt(c) * np.cos(big) + rootb)) / math.sqrt(132.0)) / s2b
+    a2 = a * a
+    out = np.where(a < _F_SERIES, 1.0 + a2 / 48.0 + 23.0 * a2 * a2 / 3456.0, closed)
+    return float(out) if out.ndim == 0 else out
+
+
+def drawing_upper_bound(sigma0: float, initial_radius: float, final_radius: float,
+                        half_angle: float, mbar: float = 0.0, land_length: float = 0.0) -> float:
+    """Avitzur's upper bound of the drawing stress through a conical die (THEORY §14.2):
+
+    σ_d/σ₀ = 2 f(α) ln(R₀/R_f) + (2/√3)(α/sin²α − cot α)
+             + (2 m̄/√3)(cot α ln(R₀/R_f) + L/R_f),
+
+    internal deformation, the two velocity discontinuities (entry and exit spheres) and
+    Tresca friction τ = m̄ k on the cone and on the bearing land of length L. No back tension.
+    """
+    s0 = _positive("sigma0", sigma0)
+    R0, Rf = _drawing_radii(initial_radius, final_radius)
+    a = _half_angle(half_angle)
+    mbar = _friction_factor(mbar)
+    L = float(land_length)
+    if not (math.isfinite(L) and L >= 0):
+        raise ValueError(f"land_length must be finite and >= 0, got {land_length!r}")
+    lnr = math.log(R0 / Rf)
+    s2 = math.sin(a) ** 2
+    shear = 2.0 / SQRT3 * (a / s2 - 1.0 / math.tan(a))
+    friction = 2.0 * mbar / SQRT3 * (lnr / math.tan(a) + L / Rf)
+    return s0 * (2.0 * float(avitzur_f(a)) * lnr + shear + friction)
+
+
+def drawing_mean_strain_rate(initial_radius: float, final_radius: float, half_angle: float,
+                             entry_speed: float) -> float:
+    """Mean equivalent strain rate in a conical die (homogeneous field, THEORY §14.2):
+    ε̄̇ = 6 v₀ tan α / D₀ · ln(A₀/A_f) / (1 − (D_f/D₀)³), with v₀ the entry speed of the bar
+    (the exit speed times A_f/A₀). σ₀ of a power law taken at this rate reproduces the ideal
+    work of the exact rate field closely."""
+    R0, Rf = _drawing_radii(initial_radius, final_radius)
+    a = _half_angle(half_angle)
+    v0 = _positive("entry_speed", entry_speed)
+    return 6.0 * v0 * math.tan(a) / (2.0 * R0) * 2.0 * math.log(R0 / Rf) / (1.0 - (Rf / R0) ** 3)
+
+
+def drawing_optimal_angle(initial_radius: float, final_radius: float, mbar: float,
+                          land_length: float = 0.0, approximate: bool = False) -> float:
+    """Die semi-angle (radians) that minimises :func:`drawing_upper_bound` for a Tresca factor
+    ``mbar`` > 0 (found by bounded minimisation over (0.1°, 60°)); with ``approximate=True`` the
+    classical estimate α_opt ≈ √(1.5 m̄ ln(R₀/R_f)) (THEORY §14.2). Without friction the bound
+    decreases to the ideal work as α → 0 and there is no optimum: ``mbar = 0`` is refused."""
+    R0, Rf = _drawing_radii(initial_radius, final_radius)
+    mbar = _friction_factor(mbar)
+    if mbar == 0.0:
+        raise ValueError("without friction (mbar = 0) the upper bound has no optimal angle "
+                         "(it falls to the ideal work as the angle goes to 0)")
+    if approximate:
+        return math.sqrt(1.5 * mbar * math.log(R0 / Rf))
+    res = optimize.minimize_scalar(
+        lambda a: drawing_upper_bound(1.0, R0, Rf, a, mbar, land_length),
+        bounds=(math.radians(0.1), math.radians(60.0)), method="bounded",
+        options={"xatol": 1e-10})
+    return float(res.x)
+
+
+def drawing_theory(K: float, m: float, initial_radius: float, final_radius: float,
+                   half_angle: float, exit_speed: float, mu: float = 0.0, mbar: float = 0.0,
+                   land_length: float = 0.0) -> Dict[str, float]:
+    """The classical band of the drawing stress for a Norton–Hoff material (THEORY §14.1-2).
+
+    σ₀ = √3 K (√3 ε̄̇)^m at the die's mean strain rate (:func:`drawing_mean_strain_rate`, entry
+    speed ``exit_speed`` A_f/A₀). Returns ``sigma0``, ``strain_rate``, ``entry_speed``,
+    ``ideal`` (lower bound), ``sachs`` (Coulomb ``mu``; equals ``ideal`` for μ = 0),
+    ``avitzur`` (upper bound with ``mbar`` and the land), ``avitzur_f`` and the reduction of
+    area ``reduction`` = 1 − A_f/A₀; stresses in the unit of K.
+    """
+    R0, Rf = _drawing_radii(initial_radius, final_radius)
+    v1 = _positive("exit_speed", exit_speed)
+    v0 = v1 * (Rf / R0) ** 2
+    rate = drawing_mean_strain_rate(R0, Rf, half_angle, v0)
+    s0 = float(flow_stress(K, m, rate))
+    return {"sigma0": s0, "strain_rate": rate, "entry_speed": v0,
+            "reduction": 1.0 - (Rf / R0) ** 2,
+            "ideal": drawing_ideal_stress(s0, R0, Rf),
+            "sachs": drawing_sachs_stress(s0, R0, Rf, half_angle, mu),
+            "avitzur": drawing_upper_bound(s0, R0, Rf, half_angle, mbar, land_length),
+            "avitzur_f": float(avitzur_f(half_angle))}

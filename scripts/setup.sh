@@ -43,5 +43,6 @@ fi
 
 if [ "${1:-}" = "--demo" ]; then
   export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OPENBLAS_NUM_THREADS=1
-  mpirun -n 2 --oversubscribe "$VENV/bin/python" demos/demo_upsetting.py "${@:2}"
+  mpirun -n 2 --oversubscribe "$VENV/bin/python" demos/demo_wire_drawing.py --size 0.4 \
+    --t_end 0.1 --vtk_every 10 "${@:2}"
 fi

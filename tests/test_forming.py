@@ -174,3 +174,86 @@ def test_ring_rolling_geometry_checks():
         ring_rolling_force(50.0, 40.0, 1.0, 10.0)
     with pytest.raises(ValueError, match="mandrel"):
         ring_rolling_contact_length(1.0, R1, 200.0, R, r)
+# ------------------------------------------------------------------------------ drawing
+def test_drawing_worked_example():
+    """THEORY §14.2's worked example: σ₀ = 300 MPa, D 10 → 8.944 mm (20 % area), α = 8°:
+    ideal 66.9, Avitzur m̄ = 0: 99.3, m̄ = 0.1: 126.8 MPa (values quoted to 0.1 MPa)."""
+    from fxcontact.forming import drawing_ideal_stress, drawing_upper_bound
+    a = math.radians(8.0)
+    assert drawing_ideal_stress(300.0, 5.0, 4.472) == pytest.approx(66.9, abs=0.1)
+    assert drawing_upper_bound(300.0, 5.0, 4.472, a) == pytest.approx(99.3, abs=0.1)
+    assert drawing_upper_bound(300.0, 5.0, 4.472, a, mbar=0.1) == pytest.approx(126.8, abs=0.1)
+
+
+def test_avitzur_f_limits_and_bound_limits():
+    """f(α) → 1 as α → 0 (series branch continuous with the closed form), f > 1 and increasing;
+    the frictionless bound tends to the ideal work as α → 0 (redundant work ~ α), and stays
+    above it; the land adds 2m̄/√3 L/R_f σ₀."""
+    from fxcontact.forming import avitzur_f, drawing_ideal_stress, drawing_upper_bound
+    assert avitzur_f(0.0) == 1.0
+    lo, hi = avitzur_f(1e-2 * (1 - 1e-9)), avitzur_f(1e-2 * (1 + 1e-9))
+    assert abs(lo - hi) < 1e-11 and abs(lo - 1.0) < 1e-5
+    al = np.radians(np.linspace(0.5, 60.0, 50))
+    f = avitzur_f(al)
+    assert np.all(f > 1.0) and np.all(np.diff(f) > 0)
+    ideal = drawing_ideal_stress(1.0, 10.0, 7.5)
+    for a in np.radians([0.01, 0.1]):
+        ub = drawing_upper_bound(1.0, 10.0, 7.5, a)
+        assert ideal < ub < ideal * (1 + 2 * a)
+    ub = drawing_upper_bound(1.0, 10.0, 7.5, 0.2, mbar=0.3)
+    ub_land = drawing_upper_bound(1.0, 10.0, 7.5, 0.2, mbar=0.3, land_length=2.0)
+    assert ub_land - ub == pytest.approx(2 * 0.3 / math.sqrt(3.0) * 2.0 / 7.5, rel=1e-12)
+    with pytest.raises(ValueError, match="semi-angle"):
+        drawing_upper_bound(1.0, 10.0, 7.5, 2.0)
+    with pytest.raises(ValueError, match="smaller"):
+        drawing_ideal_stress(1.0, 7.5, 10.0)
+
+
+def test_sachs_against_slab_ode():
+    """Sachs' closed form equals the slab equation dσ/dD = 2(Bσ − (1 + B)σ₀)/D integrated
+    numerically from D₀ (σ = 0) down to D_f; μ = 0 gives the ideal work."""
+    from fxcontact.forming import drawing_ideal_stress, drawing_sachs_stress
+    R0, Rf, s0 = 10.0, 7.5, 250.0
+    for mu, a in ((0.05, 0.15), (0.1, 0.2), (0.2, 0.1)):
+        B = mu / math.tan(a)
+        sol = integrate.solve_ivp(lambda D, s: [2.0 * (B * s[0] - (1 + B) * s0) / D],
+                                  (2 * R0, 2 * Rf), [0.0], rtol=1e-12, atol=1e-10)
+        assert drawing_sachs_stress(s0, R0, Rf, a, mu) == pytest.approx(sol.y[0, -1], rel=1e-8)
+    assert drawing_sachs_stress(s0, R0, Rf, 0.2, 0.0) == pytest.approx(
+        drawing_ideal_stress(s0, R0, Rf), rel=1e-14)
+    assert drawing_sachs_stress(s0, R0, Rf, 0.2, 1e-9) == pytest.approx(
+        drawing_ideal_stress(s0, R0, Rf), rel=1e-8)
+
+
+def test_drawing_mean_strain_rate_is_ln_over_transit_time():
+    """The mean rate is ln(A₀/A_f) over the transit time through the cone of the homogeneous
+    field v(z) = v₀ (R₀/R(z))² (transit time by quadrature)."""
+    from fxcontact.forming import drawing_mean_strain_rate
+    R0, Rf, v0 = 10.0, 7.5, 56.25
+    for a in np.radians([5.0, 10.0, 20.0]):
+        t, _ = integrate.quad(lambda z: (R0 - z * math.tan(a)) ** 2 / (v0 * R0 ** 2), 0.0,
+                              (R0 - Rf) / math.tan(a), epsabs=0, epsrel=1e-13)
+        assert drawing_mean_strain_rate(R0, Rf, a, v0) == pytest.approx(
+            2 * math.log(R0 / Rf) / t, rel=1e-10)
+
+
+def test_drawing_optimal_angle_and_theory_band():
+    """The optimum minimises the bound (neighbouring angles give more) and is close to the
+    classical √(1.5 m̄ ln(R₀/R_f)); no optimum without friction; the band of a Norton–Hoff
+    material uses σ₀ = √3 K (√3 ε̇)^m at the mean rate."""
+    from fxcontact.forming import (drawing_mean_strain_rate, drawing_optimal_angle,
+                                   drawing_theory, drawing_upper_bound)
+    for mbar in (0.05, 0.1, 0.3):
+        a = drawing_optimal_angle(10.0, 7.5, mbar)
+        ub = drawing_upper_bound(1.0, 10.0, 7.5, a, mbar)
+        assert ub < drawing_upper_bound(1.0, 10.0, 7.5, a * 1.02, mbar)
+        assert ub < drawing_upper_bound(1.0, 10.0, 7.5, a * 0.98, mbar)
+        assert drawing_optimal_angle(10.0, 7.5, mbar, approximate=True) == pytest.approx(
+            a, rel=0.05)
+    with pytest.raises(ValueError, match="no optimal"):
+        drawing_optimal_angle(10.0, 7.5, 0.0)
+    th = drawing_theory(445.0, 0.016, 10.0, 7.5, math.radians(10.0), 100.0)
+    rate = drawing_mean_strain_rate(10.0, 7.5, math.radians(10.0), 100.0 * 0.75 ** 2)
+    assert th["strain_rate"] == pytest.approx(rate, rel=1e-14)
+    assert th["sigma0"] == pytest.approx(flow_stress(445.0, 0.016, rate), rel=1e-14)
+    assert th["ideal"] < th["avitzur"] and th["sachs"] == pytest.approx(th["ideal"])
