@@ -151,6 +151,7 @@ from fxcontact import compat
 from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.power import PlasticDissipation, PressurePower
+from fxcontact.steady import steady_window
 
 #: the thesis case (lengths mm, stresses MPa, times s)
 DEFAULTS = dict(R0=58.0, R1=48.0, groove_angle=50.0, roll_radius=180.0, edge_radius=5.0,
@@ -540,18 +541,11 @@ def run(**parameters) -> dict:
             message = (f"the bar's tail reached the bite at t = {sim.t:.4g} before a steady "
                        f"state: lengthen the bar (length_factor)")
             break
-        if len(rows) >= 2 * win:
-            both = rows[-2 * win:]
-            if all(q["front"] > P["settle"] * L for q in both):
-                ok = True
-                for key in ("roll_force", "roll_torque"):
-                    m0 = np.mean([q[key] for q in both[:win]])
-                    m1 = np.mean([q[key] for q in both[win:]])
-                    ok &= abs(m1 - m0) < P["steady_tol"] * abs(m1)
-                if ok:
-                    steady_from = len(rows) - win
-                    status = "steady"
-                    break
+        steady_from = steady_window(rows, ("roll_force", "roll_torque"), win, P["steady_tol"],
+                                    ready=lambda q: q["front"] > P["settle"] * L)
+        if steady_from is not None:
+            status = "steady"
+            break
     else:
         status, message = "no steady state", "max_increments reached"
     wall = time.perf_counter() - wall0

@@ -156,6 +156,7 @@ import fxcontact as fx
 from fxcontact import compat, rolling
 from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.power import PlasticDissipation, PressurePower
+from fxcontact.steady import steady_window
 
 #: the thesis case (lengths mm, stresses MPa, times s)
 DEFAULTS = dict(R=300.0, h0=25.0, reduction=0.28, width=100.0, K=30.0, m=0.3, mu=0.3, mbar=1.0,
@@ -443,18 +444,11 @@ def run(**parameters) -> dict:
             break
         # two consecutive windows (each several element passages long: the nodal force
         # oscillates with the passage of the nodes into the bite) with the same means
-        if len(rows) >= 2 * win:
-            both = rows[-2 * win:]
-            if all(q["front"] > P["settle"] * L for q in both):
-                ok = True
-                for key in ("force_per_width", "torque_per_width"):
-                    m0 = np.mean([q[key] for q in both[:win]])
-                    m1 = np.mean([q[key] for q in both[win:]])
-                    ok &= abs(m1 - m0) < P["steady_tol"] * abs(m1)
-                if ok:
-                    steady_from = len(rows) - win
-                    status = "steady"
-                    break
+        steady_from = steady_window(rows, ("force_per_width", "torque_per_width"), win,
+                                    P["steady_tol"], ready=lambda q: q["front"] > P["settle"] * L)
+        if steady_from is not None:
+            status = "steady"
+            break
     else:
         status, message = "no steady state", "max_increments reached"
     wall = time.perf_counter() - wall0

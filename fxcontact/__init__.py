@@ -83,6 +83,8 @@ _API = {
     "PlasticDissipation": ("power", "plastic dissipation of the current solution, for power "
                            "balances (§14.5)"),
     "plastic_dissipation": ("power", "one-off plastic dissipation integral (§14.5)"),
+    "steady_window": ("steady", "steady-state detection: two consecutive windows of "
+                      "increments with the same means"),
     "block": ("meshing", "gmsh block, optionally refined in a box, with facet tags"),
     "gmsh_session": ("meshing", "context manager: a clean gmsh model"),
     "BILLET_TAGS": ("meshing", "facet tags of cylinder_billet"),
