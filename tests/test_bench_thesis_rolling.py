@@ -24,12 +24,19 @@ def test_size_parameters():
         bench.run_variant("coarse-bezier-implicit", 0.4)
 
 
+NAMES = ["analytic-implicit", "analytic-explicit", "fine-flat-implicit", "coarse-flat-implicit",
+         "coarse-nagata-implicit"]
+
+
+@pytest.fixture(scope="module")
+def smoke_rows():
+    """Two increments of five variants at size 0.4."""
+    return bench.summarize([bench.run_variant(n, 0.4, max_increments=2) for n in NAMES])
+
+
 @pytest.mark.serial   # a dozen short runs; the demo's MPI path is tested in test_flat_rolling
-def test_table_complete_and_finite():
-    names = ["analytic-implicit", "analytic-explicit", "fine-flat-implicit",
-             "coarse-flat-implicit", "coarse-nagata-implicit"]
-    results = [bench.run_variant(n, 0.4, max_increments=2) for n in names]
-    rows = bench.summarize(results)
+def test_table_complete_and_finite(smoke_rows):
+    names, rows = NAMES, smoke_rows
     assert [r["variant"] for r in rows] == names
     for r in rows:
         assert set(bench.COLUMNS) <= set(r)
@@ -44,3 +51,17 @@ def test_table_complete_and_finite():
     text = bench.table(rows) + bench.table(rows, markdown=True) + bench.acceptance_text(acc)
     assert "nan" not in text and all(n in text for n in names)
     assert "0.91" in bench.thesis_text()
+
+
+@pytest.mark.serial
+@pytest.mark.xfail(strict=True, reason="issue acceptance 'implicit penetration <= 1/3 of "
+                   "explicit' contradicted by measurement on a convex roll: the explicit "
+                   "(tangent-plane) scheme never penetrates the roll, its nodes end outside by "
+                   "about (v_t dt)^2/2R (measured gap 4.0e-3 mm vs 3.75e-3 predicted, size 0.4 "
+                   "to steady state); the implicit error is the penalty's own penetration, "
+                   "2.3e-3 mm; benchmarks/README.md")
+def test_implicit_penetration_below_a_third_of_explicit(smoke_rows):
+    acc = bench.acceptance(smoke_rows)
+    a = acc["penetration implicit <= explicit/3, analytic"]
+    print(f"analytic roll: implicit {a['implicit']:.3e} mm, explicit {a['explicit']:.3e} mm")
+    assert a["ok"]
