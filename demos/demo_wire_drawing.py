@@ -111,6 +111,7 @@ from mpi4py import MPI
 import fxcontact as fx
 from fxcontact import compat, forming
 from fxcontact.console import add_verbosity_arguments, configure_logging
+from fxcontact.steady import steady_window
 
 #: the thesis case (lengths mm, stresses MPa, times s) and our die
 DEFAULTS = dict(R0=10.0, R1=7.5, length=38.0, sector=120.0, K=445.0, m=0.016, speed=100.0,
@@ -510,11 +511,10 @@ def run(**parameters) -> dict:
         # steady state: two consecutive windows of `window` mm of pull with the same mean force
         # (each window spans element passages: the nodal force oscillates with them)
         travel = P["speed"] * sim.t
-        if steady_from is None and len(rows) >= 2 * win and travel >= settle:
-            F = np.array([q["drawing_force"] for q in rows[-2 * win:]])
-            m0, m1 = np.mean(F[:win]), np.mean(F[win:])
-            if abs(m1 - m0) < P["steady_tol"] * abs(m1):
-                steady_from, steady_to = len(rows) - win, len(rows) - 1
+        if steady_from is None and travel >= settle:
+            steady_from = steady_window(rows, ("drawing_force",), win, P["steady_tol"])
+            if steady_from is not None:
+                steady_to = len(rows) - 1
                 if P["stop_at_steady"]:
                     break
     wall = time.perf_counter() - wall0
