@@ -150,7 +150,8 @@ import fxcontact as fx
 from fxcontact import compat
 from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
-from fxcontact.power import PlasticDissipation, PressurePower
+from fxcontact.power import (PlasticDissipation, PressurePower, on_configuration,
+                             penalty_power)
 from fxcontact.steady import steady_window
 
 #: the thesis case (lengths mm, stresses MPa, times s)
@@ -331,30 +332,6 @@ def _gather(comm, arr):
     return np.concatenate(parts) if parts else np.asarray(arr)
 
 
-def _on_start_configuration(sim, X0, fn):
-    """Evaluate ``fn()`` with the mesh moved back to the vertex positions ``X0``."""
-    g = sim.mesh.geometry.x
-    vg = sim.space.vertex_geometry
-    d = sim.space.gdim
-    keep = g[vg, :d].copy()
-    g[vg, :d] = X0
-    try:
-        return fn()
-    finally:
-        g[vg, :d] = keep
-
-
-def _penalty_power(contact, v, t):
-    """Σ r_n · (v_node − v_tool) of the normal penalty forces (friction excluded), all ranks."""
-    b = contact.boundary
-    if len(b.vertices):
-        vt = contact._tool_velocities(contact._point, contact._tool, t)
-        P = float(np.sum(contact._r * (v[b.vertices] - vt)))
-    else:
-        P = 0.0
-    return b.comm.allreduce(P, op=MPI.SUM)
-
-
 # %% [markdown]
 # ## The run
 
@@ -485,9 +462,9 @@ def run(**parameters) -> dict:
         rr = res.row
         X = sim.vertex_positions()
         v = sim.w.x.array[sp.vertex_dofs]
-        D = _on_start_configuration(sim, X - rr["dt"] * v, dissipation)
-        D -= _on_start_configuration(sim, X - rr["dt"] * v, pressure_power)
-        P_pen = _penalty_power(rc, v, sim.t) + _penalty_power(pc, v, sim.t)
+        D = on_configuration(sim, X - rr["dt"] * v, dissipation)
+        D -= on_configuration(sim, X - rr["dt"] * v, pressure_power)
+        P_pen = penalty_power(rc, v, sim.t) + penalty_power(pc, v, sim.t)
         front = comm.allreduce(float(np.max(X[:, 2], initial=-np.inf)), op=MPI.MAX)
         tail = comm.allreduce(float(np.min(X[:, 2], initial=np.inf)), op=MPI.MIN)
         Fr = [float(np.array([rr[f"{roll.name}_force_{c}"] for c in "xyz"]) @ e)

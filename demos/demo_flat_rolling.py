@@ -155,7 +155,8 @@ import dolfinx.mesh
 import fxcontact as fx
 from fxcontact import compat, rolling
 from fxcontact.console import add_verbosity_arguments, configure_logging
-from fxcontact.power import PlasticDissipation, PressurePower
+from fxcontact.power import (PlasticDissipation, PressurePower, on_configuration,
+                             penalty_power)
 from fxcontact.steady import steady_window
 
 #: the thesis case (lengths mm, stresses MPa, times s)
@@ -357,10 +358,10 @@ def run(**parameters) -> dict:
         X = sim.vertex_positions()
         v = sim.w.x.array[sp.vertex_dofs]
         # dissipation on the configuration the increment was solved on (start of the increment)
-        D = _on_start_configuration(sim, X - r["dt"] * v, dissipation)
+        D = on_configuration(sim, X - r["dt"] * v, dissipation)
         # the volume correction's divergence makes the pressure work (THEORY §1.5)
-        D -= _on_start_configuration(sim, X - r["dt"] * v, pressure_power)
-        P_pen = _penalty_power(rc, v, sim.t) + _penalty_power(pc, v, sim.t)
+        D -= on_configuration(sim, X - r["dt"] * v, pressure_power)
+        P_pen = penalty_power(rc, v, sim.t) + penalty_power(pc, v, sim.t)
         P_damp = 0.0
         if damper is not None:
             vt = v[tail_b.vertices]
@@ -497,29 +498,6 @@ def run(**parameters) -> dict:
     if status == "steady" and P["pictures"] and out:
         result["pictures"] = _pictures(comm, sim, result, R, out)
     return result
-
-
-def _on_start_configuration(sim, X0, fn):
-    """Evaluate ``fn()`` with the mesh moved back to the vertex positions ``X0``."""
-    g = sim.mesh.geometry.x
-    vg = sim.space.vertex_geometry
-    d = sim.space.gdim
-    keep = g[vg, :d].copy()
-    g[vg, :d] = X0
-    try:
-        return fn()
-    finally:
-        g[vg, :d] = keep
-
-
-def _penalty_power(contact, v, t):
-    """Work rate dissipated by the normal penalty forces, Σ r_n · (v_node − v_tool) over the
-    contact nodes (``r_n``: the nodal force on the tool; friction excluded: it is the contact's
-    friction power), summed over ranks; ≈ 0 at steady state (the gap does not change)."""
-    b = contact.boundary
-    tool = contact.tools[0]
-    vt = tool.velocity(contact._point, t)[:, : contact.gdim]
-    return b.comm.allreduce(float(np.sum(contact._r * (v[b.vertices] - vt))), op=MPI.SUM)
 
 
 def _stations(x, gap):

@@ -83,6 +83,9 @@ _API = {
     "PlasticDissipation": ("power", "plastic dissipation of the current solution, for power "
                            "balances (§14.5)"),
     "plastic_dissipation": ("power", "one-off plastic dissipation integral (§14.5)"),
+    "penalty_power": ("power", "work rate of the normal penalty forces of a NodalContact"),
+    "on_configuration": ("power", "evaluate a function on another configuration of the mesh "
+                         "(e.g. the start of the increment)"),
     "steady_window": ("steady", "steady-state detection: two consecutive windows of "
                       "increments with the same means"),
     "block": ("meshing", "gmsh block, optionally refined in a box, with facet tags"),

@@ -10,6 +10,7 @@ for every pressure test function, the pressure itself included.
 
 from __future__ import annotations
 
+import numpy as np
 import ufl
 from mpi4py import MPI
 
@@ -17,7 +18,8 @@ import dolfinx
 
 from fxcontact import compat
 
-__all__ = ["PlasticDissipation", "PressurePower", "plastic_dissipation"]
+__all__ = ["PlasticDissipation", "PressurePower", "plastic_dissipation", "penalty_power",
+           "on_configuration"]
 
 
 class PlasticDissipation:
@@ -66,3 +68,33 @@ def plastic_dissipation(sim) -> float:
         pd = PlasticDissipation(sim)
         sim._fx_plastic_dissipation = pd
     return pd()
+
+
+def on_configuration(sim, X0, fn):
+    """Evaluate ``fn()`` with the mesh's vertices moved to ``X0`` (e.g. the start-of-increment
+    configuration ``X − dt v`` on which the increment's equations were written), then put them
+    back, also if ``fn`` raises."""
+    g = sim.mesh.geometry.x
+    vg = sim.space.vertex_geometry
+    d = sim.space.gdim
+    keep = g[vg, :d].copy()
+    g[vg, :d] = X0
+    try:
+        return fn()
+    finally:
+        g[vg, :d] = keep
+
+
+def penalty_power(contact, v, t):
+    """Work rate of the normal penalty forces of a :class:`~fxcontact.NodalContact`,
+    Σ r_n · (v_node − v_tool) over its contact nodes (``r_n``: the nodal force on the tool,
+    ``v``: vertex velocities; friction excluded, it is the contact's friction power), summed over
+    ranks. ≈ 0 at steady state (the gap does not change); with it the power balance of a process
+    is the discrete virtual-power identity."""
+    b = contact.boundary
+    if len(b.vertices):
+        vt = contact._tool_velocities(contact._point, contact._tool, t)
+        P = float(np.sum(contact._r * (v[b.vertices] - vt)))
+    else:
+        P = 0.0
+    return b.comm.allreduce(P, op=MPI.SUM)
