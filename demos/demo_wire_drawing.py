@@ -118,7 +118,7 @@ DEFAULTS = dict(R0=10.0, R1=7.5, length=38.0, sector=120.0, K=445.0, m=0.016, sp
                 alpha=10.0, land=2.0, fillet=2.0, relief_angle=20.0, relief_length=1.0,
                 nose_ratio=0.96, h=0.75, facet=0.5, size=1.0, dt=2.5e-3, t_end=0.37,
                 die="exact", die_mesh="gmsh", scheme="implicit", penalty="gap", beta=100.0, penalty_dt=None,
-                mu=0.0, mbar=0.0, max_it=60,
+                mu=0.0, mbar=0.0, max_it=60, line_search="bt", penalty_continuation=None,
                 window=3.0, steady_tol=0.02, settle=None, stop_at_steady=False,
                 output_dir="results/wire_drawing", pictures=True, vtk_every=0,
                 max_cutbacks=4, comm=None)
@@ -453,7 +453,9 @@ def run(**parameters) -> dict:
                                 nose_angle=P["alpha"], sector=P["sector"])
     space = fx.MixedSpace(msh)
     out = P["output_dir"]
-    opts = fx.SolverOptions(max_it=int(P["max_it"]))
+    opts = fx.SolverOptions(max_it=int(P["max_it"]), line_search=P["line_search"],
+                           line_search_fallback="bt" if P["line_search"] == "trust-region"
+                           else "basic", penalty_continuation=P["penalty_continuation"])
     sim = fx.Simulation(space, mat, solver_options=opts,
                         output_dir=out if P["vtk_every"] else None, name="wire_drawing",
                         output_every=max(1, int(P["vtk_every"] or 1)), progress=False)
@@ -619,6 +621,12 @@ def main(argv=None):
     ap.add_argument("--scheme", choices=fx.SCHEMES)
     ap.add_argument("--penalty", choices=("gap", "velocity"))
     ap.add_argument("--max_it", type=int)
+    ap.add_argument("--line_search", choices=fx.LINE_SEARCHES,
+                    help="globalisation of Newton (default bt; trust-region: fewer iterations "
+                    "at m = 0.016, see benchmarks/README.md)")
+    ap.add_argument("--penalty_continuation", type=float,
+                    help="factor f in (0, 1): each Newton solve first with the penalty x f "
+                    "(see fxcontact.SolverOptions); beta x f about 10-30 helps at m = 0.016")
     ap.add_argument("--vtk_every", type=int)
     ap.add_argument("--stop_at_steady", action="store_true", default=None)
     ap.add_argument("--no-pictures", dest="pictures", action="store_false", default=None)

@@ -128,6 +128,8 @@ _API = {
     "SolverOptions": ("solver", "Newton and linear solver settings"),
     "NewtonSolver": ("solver", "SNES Newton with a stable-active-set test (§3.6)"),
     "SolveInfo": ("solver", "outcome of a Newton solve"),
+    "LINE_SEARCHES": ("solver", "globalisations of Newton: PETSc line searches and "
+                      "'trust-region'"),
     "NonlinearProblem": ("petsc", "UFL residual/Jacobian plus nodal terms, MPI-safe"),
     "ContactProblem": ("petsc", "dolfinx NonlinearProblem plus nodal contact: your own "
                        "NewtonSolver or SNES"),

@@ -99,7 +99,9 @@ def choose_linear_solver(W) -> str:
 
 
 #: PETSc SNES line searches accepted by :class:`SolverOptions`
-LINE_SEARCHES = ("bt", "basic", "l2", "cp", "nleqerr")
+#: globalisations of the Newton step: PETSc's line searches (SNES ``newtonls``) and
+#: ``"trust-region"`` (SNES ``newtontr``: dogleg steps inside a trust region, no line search)
+LINE_SEARCHES = ("bt", "basic", "l2", "cp", "nleqerr", "trust-region")
 
 #: PETSc option keys (without prefix) written by the last solver created under each prefix
 _WRITTEN_OPTIONS: Dict[str, set] = {}
@@ -114,7 +116,13 @@ class SolverOptions:
         atol: absolute residual tolerance.
         stol: relative step tolerance ‖Δx‖/‖x‖ (a converged Newton step).
         max_it: maximum Newton iterations per solve.
-        line_search: PETSc SNES line search ("bt", "basic", "l2", "cp").
+        line_search: globalisation of the Newton step: a PETSc SNES line search ("bt",
+            "basic", "l2", "cp", "nleqerr") or ``"trust-region"`` (SNES ``newtontr``). On a
+            nearly rigid-plastic material with a stiff contact penalty the full Newton step
+            overshoots (the power-law tangent along the flow is m times the secant one) and
+            the backtracking line search then creeps with 1–10 % steps; the trust region takes
+            fewer iterations there (figures in ``benchmarks/README.md``, section "Newton at
+            m = 0.016").
         line_search_fallback: line search of a second attempt at the same time step when the
             first one fails to converge (before any cut-back), or None. Backtracking on the
             residual norm can stall when contact nodes open and close and friction nodes pass
@@ -127,6 +135,16 @@ class SolverOptions:
             P1/P1 system; ``"condensed-amg"``: the condensed system by a Schur field split
             with algebraic multigrid, :mod:`fxcontact.condense`; ``"fieldsplit"``) or a dict
             of PETSc options.
+        penalty_continuation: continuation in the contact penalty, a factor f in (0, 1), or
+            None (default, off). Each Newton solve then runs in two stages: the contributors
+            that have ``scale_penalty`` (:class:`~fxcontact.contact.NodalContact`) get ρ·f
+            and Newton stops at ``continuation_rtol``; from there, the full penalty to the
+            usual tolerances. With a nearly rigid-plastic material and a stiff penalty the
+            second stage takes 3–6 iterations and the soft first stage converges much faster
+            than the stiff problem from the predictor (figures in ``benchmarks/README.md``,
+            section "Newton at m = 0.016"). If the first stage fails, the second starts from
+            the predictor. The result is the full-penalty solution either way.
+        continuation_rtol: relative residual tolerance of the softened first stage.
         prefix: PETSc options prefix.
         petsc_options: extra PETSc options (without prefix) that override the presets.
     """
@@ -138,6 +156,8 @@ class SolverOptions:
     line_search: str = "bt"
     line_search_fallback: Optional[str] = "basic"
     linear_solver: object = "auto"
+    penalty_continuation: Optional[float] = None
+    continuation_rtol: float = 1e-3
     prefix: str = "fxc_"
     petsc_options: Dict[str, object] = field(default_factory=dict)
 
@@ -159,6 +179,13 @@ class SolverOptions:
                              f"of {sorted(LINEAR_SOLVERS)} or pass a dict of PETSc options")
         if not isinstance(self.linear_solver, (str, dict)):
             raise ValueError("linear_solver must be a preset name or a dict of PETSc options")
+        pc = self.penalty_continuation
+        if pc is not None and not (isinstance(pc, (int, float)) and 0.0 < pc < 1.0):
+            raise ValueError(f"penalty_continuation must be None or a factor in (0, 1), got "
+                             f"{pc!r}")
+        if not (np.isfinite(self.continuation_rtol) and 0.0 < self.continuation_rtol < 1.0):
+            raise ValueError(f"continuation_rtol must be in (0, 1), got "
+                             f"{self.continuation_rtol!r}")
 
     def linear_options(self) -> Dict[str, object]:
         """PETSc options of the linear solver: the preset (or dict) with ``petsc_options``
@@ -197,6 +224,8 @@ class SolveInfo:
     #: Krylov iterations of the solve (inner iterations of a condensed solver), summed over
     #: the Newton iterations
     linear_iterations: int = 0
+    #: Newton iterations of the softened and of the full stage (penalty continuation), or None
+    stage_iterations: Optional[tuple] = None
 
 
 class NewtonSolver:
@@ -234,6 +263,7 @@ class NewtonSolver:
         self._f0 = None
         self._states: list = []
         self._cycle_message = ""
+        self._rtol = options.rtol
         #: number of times the SNES/KSP/PC objects were rebuilt after a failed solve
         self.resets = 0
         PETSc.Log.begin()
@@ -245,8 +275,8 @@ class NewtonSolver:
         when this solver uses MUMPS); options the user set (command line, PETSc.Options) are
         left alone unless the presets override them."""
         opts = PETSc.Options()
-        all_opts = {"snes_type": "newtonls", "snes_linesearch_type": self.options.line_search,
-                    "snes_max_it": self.options.max_it, "snes_max_funcs": 100000}
+        all_opts = {"snes_max_it": self.options.max_it, "snes_max_funcs": 100000}
+        all_opts.update(_globalization_options(self.options.line_search))
         all_opts.update(self.options.linear_options())
         p = self.options.prefix
         for key in _WRITTEN_OPTIONS.pop(p, set()):
@@ -326,7 +356,7 @@ class NewtonSolver:
         if stable:
             if fnorm <= o.atol:
                 return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
-            if it > 0 and fnorm <= o.rtol * self._f0:
+            if it > 0 and fnorm <= self._rtol * self._f0:
                 return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_RELATIVE
             if it > 0 and snorm <= o.stol * max(xnorm, 1e-300):
                 return PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE
@@ -365,14 +395,46 @@ class NewtonSolver:
         if kind not in LINE_SEARCHES:
             raise ValueError(f"unknown line search {kind!r}; choose one of {LINE_SEARCHES}")
         # petsc4py 3.18 has no SNESLineSearch object: go through the prefixed options
-        PETSc.Options()[self.options.prefix + "snes_linesearch_type"] = kind
+        opts = PETSc.Options()
+        for key, val in _globalization_options(kind).items():
+            opts[self.options.prefix + key] = val
+            _WRITTEN_OPTIONS.setdefault(self.options.prefix, set()).add(key)
         self.snes.setFromOptions()
 
     def _linear_time(self) -> float:
         return sum(e.getPerfInfo()["time"] for e in self._ev)
 
     def solve(self) -> SolveInfo:
-        """Solve from the current content of ``problem.w`` (the initial guess)."""
+        """Solve from the current content of ``problem.w`` (the initial guess); with
+        ``penalty_continuation``, a softened first stage then the full problem."""
+        f = self.options.penalty_continuation
+        soft = [c for c in self.problem.contributors if hasattr(c, "scale_penalty")]
+        if f is None or not soft:
+            return self._solve()
+        w0 = self.problem.w.x.array.copy()
+        try:
+            for c in soft:
+                c.scale_penalty(f)
+            self._rtol = self.options.continuation_rtol
+            first = self._solve()
+        finally:
+            for c in soft:
+                c.scale_penalty(1.0)
+            self._rtol = self.options.rtol
+        if not first.converged:
+            log.debug("penalty continuation: the softened stage failed (%s); full problem from "
+                      "the predictor", first.message)
+            self.problem.w.x.array[:] = w0
+            self.problem.w.x.scatter_forward()
+        info = self._solve()
+        info.iterations += first.iterations
+        info.linear_iterations += first.linear_iterations
+        for key, val in first.times.items():
+            info.times[key] = info.times.get(key, 0.0) + val
+        info.stage_iterations = (first.iterations, info.iterations - first.iterations)
+        return info
+
+    def _solve(self) -> SolveInfo:
         prob = self.problem
         prob.error = None
         prob.timers.reset()
@@ -435,6 +497,13 @@ class NewtonSolver:
         self.snes.destroy()
         self.A.destroy()
         self.b.destroy()
+
+
+def _globalization_options(kind: str) -> Dict[str, str]:
+    """SNES options (without prefix) of a :data:`LINE_SEARCHES` entry."""
+    if kind == "trust-region":
+        return {"snes_type": "newtontr"}
+    return {"snes_type": "newtonls", "snes_linesearch_type": kind}
 
 
 def _reason_name(reason: int) -> str:

@@ -37,11 +37,13 @@ def _drawing_bounds():
     return ideal, avitzur * area_f
 
 
-def _run(max_it, max_cutbacks, **kw):
+def _run(max_it, max_cutbacks, line_search="bt", line_search_fallback="basic",
+         penalty_continuation=None, **kw):
     from fxcontact.solver import SolverOptions
 
     sim, _, _ = drawing.drawing_simulation(MPI.COMM_WORLD, solver_options=SolverOptions(
-        max_it=max_it), **{**CASE, **kw})
+        max_it=max_it, line_search=line_search, line_search_fallback=line_search_fallback,
+        penalty_continuation=penalty_continuation), **{**CASE, **kw})
     for _ in range(N_INC):
         sim.step(DT, max_cutbacks=max_cutbacks)
     its = [r["newton_iterations_all"] for r in sim.history]
@@ -99,3 +101,53 @@ def test_drawing_m0016_default_penalty_mean_six_newton_iterations():
     except IncrementError as e:
         pytest.fail(f"increment failed: {e}")
     assert np.mean(its) <= 6
+
+
+def test_drawing_m0016_default_penalty_trust_region_beats_backtracking():
+    """With the default penalty (β = 1e3) and regularisation, the trust-region Newton
+    (``line_search="trust-region"``) reaches the same solution as the backtracking line search
+    in fewer Newton iterations (no fallback, no cut-back). Measured (1 rank, 2.5k dofs):
+    backtracking 60, 30, 42; trust region 35, 28, 25."""
+    sims, its = {}, {}
+    for ls in ("bt", "trust-region"):
+        sims[ls], its[ls] = _run(max_it=100, max_cutbacks=0, line_search=ls,
+                                 line_search_fallback=None)
+        assert all(r["cutbacks"] == 0 for r in sims[ls].history)
+    if MPI.COMM_WORLD.rank == 0:
+        print(f"Newton iterations: backtracking {its['bt']}, trust region {its['trust-region']}")
+    f_bt = [r["front_z"] for r in sims["bt"].history]
+    f_tr = [r["front_z"] for r in sims["trust-region"].history]
+    assert np.allclose(f_tr, f_bt, rtol=1e-6)
+    lower, upper = _drawing_bounds()
+    assert lower < 4.0 * f_tr[-1] < upper
+    assert sum(its["trust-region"]) < 0.8 * sum(its["bt"])
+
+
+def test_drawing_m0016_penalty_continuation_same_solution_fewer_iterations():
+    """Penalty continuation (``SolverOptions.penalty_continuation = 0.03``: each solve first
+    with β·0.03 = 30 to a relative residual of 1e-3, then β = 1e3) gives the same solution as
+    the plain solve in fewer Newton iterations. ε̇₀ = 1e-2 × the die's mean strain rate.
+    Measured (1 rank, 2.5k dofs): plain 28, 32, 43; continuation 11, 11, 22."""
+    rate = drawing.mean_strain_rate(R0, REDUCTION, ALPHA, SPEED * (1.0 - REDUCTION))
+    sims, its = {}, {}
+    for pc in (None, 0.03):
+        sims[pc], its[pc] = _run(max_it=100, max_cutbacks=0, line_search_fallback=None,
+                                 penalty_continuation=pc, regularization=1e-2 * rate)
+        assert all(r["cutbacks"] == 0 for r in sims[pc].history)
+    if MPI.COMM_WORLD.rank == 0:
+        print(f"Newton iterations: plain {its[None]}, continuation {its[0.03]}")
+    f0 = [r["front_z"] for r in sims[None].history]
+    f1 = [r["front_z"] for r in sims[0.03].history]
+    assert np.allclose(f1, f0, rtol=1e-6)
+    # the penalty is restored after the solves
+    contact = sims[0.03].contributors[0]
+    assert contact.penalty_scale == 1.0
+    assert sum(its[0.03]) < 0.6 * sum(its[None])
+
+
+@pytest.mark.parametrize("bad", [0.0, 1.0, -0.1, 2.0, float("nan"), "0.1"])
+def test_penalty_continuation_bad_factor(bad):
+    from fxcontact.solver import SolverOptions
+
+    with pytest.raises(ValueError, match="penalty_continuation"):
+        SolverOptions(penalty_continuation=bad)

@@ -233,6 +233,9 @@ class NodalContact:
         self._penalty, self.beta = penalty, beta
         self.strain_rate = strain_rate
         self.sticky_gap = float(sticky_gap)
+        #: factor on ρ of the current evaluations (< 1 in the softened first stage of a
+        #: Newton solve with penalty continuation, SolverOptions.penalty_continuation)
+        self.penalty_scale = 1.0
         self.kernel = penalty_kernel if backend == "numba" else penalty_kernel_numpy
         self.friction_kernel = friction_kernel if backend == "numba" else friction_kernel_numpy
         self.friction = self._friction_per_tool(friction, tools)
@@ -566,6 +569,13 @@ class NodalContact:
                 vt[sel] = tool.velocity(points[sel], t)
         return vt[:, : self.gdim]
 
+    def scale_penalty(self, factor: float):
+        """Multiply the penalty ρ by ``factor`` in the following evaluations (1 restores it);
+        used by the penalty continuation of :class:`~fxcontact.solver.NewtonSolver`."""
+        if not (math.isfinite(factor) and factor > 0):
+            raise ValueError(f"penalty scale must be finite and > 0, got {factor!r}")
+        self.penalty_scale = float(factor)
+
     def begin_solve(self):
         self._status_prev = None
         self._settled = False
@@ -633,7 +643,8 @@ class NodalContact:
         else:
             tangent_active = active
         g = np.ascontiguousarray(g)
-        r, K = self.kernel(b.areas, self.rho, h, g, np.ascontiguousarray(Hh),
+        rho = self.rho * self.penalty_scale
+        r, K = self.kernel(b.areas, rho, h, g, np.ascontiguousarray(Hh),
                            tangent_active, jacobian)
         self._h, self._tool, self._feature = h, tool_idx, feature
         self._point = self._cur_proj.point
@@ -643,7 +654,7 @@ class NodalContact:
             # r = S ρ[h]₊ ∇h is the force conjugate to v: with a non-Cartesian update
             # ∇h = −Jᵀn/dt is n turned back by the increment's rotation; the force on the tool
             # (outputs: tool_force, tool_torque) is the physical one, −S ρ[h]₊ n at X(v)
-            self._r = -(b.areas * self.rho * np.maximum(h, 0.0))[:, None] * \
+            self._r = -(b.areas * rho * np.maximum(h, 0.0))[:, None] * \
                 self._cur_proj.normal[:, : self.gdim]
         if self.has_friction:
             rf, Kf = self._friction_terms(v, h, g, tool_idx, jacobian)
@@ -681,8 +692,9 @@ class NodalContact:
         q = np.array([getattr(law, "q", 1.0) for law in laws])[tool_idx]
         if self.friction_mode == "implicit":
             active = h > 0
-            pn = self.rho * np.maximum(h, 0.0)
-            dpn = np.ascontiguousarray(self.rho * active[:, None] * g)
+            rho = self.rho * self.penalty_scale
+            pn = rho * np.maximum(h, 0.0)
+            dpn = np.ascontiguousarray(rho * active[:, None] * g)
         else:
             pn = self._p_prev
             active = pn > 0
@@ -785,7 +797,7 @@ class NodalContact:
         """(N,) nodal contact pressures ρ[h]₊ of the last evaluation."""
         if self.rho is None:  # before the first increment resolves ρ from β
             return np.zeros_like(self._h)
-        return self.rho * np.maximum(self._h, 0.0)
+        return self.rho * self.penalty_scale * np.maximum(self._h, 0.0)
 
     def end_increment(self, sim, dt: float):
         """Measure the true penetration of the updated nodes against the tools at t + dt."""
