@@ -105,6 +105,8 @@ DEFAULTS = dict(case=2, R1=150.0, R2=40.0, R=100.0, r=60.0, H=40.0, Rg=40.0, gui
                 scheme="implicit", tools="analytic", facet_size=None, volume_correction="none",
                 mu_bite=0.3, max_increments=100000, output_dir="results/ring_rolling", name=None,
                 pictures=True, vtk_every=0, comm=None)
+#: how the idle mandrel's rotation speed is found (fxcontact.IdleRotation's method)
+DEFAULTS["idle_method"] = "auto"
 
 #: the reduced size of the tests: coarse ring, a quarter of a revolution
 QUICK = dict(n_theta=100, n_r=3, n_z=1, increments_per_rev=50, revolutions=0.2,
@@ -226,7 +228,7 @@ def run(**parameters) -> dict:
     centring = RingCentring(outer, guides, [Rg, Rg], [phi, -phi], update=update,
                             clearance=P["guide_clearance"])
     sim.add_controller(centring)
-    idle = IdleRotation(contact, mandrel)
+    idle = IdleRotation(contact, mandrel, method=P["idle_method"])
     sim.add_controller(idle)
     sim.add_contributor(contact)
     V0 = sim.volume()
@@ -566,6 +568,8 @@ def main(argv=None):
                                          "explicit"))
     ap.add_argument("--tools", choices=("analytic", "faceted"))
     ap.add_argument("--volume_correction", choices=("none", "global"))
+    ap.add_argument("--idle_method", choices=("auto", "bordered", "outer"),
+                    help="idle mandrel: omega eliminated inside Newton, or the outer iteration")
     ap.add_argument("--output-dir", dest="output_dir")
     add_verbosity_arguments(ap)
     a = ap.parse_args(argv)
