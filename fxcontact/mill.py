@@ -21,19 +21,53 @@ start of each increment (before the contributors project on the tools) and, for
 **Idle tool: design.** Three ways were considered: (a) an outer scalar iteration on the torque
 T(ω) = 0 per increment, each evaluation a Newton solve warm-started from the previous one;
 (b) ω as an extra unknown of a bordered Newton system; (c) ω*(v) eliminated locally with the
-rank-one Jacobian correction. Solving ω from T = 0 inside each residual evaluation without the
-coupling term (a crude (c)) diverges as soon as nodes stick: the torque is then a very steep
-function of ω (slope ~ μ p S R² / v₀ with the slip regularisation v₀) and the lagged ω
-oscillates. (a) is used here: it needs no change of the Newton solver, the torque is a global
-sum (``allreduce``) so every rank takes the same decisions, and each evaluation is an ordinary,
-converged increment. T(ω) is decreasing (a tool that turns slower than the ring's surface is
-dragged forward). The first evaluation is at the previous increment's ω, the second at the
-rolling-without-slip speed ω_free of the converged field (least-squares rotation of the contact
-nodes' velocities about the tool axis), then secant steps, Illinois (modified regula falsi)
-once the root is bracketed. Convergence: |T| ≤ ``torque_rtol`` · |F| · R̄ (|F| the tool's
-contact force, R̄ the mean lever arm of its contact nodes) with ``torque_rtol`` not below 10×
-the Newton tolerance. Measured on the ring-rolling demo: 6–9 Newton solves per increment
-(the first a full solve, the next ones warm-started), 4–8× the cost of a driven-only increment.
+rank-one Jacobian correction. Solving ω from T = 0 inside each residual evaluation *without*
+the coupling term (a crude (c)) diverges as soon as nodes stick: the torque is then a very
+steep function of ω (slope ~ μ p S R² / v₀ with the slip regularisation v₀) and the lagged ω
+oscillates. Two methods are implemented (``IdleRotation(..., method=...)``):
+
+* ``"bordered"`` — the exact (c), the default when it applies (tools of revolution about
+  their rotation axes, implicit contact). For such a tool its surface does not move when ω
+  changes: only the friction depends on ω, through the slip against the tool's surface
+  velocity ω e × (P − a) + translation. At every contact evaluation inside Newton (residual,
+  line search, Jacobian) ω*(v) is solved from T(v, ω) = 0 at the current projection: T is
+  a global sum Σ r_f·(e × (P − a)) over the tool's friction nodes, strictly decreasing in ω,
+  and a safeguarded scalar Newton (bracketing, bisection; the kernel on the tool's nodes and
+  one ``allreduce`` per step, so every rank takes the same steps) converges to a step below
+  1e-13 v₀/R̄ in a few iterations from the previous ω. The residual is then R(v, ω*(v)) with
+  T = 0 to round-off, and its Jacobian is J − u D⁻¹ gᵀ with u = ∂R/∂ω (on the tool's contact
+  nodes), g = ∂T/∂v, D = ∂T/∂ω (< 0): the block elimination of the bordered system (b) with
+  the torque equation always satisfied, so Newton's line search and convergence test see the
+  torque equation exactly. The friction kernel gives the blocks ∂r_f/∂Δv (with and without
+  the implicit Coulomb ∂p_n/∂v term): u = −K m, g = K_vᵀ m, D = −Σ mᵀ K m with
+  m = e × (P − a), in the friction tangent the contact's Jacobian uses. The linear solve is
+  that of the solver's options wrapped by :class:`fxcontact.solver.BorderedPC` (Woodbury:
+  one more application of the preconditioner per idle tool, i.e. one more pair of
+  triangular solves with MUMPS, no new factorisation; a second Krylov solve with an
+  iterative one), the SNES operator being the exact product with the corrected matrix. Several
+  idle tools (mandrel and guide rolls) are k borders: their ω are independent (a node touches
+  one tool), D is diagonal, the correction needs k more applications and a k×k solve; give
+  them all to one ``IdleRotation(contact, [mandrel, guide1, guide2])`` (one controller may
+  take over the solve). Not handled (→ ``"outer"``): faceted tools (their facets turn with
+  ω), explicit and quasi-implicit contact (the tool velocity frozen per increment), inclined
+  symmetry planes (projected Newton systems).
+* ``"outer"`` — (a): no change of the Newton solver, the torque a global sum so every rank
+  takes the same decisions, each evaluation an ordinary, converged increment. T(ω) is
+  decreasing (a tool that turns slower than the ring's surface is dragged forward). The first
+  evaluation is at the previous increment's ω, the second at the rolling-without-slip speed
+  ω_free of the converged field (least-squares rotation of the contact nodes' velocities
+  about the tool axis), then secant steps, Illinois (modified regula falsi) once the root is
+  bracketed. Convergence: |T| ≤ ``torque_rtol`` · |F| · R̄ (|F| the tool's contact force, R̄
+  the mean lever arm of its contact nodes) with ``torque_rtol`` not below 10× the Newton
+  tolerance. One tool per controller.
+
+Measured (``demos/demo_ring_rolling.py --case 2``, one rank of a shared 2-core machine, the
+same command with ``--idle_method outer`` / ``bordered``; ``benchmarks/README.md``): at the
+quick size (``--quick --revolutions 0.06``, 3 increments) the outer method needed 3–4 Newton
+solves per increment, 30–34 Newton iterations in all, the bordered one 18–26 iterations in one
+solve (fewer residual and Jacobian evaluations: 183 against 254 over the 3 increments; CPU
+time 19 s against 26 s); the same mandrel ω to 1e-9 relative, its torque 5e-7 N mm against
+0.2–2 N mm (tolerance 40–55 N mm). IDLE_FIGURES_DEFAULT_SIZE
 
 **Frictionless idle tool**: the torque is zero for every ω (normal forces pass through the
 axis), ω is undetermined and has no effect; it is set after the solve to ω_free (the ring's
