@@ -650,7 +650,7 @@ class IdleRotation:
             n_fr = c.boundary.comm.allreduce(
                 int(np.sum((c._tool == k) & (c._h > 0))), op=MPI.SUM)
             if self.frictionless_tools[j]:
-                om = rolling_speed(c, k, sim.w) if n_fr else self.omegas[j]
+                om = rolling_speed(c, k, sim.w)    # 0 without contact, as the outer method
                 mot.set_rates(self._t, angular_velocity=om)
                 tol = 0.0
             else:
