@@ -107,6 +107,8 @@ DEFAULTS = dict(case=2, R1=150.0, R2=40.0, R=100.0, r=60.0, H=40.0, Rg=40.0, gui
                 pictures=True, vtk_every=0, comm=None)
 #: how the idle mandrel's rotation speed is found (fxcontact.IdleRotation's method)
 DEFAULTS["idle_method"] = "auto"
+#: the guide rolls with the mandrel's friction, idle too (one IdleRotation for all idle tools)
+DEFAULTS["idle_guides"] = False
 
 #: the reduced size of the tests: coarse ring, a quarter of a revolution
 QUICK = dict(n_theta=100, n_r=3, n_z=1, increments_per_rev=50, revolutions=0.2,
@@ -217,6 +219,8 @@ def run(**parameters) -> dict:
     friction = {"main_roll": _friction(case["main_friction"])}
     if case["mandrel_friction"] is not None:
         friction["mandrel"] = _friction(case["mandrel_friction"])
+        if P["idle_guides"]:
+            friction.update({g.name: _friction(case["mandrel_friction"]) for g in guides})
     tags = [fx.RING_TAGS["outer"], fx.RING_TAGS["inner"]]
     contact = fx.NodalContact(fx.ContactBoundary(sp, ft, tags), tools, scheme=P["scheme"],
                               friction=friction, slip_velocity=1e-3 * v_s, name="mill",
@@ -228,7 +232,8 @@ def run(**parameters) -> dict:
     centring = RingCentring(outer, guides, [Rg, Rg], [phi, -phi], update=update,
                             clearance=P["guide_clearance"])
     sim.add_controller(centring)
-    idle = IdleRotation(contact, mandrel, method=P["idle_method"])
+    idle = IdleRotation(contact, [mandrel] + guides if P["idle_guides"] else mandrel,
+                        method=P["idle_method"])
     sim.add_controller(idle)
     sim.add_contributor(contact)
     V0 = sim.volume()
@@ -570,6 +575,8 @@ def main(argv=None):
     ap.add_argument("--volume_correction", choices=("none", "global"))
     ap.add_argument("--idle_method", choices=("auto", "bordered", "outer"),
                     help="idle mandrel: omega eliminated inside Newton, or the outer iteration")
+    ap.add_argument("--idle_guides", action="store_true",
+                    help="guide rolls with the mandrel's friction, idle too (bordered method)")
     ap.add_argument("--output-dir", dest="output_dir")
     add_verbosity_arguments(ap)
     a = ap.parse_args(argv)

@@ -289,3 +289,33 @@ def test_ring_bordered_one_and_two_ranks_agree(ring):
               "ring_omega", "outer_diameter"):
         assert abs(a[k] - b[k]) <= 1e-8 * abs(b[k]), (k, a[k], b[k])
     assert math.isfinite(a["mandrel_idle_torque"])
+
+
+def test_ring_three_idle_tools(monkeypatch):
+    """Mandrel and both guide rolls idle with Coulomb friction, in one IdleRotation (three
+    borders), the guide rolls pressed on the ring: one Newton solve, every torque zero to
+    round-off, and each idle roll turns at the body's rolling speed (surface slip of the order
+    of the slip regularisation v₀ = 1e-3 of the roll speed, not a free-wheeling mismatch)."""
+    from fxcontact import mill
+    made = []
+
+    class Captured(mill.IdleRotation):
+        def __init__(self, *a, **k):
+            super().__init__(*a, **k)
+            made.append(self)
+    monkeypatch.setattr(demo, "IdleRotation", Captured)
+    res = demo.run(**ONE, idle_guides=True, guide_clearance=-0.2)
+    assert res["status"] == "done"
+    idle, = made
+    assert idle.method == "bordered" and [t.name for t in idle.tools] == \
+        ["mandrel", "guide1", "guide2"]
+    q = res["history"][0]
+    assert q["nodes_guides"] > 0 and q["nodes_mandrel"] > 0
+    d = idle.diagnostics()
+    v0 = 1e-3 * 2 * math.pi * 150.0
+    for name in ("mandrel", "guide1", "guide2"):
+        assert d[f"{name}_idle_solves"] == 1
+        assert abs(d[f"{name}_idle_torque"]) <= 1e-3 * d[f"{name}_idle_tolerance"], name
+        assert abs(d[f"{name}_surface_slip"]) < 5 * v0, (name, d[f"{name}_surface_slip"])
+    # the guide rolls turn against the ring's outer surface (clockwise about +z)
+    assert d["guide1_omega"] < 0 and d["guide2_omega"] < 0
