@@ -71,6 +71,10 @@
 #   tolerance of 89 N mm, mandrel surface / bore speed 0.997, surface slip ≤ 1.2 mm/s (v₀ =
 #   0.94 mm/s), main roll force 0.66 × 2kHLQ (still rising), centre ≤ 0.32 mm off the line.
 #   **Two revolutions of case 2 were not run** (about 3 h at this size).
+# * idle mandrel: the case-2 figures above are those of the outer iteration
+#   (``--idle_method outer``); the default now eliminates ω inside Newton (``bordered``): one
+#   Newton solve per increment, 1.3–2.7× fewer Newton iterations, the same ω and forces
+#   (``benchmarks/README.md``). ``--idle_guides`` makes the guide rolls idle with friction too.
 #
 # Not modelled: the axial cone rolls (case 1), temperature. With this coarse mesh the bite
 # (L = 15.5 mm in case 1, 8.9 mm in case 2) holds only a few nodes around.
