@@ -21,19 +21,57 @@ start of each increment (before the contributors project on the tools) and, for
 **Idle tool: design.** Three ways were considered: (a) an outer scalar iteration on the torque
 T(ω) = 0 per increment, each evaluation a Newton solve warm-started from the previous one;
 (b) ω as an extra unknown of a bordered Newton system; (c) ω*(v) eliminated locally with the
-rank-one Jacobian correction. Solving ω from T = 0 inside each residual evaluation without the
-coupling term (a crude (c)) diverges as soon as nodes stick: the torque is then a very steep
-function of ω (slope ~ μ p S R² / v₀ with the slip regularisation v₀) and the lagged ω
-oscillates. (a) is used here: it needs no change of the Newton solver, the torque is a global
-sum (``allreduce``) so every rank takes the same decisions, and each evaluation is an ordinary,
-converged increment. T(ω) is decreasing (a tool that turns slower than the ring's surface is
-dragged forward). The first evaluation is at the previous increment's ω, the second at the
-rolling-without-slip speed ω_free of the converged field (least-squares rotation of the contact
-nodes' velocities about the tool axis), then secant steps, Illinois (modified regula falsi)
-once the root is bracketed. Convergence: |T| ≤ ``torque_rtol`` · |F| · R̄ (|F| the tool's
-contact force, R̄ the mean lever arm of its contact nodes) with ``torque_rtol`` not below 10×
-the Newton tolerance. Measured on the ring-rolling demo: 6–9 Newton solves per increment
-(the first a full solve, the next ones warm-started), 4–8× the cost of a driven-only increment.
+rank-one Jacobian correction. Solving ω from T = 0 inside each residual evaluation *without*
+the coupling term (a crude (c)) diverges as soon as nodes stick: the torque is then a very
+steep function of ω (slope ~ μ p S R² / v₀ with the slip regularisation v₀) and the lagged ω
+oscillates. Two methods are implemented (``IdleRotation(..., method=...)``):
+
+* ``"bordered"`` — the exact (c), the default when it applies (tools of revolution about
+  their rotation axes, implicit contact). For such a tool its surface does not move when ω
+  changes: only the friction depends on ω, through the slip against the tool's surface
+  velocity ω e × (P − a) + translation. At every contact evaluation inside Newton (residual,
+  line search, Jacobian) ω*(v) is solved from T(v, ω) = 0 at the current projection: T is
+  a global sum Σ r_f·(e × (P − a)) over the tool's friction nodes, strictly decreasing in ω,
+  and a safeguarded scalar Newton (bracketing, bisection; the kernel on the tool's nodes and
+  one ``allreduce`` per step, so every rank takes the same steps) converges to a step below
+  1e-13 v₀/R̄ in a few iterations from the previous ω. The residual is then R(v, ω*(v)) with
+  T = 0 to round-off, and its Jacobian is J − u D⁻¹ gᵀ with u = ∂R/∂ω (on the tool's contact
+  nodes), g = ∂T/∂v, D = ∂T/∂ω (< 0): the block elimination of the bordered system (b) with
+  the torque equation always satisfied, so Newton's line search and convergence test see the
+  torque equation exactly. The friction kernel gives the blocks ∂r_f/∂Δv (with and without
+  the implicit Coulomb ∂p_n/∂v term): u = −K m, g = K_vᵀ m, D = −Σ mᵀ K m with
+  m = e × (P − a), in the friction tangent the contact's Jacobian uses. The linear solve is
+  that of the solver's options wrapped by :class:`fxcontact.solver.BorderedPC` (Woodbury:
+  one more application of the preconditioner per idle tool, i.e. one more pair of
+  triangular solves with MUMPS, no new factorisation; a second Krylov solve with an
+  iterative one), the SNES operator being the exact product with the corrected matrix. Several
+  idle tools (mandrel and guide rolls) are k borders: their ω are independent (a node touches
+  one tool), D is diagonal, the correction needs k more applications and a k×k solve; give
+  them all to one ``IdleRotation(contact, [mandrel, guide1, guide2])`` (one controller may
+  take over the solve). Not handled (→ ``"outer"``): faceted tools (their facets turn with
+  ω), explicit and quasi-implicit contact (the tool velocity frozen per increment), inclined
+  symmetry planes (projected Newton systems).
+* ``"outer"`` — (a): no change of the Newton solver, the torque a global sum so every rank
+  takes the same decisions, each evaluation an ordinary, converged increment. T(ω) is
+  decreasing (a tool that turns slower than the ring's surface is dragged forward). The first
+  evaluation is at the previous increment's ω, the second at the rolling-without-slip speed
+  ω_free of the converged field (least-squares rotation of the contact nodes' velocities
+  about the tool axis), then secant steps, Illinois (modified regula falsi) once the root is
+  bracketed. Convergence: |T| ≤ ``torque_rtol`` · |F| · R̄ (|F| the tool's contact force, R̄
+  the mean lever arm of its contact nodes) with ``torque_rtol`` not below 10× the Newton
+  tolerance. One tool per controller.
+
+Measured (``demos/demo_ring_rolling.py --case 2``, one rank of a shared 2-core machine, the
+same command with ``--idle_method outer`` / ``bordered``; ``benchmarks/README.md``): at the
+quick size (``--quick --revolutions 0.06``, 3 increments) the outer method needed 3–4 Newton
+solves per increment, 30–34 Newton iterations in all, the bordered one 18–26 iterations in one
+solve (fewer residual and Jacobian evaluations: 183 against 254 over the 3 increments; CPU
+time 19 s against 26 s); the same mandrel ω to 1e-9 relative, its torque 5e-7 N mm against
+0.2–2 N mm (tolerance 40–55 N mm). At the demo's default size (``--revolutions 0.05``, 3
+increments): outer 5–9 solves, 46–72 Newton iterations per increment; bordered 17–28 in one
+solve; CPU time of the run 55 s against 112 s; ω equal to 1.4e-7 relative (the outer
+method's torque tolerance), forces to 7e-7. The wall time per increment follows the
+iteration count (noisy on the shared machine).
 
 **Frictionless idle tool**: the torque is zero for every ω (normal forces pass through the
 axis), ω is undetermined and has no effect; it is set after the solve to ω_free (the ring's
@@ -191,50 +229,451 @@ def _lever_arm_and_force(contact, k: int):
     return float(np.linalg.norm(F)), (s / n if n > 0 else 0.0)
 
 
+#: methods of :class:`IdleRotation`
+IDLE_METHODS = ("auto", "bordered", "outer")
+
+
+def _revolves_about_own_axis(tool: Tool) -> bool:
+    """True if ``tool`` is an analytic surface of revolution (cylinder, cone, sphere, revolved
+    profile) whose axis is its motion's rotation axis: turning it about that axis leaves its
+    surface in place, so its geometry does not depend on its rotation speed."""
+    from fxcontact.tools.analytic import Cone, Cylinder, Sphere
+    from fxcontact.tools.base import MovedTool
+    from fxcontact.tools.revolved import RevolvedProfile
+    base = tool.tool if isinstance(tool, MovedTool) else tool
+    e = unit_vector(tool.motion.axis, "tool axis")
+    a0 = np.asarray(tool.motion.axis_point, dtype=np.float64)
+    if isinstance(base, Sphere):
+        p = np.asarray(base.center, dtype=np.float64)
+    elif isinstance(base, (Cylinder, Cone, RevolvedProfile)):
+        if abs(abs(float(np.dot(base.axis, e))) - 1.0) > 1e-12:
+            return False
+        p = np.asarray(base.apex if isinstance(base, Cone) else
+                       base.axis_point if isinstance(base, RevolvedProfile) else base.point,
+                       dtype=np.float64)
+    else:
+        return False
+    d = p - a0
+    d -= (d @ e) * e
+    scale = max(1.0, float(np.linalg.norm(p)), float(np.linalg.norm(a0)))
+    return float(np.linalg.norm(d)) <= 1e-12 * scale
+
+
+class _EliminatedContact:
+    """Stands for the contact in the Newton problem during a bordered solve: each evaluation
+    first eliminates the idle tools' rotation speeds (:meth:`IdleRotation._eliminate`)."""
+
+    def __init__(self, idle: "IdleRotation"):
+        self._idle = idle
+
+    def evaluate(self, w, jacobian: bool):
+        return self._idle._eliminate(w, jacobian)
+
+    def __getattr__(self, name):     # stable(), fingerprint(), begin_solve(), ...
+        return getattr(self._idle.contact, name)
+
+
+class _Border:
+    """The border (U, G, D) of the Newton matrix, filled at the Jacobian evaluations
+    (:meth:`fxcontact.solver.NewtonSolver.set_border`)."""
+
+    def __init__(self):
+        self.current = None
+
+    def vectors(self):
+        return self.current
+
+
 class IdleRotation:
-    """An idle tool: its rotation speed is found at each increment from zero torque about its
-    own axis (the mandrel and the guide rolls of a ring mill). See the module docstring for the
-    method (outer secant/Illinois iteration on T(ω), warm-started Newton solves).
+    """Idle tools: their rotation speeds are found at each increment from zero torque about
+    their own axes (the mandrel and the guide rolls of a ring mill). See the module docstring
+    for the methods.
 
     Args:
-        contact: the :class:`~fxcontact.contact.NodalContact` holding the tool.
-        tool: the idle tool (one of ``contact.tools``), moved by a :class:`ControlledMotion`.
+        contact: the :class:`~fxcontact.contact.NodalContact` holding the tools.
+        tool: the idle tool (one of ``contact.tools``) moved by a :class:`ControlledMotion`, or
+            a sequence of such tools (``method="bordered"`` only: one controller for every idle
+            tool of the contact).
         torque_rtol: convergence |T| ≤ torque_rtol·|F|·R̄ (raised to 10× the Newton rtol if
-            smaller).
-        max_evaluations: Newton solves per increment before the increment is declared failed
-            (and cut back).
+            smaller); with the bordered method the torque is eliminated to round-off at every
+            evaluation and this is a check of the accepted solution.
+        max_evaluations: Newton solves per increment of the outer method before the increment
+            is declared failed (and cut back).
+        method: ``"bordered"`` (the rotation speeds eliminated inside Newton, one Newton solve
+            per increment; needs tools of revolution about their rotation axes and an
+            implicit contact scheme in the velocity formulation), ``"outer"`` (a secant /
+            Illinois iteration of Newton solves on T(ω) = 0; one tool; any tool and scheme) or
+            ``"auto"`` (default: bordered when it applies, else outer).
 
-    History columns: ``{tool}_omega`` (rad/s), ``{tool}_idle_torque`` (the torque at the
-    accepted solve), ``{tool}_idle_tolerance``, ``{tool}_idle_solves`` and ``{tool}_surface_
-    slip`` (ω R̄ − ω_free R̄: the tool's surface speed minus the body's rolling speed).
+    History columns (per tool): ``{tool}_omega`` (rad/s), ``{tool}_idle_torque`` (the torque
+    at the accepted solve), ``{tool}_idle_tolerance``, ``{tool}_idle_solves`` (Newton solves of
+    the increment), ``{tool}_idle_local_iterations`` (bordered: scalar iterations of the
+    elimination, summed over the increment's evaluations) and ``{tool}_surface_slip``
+    (ω R̄ − ω_free R̄: the tool's surface speed minus the body's rolling speed).
     """
 
-    def __init__(self, contact, tool: Tool, torque_rtol: float = 1e-6,
-                 max_evaluations: int = 12):
-        if tool not in contact.tools:
-            raise ValueError(f"tool '{tool.name}' is not one of the contact's tools "
-                             f"{[t.name for t in contact.tools]}")
-        self.motion = _controlled(tool)
+    def __init__(self, contact, tool, torque_rtol: float = 1e-6,
+                 max_evaluations: int = 12, method: str = "auto"):
+        tools = [tool] if isinstance(tool, Tool) else list(tool)
+        if not tools or not all(isinstance(t, Tool) for t in tools):
+            raise ValueError(f"tool must be a Tool or a non-empty sequence of Tools, got "
+                             f"{tool!r}")
+        for t in tools:
+            if not any(t is c for c in contact.tools):
+                raise ValueError(f"tool '{t.name}' is not one of the contact's tools "
+                                 f"{[c.name for c in contact.tools]}")
+        if len({id(t) for t in tools}) != len(tools):
+            raise ValueError(f"an idle tool is given twice: {[t.name for t in tools]}")
+        self.motions = [_controlled(t) for t in tools]
         if not (math.isfinite(torque_rtol) and torque_rtol > 0):
             raise ValueError(f"torque_rtol must be > 0, got {torque_rtol!r}")
         if not (isinstance(max_evaluations, int) and max_evaluations >= 2):
             raise ValueError(f"max_evaluations must be an integer >= 2, got {max_evaluations!r}")
+        if method not in IDLE_METHODS:
+            raise ValueError(f"unknown idle-rotation method {method!r}; choose one of "
+                             f"{IDLE_METHODS}")
+        revolved = [_revolves_about_own_axis(t) for t in tools]
+        implicit = (contact.scheme in ("implicit", "implicit-exact")
+                    and getattr(contact, "formulation", "velocity") == "velocity")
+        if method == "auto":
+            method = "bordered" if all(revolved) and implicit else "outer"
+        if method == "bordered":
+            if not all(revolved):
+                bad = [t.name for t, r in zip(tools, revolved) if not r]
+                raise ValueError(f"the bordered idle rotation needs tools of revolution about "
+                                 f"their rotation axes (analytic cylinder, cone, sphere or "
+                                 f"revolved profile); {bad} are not: use method='outer'")
+            if not implicit:
+                raise ValueError(f"the bordered idle rotation needs the implicit contact "
+                                 f"schemes in the velocity formulation (the tool velocity at "
+                                 f"every evaluation), got scheme '{contact.scheme}': use "
+                                 f"method='outer'")
+        elif len(tools) > 1:
+            raise ValueError("the outer idle iteration handles one tool; several idle tools "
+                             "need method='bordered'")
+        self.method = method
         self.contact = contact
-        self.tool = tool
-        self.k = contact.tools.index(tool)
-        self.frictionless = contact.friction[self.k].code == LAW_NONE
+        self.tools = tools
+        self.ks = [next(k for k, c in enumerate(contact.tools) if c is t) for t in tools]
+        self.frictionless_tools = [contact.friction[k].code == LAW_NONE for k in self.ks]
+        # the first tool under the names of the single-tool interface
+        self.tool, self.k, self.motion = tools[0], self.ks[0], self.motions[0]
+        self.frictionless = self.frictionless_tools[0]
         self.torque_rtol = float(torque_rtol)
         self.max_evaluations = int(max_evaluations)
-        self.omega = self.motion.current_angular_velocity()
-        self._row: Dict[str, float] = {}
+        self.omegas = [m.current_angular_velocity() for m in self.motions]
+        self._rows: list = [{} for _ in tools]
         self._t = 0.0
         self._trial = None
+        self._border = _Border()
+        self._wrapper = _EliminatedContact(self)
+        self._U = self._G = None
+        self._local_its = [0] * len(tools)
+
+    @property
+    def omega(self) -> float:
+        """Rotation speed of the (first) idle tool at the last accepted increment."""
+        return self.omegas[0]
+
+    @omega.setter
+    def omega(self, value: float):
+        self.omegas[0] = float(value)
+
+    @property
+    def _row(self) -> Dict[str, float]:
+        return self._rows[0]
+
+    @_row.setter
+    def _row(self, value: Dict[str, float]):
+        self._rows[0] = value
 
     def begin_increment(self, sim, t: float, dt: float, x_t):
         self._t = t
-        # the trial ω of the current evaluation (solve()), else the previous increment's
-        om = self.omega if self._trial is None else self._trial
-        self.motion.set_rates(t, angular_velocity=om)
+        # the trial ω of the current evaluation (outer solve()), else the previous increment's
+        for j, mot in enumerate(self.motions):
+            om = self.omegas[j] if (self._trial is None or j > 0) else self._trial
+            mot.set_rates(t, angular_velocity=om)
+        self._local_its = [0] * len(self.tools)
+
+    # ------------------------------------------------------------------ bordered method
+    def _tool_nodes(self, j: int, args: dict, v: np.ndarray, t1: float):
+        """The friction nodes of tool j at the current projection: (sel, m, dv0) with
+        m = e × (P − a) (the tool's surface velocity per unit ω) and dv0 the velocity relative
+        to the tool's material point with ω = 0 (the slip is dv0 − ω m)."""
+        c = self.contact
+        d = c.gdim
+        k = self.ks[j]
+        sel = (c._tool == k) & args["active"] & (args["law"] != LAW_NONE)
+        if not np.any(sel):
+            return sel, np.zeros((0, d)), np.zeros((0, d))
+        tool = c.tools[k]
+        e = unit_vector(tool.motion.axis, "tool axis")
+        P = c._point[sel]
+        m = np.cross(e, P - tool.motion.axis_point_at(t1))[:, :d]
+        w_now = tool.motion.angular_velocity(t1)
+        dv0 = v[sel] - (tool.velocity(P, t1)[:, :d] - w_now * m)
+        return sel, np.ascontiguousarray(m), np.ascontiguousarray(dv0)
+
+    @staticmethod
+    def _subset(args: dict, sel: np.ndarray, dpn: bool) -> tuple:
+        """Kernel arguments of the nodes ``sel`` (without ``dv``, ``jacobian``, ``theta``)."""
+        d = args["nrm"].shape[1]
+        pick = lambda key: np.ascontiguousarray(args[key][sel])   # noqa: E731
+        dp = pick("dpn") if (dpn and args["dpn"].shape[0] == len(sel)) else np.zeros((0, d))
+        return (pick("S"), pick("law"), pick("mu"), pick("tau_max"), pick("visc"), pick("q"),
+                pick("pn"), dp)
+
+    def _friction_torque(self, sub, args, sel, m, dv, theta: float):
+        """Local friction torque Σ r_f·m, its ω-derivative −Σ mᵀ(∂r_f/∂Δv)m, and the blocks
+        ∂r_f/∂Δv (N, d, d) of the nodes ``sel`` at the slip ``dv``."""
+        c = self.contact
+        S, law, mu, tau_max, visc, q, pn, dp = sub
+        act = np.ones(len(S), dtype=bool)
+        nrm = np.ascontiguousarray(args["nrm"][sel])
+        rf, K, _, _ = c.friction_kernel(S, law, mu, tau_max, visc, q, pn, dp,
+                                        np.ascontiguousarray(dv), nrm, args["v0"], act, True,
+                                        theta)
+        T = float(np.sum(rf * m))
+        dT = -float(np.einsum("ni,nij,nj->", m, K, m))
+        return T, dT, K
+
+    def border_terms(self, w) -> list:
+        """The border of the Newton matrix at the contact's last evaluation (for each tool of
+        this controller with friction nodes, else None): ``(dofs, u, g, D)`` with ``dofs``
+        (n, d) the local velocity dofs of its friction nodes, ``u`` = ∂R/∂ω and ``g`` = ∂T/∂v
+        on them (the friction tangent the contact's Jacobian uses: ∂r_f/∂Δv with and without
+        the implicit Coulomb ∂p_n/∂v term) and D = ∂T/∂ω (summed over ranks). Collective."""
+        c = self.contact
+        t1 = c.t + c.dt
+        v = np.ascontiguousarray(c.boundary.velocities(w))
+        args = c.friction_arguments(c._h, c._g, c._tool)
+        out, Ds = [], np.zeros(len(self.tools))
+        for j in range(len(self.tools)):
+            if self.frictionless_tools[j]:
+                out.append(None)
+                continue
+            sel, m, dv0 = self._tool_nodes(j, args, v, t1)
+            om = self.tools[j].motion.angular_velocity(t1)
+            dv = dv0 - om * m
+            d = c.gdim
+            if np.any(sel):
+                _, dT, K = self._friction_torque(self._subset(args, sel, False), args, sel, m,
+                                                 dv, args["theta"])
+                nrm = np.ascontiguousarray(args["nrm"][sel])
+                S, law, mu, tau_max, visc, q, pn, dp = self._subset(args, sel, True)
+                _, Kv, _, _ = c.friction_kernel(S, law, mu, tau_max, visc, q, pn, dp,
+                                                np.ascontiguousarray(dv), nrm, args["v0"],
+                                                np.ones(len(S), dtype=bool), True,
+                                                args["theta"])
+                u = -np.einsum("nij,nj->ni", K, m)
+                g = np.einsum("nji,nj->ni", Kv, m)
+                Ds[j] = dT
+                out.append((c.boundary.dofs[sel], u, g))
+            else:
+                out.append((np.zeros((0, d), dtype=np.int32), np.zeros((0, d)),
+                            np.zeros((0, d))))
+        Ds = c.boundary.comm.allreduce(Ds, op=MPI.SUM)
+        return [None if o is None or Ds[j] == 0.0 else (*o, float(Ds[j]))
+                for j, o in enumerate(out)]
+
+    def _collective(self, fn):
+        """Run ``fn()`` and raise its ContributorError on every rank if it failed on any."""
+        from fxcontact.petsc import ContributorError
+        msg, res = None, None
+        try:
+            res = fn()
+        except ContributorError as e:
+            msg = str(e)
+        msgs = [m for m in self.contact.boundary.comm.allgather(msg) if m is not None]
+        if msgs:
+            raise ContributorError(msgs[0])
+        return res
+
+    #: the elimination's Newton iteration stops when its step is below this fraction of the
+    #: slip regularisation over the lever arm, v₀/R̄ (the friction forces then move by ~1e-13
+    #: of their size)
+    ELIMINATION_STEP_TOL = 1e-13
+    ELIMINATION_MAX_IT = 100
+
+    def _solve_speeds(self, w) -> None:
+        """ω_j* with T_j(v, ω_j*) = 0 at the current iterate v and projection, for every tool
+        with friction nodes (the ω_j are independent: a node touches one tool); sets the
+        motions' rates. Safeguarded Newton on each T_j(ω), which is decreasing (collective,
+        every rank takes the same steps: T and its derivative are global sums)."""
+        c = self.contact
+        comm = c.boundary.comm
+        t1 = c.t + c.dt
+        v = np.ascontiguousarray(c.boundary.velocities(w))
+        args = c.friction_arguments(c._h, c._g, c._tool)
+        n = len(self.tools)
+        nodes, base = [], np.zeros((n, 3))
+        for j in range(n):
+            if self.frictionless_tools[j]:
+                nodes.append(None)
+                continue
+            k = self.ks[j]
+            sel, m, dv0 = self._tool_nodes(j, args, v, t1)
+            tool = c.tools[k]
+            e = unit_vector(tool.motion.axis, "tool axis")
+            a = tool.motion.axis_point_at(t1)
+            on = c._tool == k
+            # torque of the normal forces (zero for a tool of revolution, kept for the sum)
+            f = np.zeros((int(np.sum(on)), 3))
+            f[:, : c.gdim] = c._r[on]
+            arm = c._point[on] - a
+            base[j, 0] = float(np.sum(np.cross(arm, f) @ e)) if len(f) else 0.0
+            armt = m          # |e × arm| = the lever arm
+            base[j, 1] = float(np.sum(np.linalg.norm(armt, axis=1)))
+            base[j, 2] = float(np.sum(sel))
+            nodes.append((sel, m, dv0, self._subset(args, sel, False)))
+        base = comm.allreduce(base, op=MPI.SUM)
+        om = np.array([mot.angular_velocity(t1) for mot in self.motions])
+        todo = [j for j in range(n) if nodes[j] is not None and base[j, 2] > 0]
+        if not todo:
+            return
+        scale = np.array([c.slip_velocity / (base[j, 1] / base[j, 2]) if base[j, 2] > 0
+                          else 1.0 for j in range(n)])
+        lo = np.full(n, -np.inf)
+        hi = np.full(n, np.inf)
+        cap = 10.0 * scale
+        for it in range(self.ELIMINATION_MAX_IT):
+            TdT = np.zeros((n, 2))
+            for j in todo:
+                sel, m, dv0, sub = nodes[j]
+                if np.any(sel):
+                    T, dT, _ = self._friction_torque(sub, args, sel, m, dv0 - om[j] * m,
+                                                     1.0)
+                    TdT[j] = T, dT
+            TdT = comm.allreduce(TdT, op=MPI.SUM)
+            left = []
+            for j in todo:
+                self._local_its[j] += 1
+                T = TdT[j, 0] + base[j, 0]
+                dT = TdT[j, 1]
+                if T == 0.0:
+                    continue
+                if T > 0:       # T decreases with ω: the root is above
+                    lo[j] = om[j]
+                else:
+                    hi[j] = om[j]
+                step = -T / dT if dT < 0 else math.copysign(cap[j], T)
+                if abs(step) <= self.ELIMINATION_STEP_TOL * scale[j]:
+                    om[j] += step
+                    continue
+                new = om[j] + step
+                if math.isfinite(lo[j]) and math.isfinite(hi[j]):
+                    if not lo[j] < new < hi[j]:
+                        new = 0.5 * (lo[j] + hi[j])
+                    if hi[j] - lo[j] <= self.ELIMINATION_STEP_TOL * scale[j]:
+                        om[j] = new
+                        continue
+                elif abs(step) > cap[j]:         # no bracket on that side yet: expand
+                    new = om[j] + math.copysign(cap[j], step)
+                    cap[j] *= 2.0
+                om[j] = new
+                left.append(j)
+            todo = left
+            if not todo:
+                break
+        else:
+            log.debug("idle rotation: the elimination of ω did not converge in %d iterations",
+                      self.ELIMINATION_MAX_IT)
+        for j, mot in enumerate(self.motions):
+            if nodes[j] is not None and base[j, 2] > 0:
+                mot.set_rates(self._t, angular_velocity=float(om[j]))
+
+    def _eliminate(self, w, jacobian: bool):
+        """The contact's terms at the current iterate with every idle tool at the speed that
+        zeroes its torque, ω*(v); with ``jacobian``, also the border of the Newton matrix."""
+        c = self.contact
+        self._collective(lambda: c.evaluate(w, False))    # the projection (ω-independent)
+        self._solve_speeds(w)
+        terms = self._collective(lambda: c.evaluate(w, jacobian))
+        if jacobian:
+            self._fill_border(w)
+        return terms
+
+    def _fill_border(self, w):
+        sim = self.contact.sim
+        prob = sim.problem
+        bt = self.border_terms(w)
+        if self._U is None:
+            self._U = [prob.create_vector() for _ in self.tools]
+            self._G = [prob.create_vector() for _ in self.tools]
+        U, G, D = [], [], []
+        for j, b in enumerate(bt):
+            if b is None:
+                continue
+            dofs, u, g, Dj = b
+            for vec, val in ((self._U[j], u), (self._G[j], g)):
+                vec.set(0.0)
+                if dofs.size:
+                    dd = dofs.ravel()
+                    vv = val.ravel().copy()
+                    keep = dd >= 0
+                    dd, vv = dd[keep], vv[keep]
+                    vv[prob.bc_marker[dd]] = 0.0     # Dirichlet rows and columns
+                    arr = vec.getArray(readonly=False)
+                    np.add.at(arr, dd, vv)
+                    del arr
+            U.append(self._U[j])
+            G.append(self._G[j])
+            D.append(Dj)
+        self._border.current = (U, G, np.diag(D)) if U else None
+
+    def _solve_bordered(self, sim, begin):
+        prob = sim.problem
+        if any(len(getattr(cn, "inclined", ())) for cn in prob.constraints):
+            raise ValueError("the bordered idle rotation does not handle inclined symmetry "
+                             "planes (projected Newton systems): use method='outer'")
+        idx = [i for i, cn in enumerate(prob.contributors) if cn is self.contact]
+        if len(idx) != 1:
+            raise ValueError(f"the idle tools' contact '{self.contact.name}' must be "
+                             f"registered once with add_contributor")
+        sim.solver.set_border(self._border)
+        self._border.current = None
+        prob.contributors[idx[0]] = self._wrapper
+        try:
+            info = sim.solver.solve()
+            if info.converged:
+                # the speeds and the terms of the converged field
+                self._eliminate(sim.w, False)
+        finally:
+            prob.contributors[idx[0]] = self.contact
+            self._border.current = None
+        if not info.converged:
+            return info
+        rtol = max(self.torque_rtol, 10.0 * sim.solver_options.rtol)
+        c = self.contact
+        t1 = c.t + c.dt
+        bad = []
+        for j, (tool, k, mot) in enumerate(zip(self.tools, self.ks, self.motions)):
+            T = c.tool_torque(k)
+            F, R = _lever_arm_and_force(c, k)
+            tol = rtol * F * R
+            n_fr = c.boundary.comm.allreduce(
+                int(np.sum((c._tool == k) & (c._h > 0))), op=MPI.SUM)
+            if self.frictionless_tools[j]:
+                om = rolling_speed(c, k, sim.w)    # 0 without contact, as the outer method
+                mot.set_rates(self._t, angular_velocity=om)
+                tol = 0.0
+            else:
+                om = mot.angular_velocity(t1)
+                if abs(T) > tol and n_fr:
+                    bad.append(f"'{tool.name}': torque {T:.3e} above {tol:.3e}")
+            self.omegas[j] = float(om)
+            self._rows[j] = {"omega": float(om), "idle_torque": T, "idle_tolerance": tol,
+                             "idle_solves": 1, "idle_local_iterations": self._local_its[j]}
+        if bad:
+            info.converged = False
+            info.message = "idle tools: " + "; ".join(bad)
+        return info
+
+    def solve(self, sim, begin):
+        """The increment's Newton solve(s) (called by the Simulation)."""
+        if self.method == "bordered":
+            return self._solve_bordered(sim, begin)
+        return self._solve_outer(sim, begin)
 
     def _evaluate(self, sim, begin, omega: float, w_pred, w_warm):
         """One Newton solve with the tool at ω; returns (info, torque, |F|, R̄)."""
@@ -258,8 +697,8 @@ class IdleRotation:
                   self.tool.name, omega, T, F, R, info.iterations)
         return info, T, F, R
 
-    def solve(self, sim, begin):
-        """The increment's Newton solve(s) (called by the Simulation)."""
+    def _solve_outer(self, sim, begin):
+        """Outer secant / Illinois iteration of Newton solves on T(ω) = 0 (one tool)."""
         w_pred = sim.w.x.array.copy()
         rtol = max(self.torque_rtol, 10.0 * sim.solver_options.rtol)
         its, times, n_eval = 0, {}, 0
@@ -342,18 +781,20 @@ class IdleRotation:
 
     def _diagnostics(self, T, tol, n_eval, R) -> Dict[str, float]:
         return {"omega": self.omega, "idle_torque": T, "idle_tolerance": tol,
-                "idle_solves": n_eval}
+                "idle_solves": n_eval, "idle_local_iterations": 0}
 
     def end_increment(self, sim, dt: float):
         pass
 
     def diagnostics(self) -> Dict[str, float]:
-        n = self.tool.name
-        w_free = rolling_speed(self.contact, self.k, self.contact.sim.w)
-        _, R = _lever_arm_and_force(self.contact, self.k)
-        out = {f"{n}_{k}": v for k, v in self._row.items()}
-        out[f"{n}_omega_free"] = w_free
-        out[f"{n}_surface_slip"] = (self.omega - w_free) * R
+        out = {}
+        for j, (tool, k) in enumerate(zip(self.tools, self.ks)):
+            n = tool.name
+            w_free = rolling_speed(self.contact, k, self.contact.sim.w)
+            _, R = _lever_arm_and_force(self.contact, k)
+            out.update({f"{n}_{key}": v for key, v in self._rows[j].items()})
+            out[f"{n}_omega_free"] = w_free
+            out[f"{n}_surface_slip"] = (self.omegas[j] - w_free) * R
         return out
 
 

@@ -283,7 +283,9 @@ class Simulation:
         controller may have it), ``end_increment(sim, dt)`` and ``diagnostics()``."""
         self._check_not_built()
         if hasattr(controller, "solve") and any(hasattr(c, "solve") for c in self.controllers):
-            raise ValueError("only one controller may take over the Newton solve (solve())")
+            raise ValueError("only one controller may take over the Newton solve (solve()); "
+                             "several idle tools go to one IdleRotation(contact, [tool1, "
+                             "tool2, ...])")
         self.controllers.append(controller)
         return controller
 

@@ -15,6 +15,16 @@ inside a callback) the SNES with its KSP/PC and work vectors is rebuilt
 (:meth:`NewtonSolver.reset`): a failed MUMPS factorisation would otherwise stay in the PC (its
 numeric phase is skipped at every later set-up), and every cut-back attempt would fail at
 iteration 0.
+
+**Bordered systems** (:meth:`NewtonSolver.set_border`): a contributor may eliminate k scalar
+unknowns locally at each residual evaluation (the rotation speeds of idle tools,
+:class:`~fxcontact.mill.IdleRotation`); the Newton matrix is then the assembled J plus a rank-k
+term, J̃ = J − U D⁻¹ G (U = ∂R/∂ω, G = ∂T/∂v, D = ∂T/∂ω, k×k). The SNES Jacobian becomes a
+shell J̃ (its product is exact, so the line search's slope and any Krylov method see J̃), the
+linear solver's own preconditioner P ≈ J⁻¹ (MUMPS, the condensed PC, a field split) is wrapped
+by :class:`BorderedPC`, which applies the Woodbury formula J̃⁻¹ = J⁻¹ + Z (D − G Z)⁻¹ G J⁻¹ with
+Z = P⁻¹ U: k extra applications of P per Newton iteration (with a factorisation, k extra
+triangular solves, no new factorisation), exact when P is.
 """
 
 from __future__ import annotations
@@ -31,7 +41,8 @@ from petsc4py import PETSc
 
 from fxcontact.petsc import NonlinearProblem
 
-__all__ = ["NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS", "choose_linear_solver"]
+__all__ = ["NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS", "choose_linear_solver",
+           "BorderedPC"]
 
 log = logging.getLogger(__name__)
 
@@ -228,6 +239,92 @@ class SolveInfo:
     stage_iterations: Optional[tuple] = None
 
 
+class BorderedPC:
+    """petsc4py python PC: a preconditioner P ≈ J⁻¹ of the assembled matrix J, corrected for a
+    rank-k term of the operator, J̃ = J − U D⁻¹ G, by the Woodbury formula
+
+        J̃⁻¹ x = y + Z (D − G Z)⁻¹ G y,   y = P x,   Z = P U.
+
+    Args:
+        inner: the PC of J (set up here with the outer PC's preconditioning matrix).
+        border: an object with ``vectors()`` returning ``(U, G, D)`` (two lists of k PETSc
+            vectors of the problem's layout and a k×k array) or None (no border: P alone).
+    """
+
+    def __init__(self, inner: PETSc.PC, border):
+        self.inner = inner
+        self.border = border
+        self._Z: List[PETSc.Vec] = []
+        self._G: List[PETSc.Vec] = []
+        self._M = None
+
+    def setUp(self, pc):
+        _, P = pc.getOperators()
+        self.inner.setOperators(P, P)
+        self.inner.setUp()
+        for z in self._Z:
+            z.destroy()
+        self._Z, self._G, self._M = [], [], None
+        vec = self.border.vectors()
+        if vec is None or not len(vec[0]):
+            return
+        U, G, D = vec
+        for u in U:
+            z = u.duplicate()
+            self.inner.apply(u, z)
+            self._Z.append(z)
+        self._G = list(G)
+        k = len(U)
+        M = np.array(D, dtype=np.float64).reshape(k, k).copy()
+        for i in range(k):
+            for j in range(k):
+                M[i, j] -= G[i].dot(self._Z[j])
+        self._M = M
+
+    def apply(self, pc, x, y):
+        self.inner.apply(x, y)
+        if self._M is None:
+            return
+        c = np.array([g.dot(y) for g in self._G])
+        s = np.linalg.solve(self._M, c)
+        for z, sj in zip(self._Z, s):
+            y.axpy(float(sj), z)
+
+    def view(self, pc, viewer=None):
+        self.inner.view(viewer)
+
+    def destroy(self, pc=None):
+        for z in self._Z:
+            z.destroy()
+        self._Z, self._G = [], []
+        if self.inner is not None:
+            self.inner.destroy()
+            self.inner = None
+
+
+class _BorderedOperator:
+    """petsc4py python Mat: the product with J̃ = J − U D⁻¹ G (J assembled, U, G, D from the
+    border's ``vectors()``)."""
+
+    def __init__(self, A: PETSc.Mat, border):
+        self.A = A
+        self.border = border
+
+    def mult(self, mat, x, y):
+        self.A.mult(x, y)
+        vec = self.border.vectors()
+        if vec is None or not len(vec[0]):
+            return
+        U, G, D = vec
+        t = np.linalg.solve(np.asarray(D, dtype=np.float64).reshape(len(U), len(U)),
+                            np.array([g.dot(x) for g in G]))
+        for u, tj in zip(U, t):
+            y.axpy(-float(tj), u)
+
+    def createVecs(self, mat):
+        return self.A.createVecs()
+
+
 class NewtonSolver:
     """SNES Newton with line search, prefixed options and a contributor-aware convergence test.
 
@@ -252,6 +349,9 @@ class NewtonSolver:
         self._fieldsplit_is = fieldsplit_is
         self._layout = None
         self._condensed_pc = None
+        #: border of the Newton matrix (:meth:`set_border`), or None
+        self.border = None
+        self._J_shell = None
         if self.options.uses_condensation:
             from fxcontact.condense import CondensationLayout
             self._layout = CondensationLayout(problem.w.function_space)
@@ -293,13 +393,33 @@ class NewtonSolver:
         snes = PETSc.SNES().create(self.comm)
         snes.setOptionsPrefix(self.options.prefix)
         snes.setFunction(self.problem.residual, self.b)
-        snes.setJacobian(self.problem.jacobian, self.A, self.A)
+        if self.border is None:
+            snes.setJacobian(self.problem.jacobian, self.A, self.A)
+        else:
+            if self._J_shell is not None:
+                self._J_shell.destroy()
+            m, n = self.A.getSizes()
+            J = PETSc.Mat().createPython((m, n), _BorderedOperator(self.A, self.border),
+                                         comm=self.comm)
+            J.setUp()
+            self._J_shell = J
+
+            def jacobian(snes_, x, J_, P):
+                self.problem.jacobian(snes_, x, P, P)
+                J_.assemble()
+            snes.setJacobian(jacobian, J, self.A)
         snes.setConvergenceTest(self._converged)
         snes.setFromOptions()
         ksp = snes.getKSP()
+        pc_fs = ksp.getPC()
+        if self.border is not None:
+            # the options' preconditioner, built on the assembled matrix, wrapped below
+            pc_fs = PETSc.PC().create(self.comm)
+            pc_fs.setOptionsPrefix(self.options.prefix)
+            pc_fs.setFromOptions()
         if self.options.uses_fieldsplit:
-            ksp.getPC().setFieldSplitIS(("u", self._fieldsplit_is[0]),
-                                        ("p", self._fieldsplit_is[1]))
+            pc_fs.setFieldSplitIS(("u", self._fieldsplit_is[0]),
+                                  ("p", self._fieldsplit_is[1]))
         ksp.setFromOptions()
         if self._layout is not None:
             from fxcontact.condense import CondensedPC
@@ -309,10 +429,25 @@ class NewtonSolver:
                                              getattr(self.problem, "schur_weight", None))
             if snes.getUseEW():   # Eisenstat–Walker: the inner solve follows the forcing term
                 self._condensed_pc.follow_rtol_of = ksp
-            pc = ksp.getPC()
+            pc = pc_fs
             pc.setType(PETSc.PC.Type.PYTHON)
             pc.setPythonContext(self._condensed_pc)
+        if self.border is not None:
+            pc = ksp.getPC()
+            pc.setType(PETSc.PC.Type.PYTHON)
+            pc.setPythonContext(BorderedPC(pc_fs, self.border))
         self.snes = snes
+
+    def set_border(self, border):
+        """Solve bordered Newton systems from now on (see the module docstring): ``border``
+        has ``vectors()`` returning ``(U, G, D)`` — lists of k PETSc vectors (the problem's
+        layout, filled by the contributors during the Jacobian evaluation) and the k×k
+        array D — or None when there is no border at the current iterate; ``None`` switches
+        back to the plain system. Rebuilds the SNES (collective)."""
+        if border is self.border:
+            return
+        self.border = border
+        self.reset()
 
     def reset(self):
         """Rebuild the SNES, its KSP/PC (factorisation), residual and work vectors (collective).
@@ -495,6 +630,8 @@ class NewtonSolver:
         if self._condensed_pc is not None:
             self._condensed_pc.destroy()
         self.snes.destroy()
+        if self._J_shell is not None:
+            self._J_shell.destroy()
         self.A.destroy()
         self.b.destroy()
 

@@ -647,6 +647,7 @@ class NodalContact:
         r, K = self.kernel(b.areas, rho, h, g, np.ascontiguousarray(Hh),
                            tangent_active, jacobian)
         self._h, self._tool, self._feature = h, tool_idx, feature
+        self._g = g
         self._point = self._cur_proj.point
         self._r = r
         if not isinstance(self.kin, CartesianUpdate) and \
@@ -668,14 +669,29 @@ class NodalContact:
 
     def _friction_terms(self, v, h, g, tool_idx, jacobian: bool):
         """Friction residual entries and Jacobian blocks at the current iterate (THEORY §9)."""
-        d = self.gdim
         pr = self._cur_proj
-        nrm = np.ascontiguousarray(pr.normal[:, :d])
         if self.scheme in ("explicit", "quasi-implicit"):
             v_tool = self._v_tool_fixed
         else:
             v_tool = self._tool_velocities(pr.point, tool_idx, self.t + self.dt)
         dv = np.ascontiguousarray(v - v_tool)
+        a = self.friction_arguments(h, g, tool_idx)
+        rf, Kf, tau, branch = self.friction_kernel(
+            a["S"], a["law"], a["mu"], a["tau_max"], a["visc"], a["q"], a["pn"], a["dpn"], dv,
+            a["nrm"], a["v0"], a["active"], jacobian, a["theta"])
+        self._tau, self._branch = tau, branch
+        nrm = a["nrm"]
+        self._dvt = dv - np.einsum("ni,ni->n", dv, nrm)[:, None] * nrm
+        return rf, Kf
+
+    def friction_arguments(self, h, g, tool_idx) -> dict:
+        """The per-node arguments of the friction kernel (all but the relative velocity ``dv``
+        and ``jacobian``) for the gaps ``h``, gap gradients ``g`` and tools ``tool_idx`` of an
+        evaluation at the current projection: ``S, law, mu, tau_max, visc, q, pn, dpn, nrm,
+        v0, active, theta`` (also used by :class:`~fxcontact.mill.IdleRotation` to evaluate
+        the friction of one tool at another rotation speed)."""
+        d = self.gdim
+        nrm = np.ascontiguousarray(self._cur_proj.normal[:, :d])
         laws = self.friction
         code = np.array([law.code for law in laws], dtype=np.int64)[tool_idx]
         mu = np.array([getattr(law, "mu", 0.0) for law in laws])[tool_idx]
@@ -703,12 +719,9 @@ class NodalContact:
             theta = 1.0 if self._fr_settled else 0.0
         else:
             theta = 1.0 if self.friction_tangent == "consistent" else 0.0
-        rf, Kf, tau, branch = self.friction_kernel(
-            self.boundary.areas, code, mu, tau_max, visc, q, pn, dpn, dv, nrm,
-            float(self.slip_velocity), active, jacobian, theta)
-        self._tau, self._branch = tau, branch
-        self._dvt = dv - np.einsum("ni,ni->n", dv, nrm)[:, None] * nrm
-        return rf, Kf
+        return dict(S=self.boundary.areas, law=code, mu=mu, tau_max=tau_max, visc=visc, q=q,
+                    pn=pn, dpn=dpn, nrm=nrm, v0=float(self.slip_velocity), active=active,
+                    theta=theta)
 
     def stable(self) -> bool:
         """True if the active set (and tools/features for implicit schemes) did not change since
