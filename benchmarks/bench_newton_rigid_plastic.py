@@ -15,7 +15,11 @@ Variants (``--variants``; each is a set of options of the library, nothing else 
 * ``beta1e2``, ``beta1e1``: penalty β = 1e2 / 1e1 (THEORY §2.5 scales ρ with the secant
   viscosity; the tangent along the flow is m times smaller);
 * ``maxit100``: today's defaults with ``max_it = 100`` (no cut-back needed);
-* ``beta1e1+reg1e-3``, ``beta1e1+reg1e-2``: β = 1e1 and ε̇₀ = 1e-3 / 1e-2 × the mean rate.
+* ``beta1e1+reg1e-3``, ``beta1e1+reg1e-2``: β = 1e1 and ε̇₀ = 1e-3 / 1e-2 × the mean rate;
+* ``tr``: the trust-region Newton (``line_search="trust-region"``, fallback bt), ``max_it`` 100;
+* ``cont0.03``: penalty continuation (``penalty_continuation=0.03``: β·0.03 = 30 first, to a
+  relative residual of 1e-3, then β = 1e3), ``max_it`` 100;
+* ``cont0.03+reg1e-3``, ``tr+reg1e-3``, ``beta1e1+reg1e-3+tr``: combinations.
 
 Run from the repository root::
 
@@ -52,6 +56,13 @@ VARIANTS = {
     "maxit100": ({}, {"max_it": 100}),
     "beta1e1+reg1e-3": ({"beta": 1e1, "regularization": 1e-3 * RATE}, {}),
     "beta1e1+reg1e-2": ({"beta": 1e1, "regularization": 1e-2 * RATE}, {}),
+    "tr": ({}, {"max_it": 100, "line_search": "trust-region", "line_search_fallback": "bt"}),
+    "cont0.03": ({}, {"max_it": 100, "penalty_continuation": 0.03}),
+    "cont0.03+reg1e-3": ({"regularization": 1e-3 * RATE}, {"penalty_continuation": 0.03}),
+    "tr+reg1e-3": ({"regularization": 1e-3 * RATE},
+                   {"line_search": "trust-region", "line_search_fallback": "bt"}),
+    "beta1e1+reg1e-3+tr": ({"beta": 1e1, "regularization": 1e-3 * RATE},
+                           {"line_search": "trust-region", "line_search_fallback": "bt"}),
 }
 
 
