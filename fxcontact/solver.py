@@ -243,6 +243,9 @@ class NewtonSolver:
         #: test) since the solver was built
         self.callback_times = {"residual": 0.0, "jacobian": 0.0, "test": 0.0}
         self.callback_calls = {"residual": 0, "jacobian": 0, "test": 0}
+        #: wall time of the linear solves since the solver was built (see :meth:`solve`)
+        self.linear_time = 0.0
+        self._linear_start: Optional[float] = None
 
     def _write_options(self):
         """Write this solver's options under its prefix (those of an earlier solver under the
@@ -271,6 +274,9 @@ class NewtonSolver:
         snes.setJacobian(self._jacobian, self.A, self.A)
         snes.setConvergenceTest(self._converged_timed)
         snes.setFromOptions()
+        # the linear solve runs between the end of the Jacobian callback and the line search's
+        # pre-check (KSPSetOperators, PC set-up, KSPSolve): its wall time is taken there
+        snes.setLineSearchPreCheck(self._precheck)
         ksp = snes.getKSP()
         if self.options.uses_fieldsplit:
             ksp.getPC().setFieldSplitIS(("u", self._fieldsplit_is[0]),
@@ -316,7 +322,20 @@ class NewtonSolver:
         self._timed("residual", self.problem.residual, snes, x, b)
 
     def _jacobian(self, snes, x, A, P):
-        self._timed("jacobian", self.problem.jacobian, snes, x, A, P)
+        try:
+            self._timed("jacobian", self.problem.jacobian, snes, x, A, P)
+        finally:
+            self._linear_start = time.perf_counter()
+
+    def _precheck(self, x, y):
+        """Line-search pre-check (the step is not changed): the linear solve ends here."""
+        self._end_linear()
+        return False
+
+    def _end_linear(self):
+        if self._linear_start is not None:
+            self.linear_time += time.perf_counter() - self._linear_start
+            self._linear_start = None
 
     def _converged_timed(self, snes, it, norms):
         return self._timed("test", self._converged, snes, it, norms)
@@ -403,8 +422,9 @@ class NewtonSolver:
         w = prob.w
         x = w.vector.copy()
         self._cycle_message = ""
-        cb0 = dict(self.callback_times)
         calls0 = dict(self.callback_calls)
+        lin0 = self.linear_time
+        self._linear_start = None
         t0 = time.perf_counter()
         cpc = self._condensed_pc
         inner0 = cpc.inner_iterations if cpc is not None else 0
@@ -413,12 +433,12 @@ class NewtonSolver:
             cpc.error = None
         try:
             self.snes.solve(None, x)
-            snes_wall = time.perf_counter() - t0
+            self._end_linear()   # a failed linear solve stops the SNES before the line search
             reason = self.snes.getConvergedReason()
             its = self.snes.getIterationNumber()
             msg = ""
         except Exception as e:  # a contributor error raised through PETSc (collective)
-            snes_wall = time.perf_counter() - t0
+            self._end_linear()
             reason, its = -100, self.snes.getIterationNumber()
             msg = prob.error or (f"PETSc error inside the Newton solve ({e}; see the PETSc "
                                  f"traceback on stderr)")
@@ -442,14 +462,15 @@ class NewtonSolver:
         if not converged:
             # a failed attempt must not poison the next one (factorisation, locked vectors)
             self.reset()
-        # linear solve: the SNES's time outside its callbacks — the KSP (PC set-up: MUMPS
-        # factorisation or condensation + inner set-up; Krylov iterations or triangular solves),
-        # plus the SNES's own vector updates and norms (line search), which are negligible.
-        # (The PETSc KSPSolve/PCSetUp log events are not used: nested solves under a python PC
-        # are counted in both, and an error raised inside an event leaves it open, so that it
-        # is never timed again.)
-        cb = {k: self.callback_times[k] - cb0[k] for k in cb0}
-        lin = max(snes_wall - sum(cb.values()), 0.0)
+        # linear solve: from the end of each Jacobian callback to the line search's pre-check
+        # (or the end of the SNES after a failed linear solve): KSPSetOperators, the PC set-up
+        # (MUMPS factorisation; condensation and inner set-up), the Krylov iterations or
+        # triangular solves. (Not the PETSc KSPSolve/PCSetUp log events: a nested solve under
+        # a python PC is counted in both, and an error raised inside an event leaves it open,
+        # so that it is never timed again.) "other": the SNES's vector updates and norms, the
+        # callbacks' Python glue (iterate copy, ghost update, convergence test) and, in
+        # parallel, the waits in their collectives.
+        lin = self.linear_time - lin0
         times = {"assembly": prob.timers.get("assembly"), "contact": prob.timers.get("contact"),
                  "linear_solve": lin}
         times["other"] = max(wall - sum(times.values()), 0.0)
