@@ -116,8 +116,9 @@ def _generated_c(comm, form, flags) -> str:
     _, module, (_, code) = dolfinx.jit.ffcx_jit(comm, form,
                                                 jit_params={"cffi_extra_compile_args": flags})
     if code is None:
-        path = module.__file__
-        with open(os.path.join(os.path.dirname(path), os.path.basename(path).split(".")[0] + ".c")) as f:
+        path = module.__file__     # <cache>/libffcx_forms_<hash>.cpython-*.so
+        src = os.path.join(os.path.dirname(path), os.path.basename(path).split(".")[0] + ".c")
+        with open(src) as f:
             code = f.read()
     return code
 
@@ -268,7 +269,8 @@ def newton_figures(size: float, t_end: float, repeat: int):
     ref = best["before"]
     print(f"dofs {ref['dofs']}, Newton iterations per increment {ref['iterations']}")
     print("| variant | F/it | J/it | residual asm | (per F) | Jacobian asm | contact | python "
-          "| linear | other | total | Δforce | max \\|Δv\\|/max \\|v\\| | liftings done/skipped |")
+          "| linear | other | total | Δforce | max \\|Δv\\|/max \\|v\\| "
+          "| liftings done/skipped |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     ms = lambda x: f"{x * 1e3:.1f}"  # noqa: E731
     for name, _ in VARIANTS:
