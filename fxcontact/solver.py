@@ -309,7 +309,7 @@ class NewtonSolver:
         old_b.destroy()
         self.resets += 1
 
-    # -- SNES callbacks, timed: the linear solve is the SNES time outside them -------------
+    # -- SNES callbacks, timed and counted; the linear solve ends at the pre-check -------
     def _timed(self, key, fn, *args):
         t0 = time.perf_counter()
         try:
@@ -409,7 +409,6 @@ class NewtonSolver:
         # petsc4py 3.18 has no SNESLineSearch object: go through the prefixed options
         PETSc.Options()[self.options.prefix + "snes_linesearch_type"] = kind
         self.snes.setFromOptions()
-
 
     def solve(self) -> SolveInfo:
         """Solve from the current content of ``problem.w`` (the initial guess)."""
