@@ -246,6 +246,7 @@ class NewtonSolver:
         #: wall time of the linear solves since the solver was built (see :meth:`solve`)
         self.linear_time = 0.0
         self._linear_start: Optional[float] = None
+        PETSc.Log.begin()   # PETSc's event log on (benchmarks read its events)
 
     def _write_options(self):
         """Write this solver's options under its prefix (those of an earlier solver under the
