@@ -175,6 +175,9 @@ def test_time_split_adds_up(solver):
         if k > 0:  # the first increment holds the start-up solve (its own SolveInfo)
             cases.append((info, clock, callbacks))
     serial = MPI.COMM_WORLD.size == 1
+    # slack of a few scheduler time slices: the machine may be shared, and a process preempted
+    # for 10 ms shows that time wherever it was (the solves here take 0.1-0.5 s)
+    jitter = 0.02
     for info, clock, callbacks in cases:
         t = info.times
         total = t["total"]
@@ -184,12 +187,12 @@ def test_time_split_adds_up(solver):
         glue = callbacks - t["assembly"] - t["contact"]     # Python of the callbacks
         assert glue >= -1e-9
         if serial:
-            assert t["other"] <= 0.05 * total, t
+            assert t["other"] <= 0.05 * total + jitter, t
         else:   # the rest of "other": the SNES's vector updates and norms (collectives)
-            assert t["other"] - glue <= 0.10 * total, (t, glue)
+            assert t["other"] - glue <= 0.10 * total + jitter, (t, glue)
         # the linear part = the linear solver's own clock (KSPSetOperators aside)
         assert clock <= t["linear_solve"] * (1.0 + 1e-9), (clock, t)
-        assert t["linear_solve"] - clock <= 0.02 * total + 2e-3, (clock, t)
+        assert t["linear_solve"] - clock <= 0.02 * total + jitter, (clock, t)
         # the assembly sub-parts add up
         assert abs(t["assembly_residual"] + t["assembly_jacobian"] - t["assembly"]) \
             <= 1e-9 + 1e-9 * t["assembly"]
