@@ -14,7 +14,8 @@ symbolic factorisation, AMG set-up) is left out, and the wall times of the other
 
 * ``assembly``: UFL residual + Jacobian assembly (``SolveInfo.times["assembly"]``),
 * ``contact``: the contact contributor (projection, kernels, insertion),
-* ``linear``: linear solve (PETSc ``KSPSolve`` + ``PCSetUp``, the condensation included),
+* ``linear``: linear solve (``SolveInfo.times["linear_solve"]``: from the end of each Jacobian
+  callback to the line search, the condensation and the inner Krylov solve included),
 * ``increment``: the whole ``Simulation.step`` (geometry update, outputs off).
 
 Times are the maximum over ranks. The speed-up is ``t(1 rank) / t(N ranks)``, the parallel

@@ -18,7 +18,8 @@ import dolfinx.plot
 __all__ = [
     "DOLFINX_VERSION", "form", "function_space", "collapse", "dofmap_array", "cell_dofs",
     "entities_to_geometry", "vtk_mesh", "interpolation_points", "locate_dofs_topological",
-    "cell_vertices", "model_to_mesh", "num_owned", "XDMFFile", "VTKFile",
+    "cell_vertices", "model_to_mesh", "num_owned", "XDMFFile", "VTKFile", "jit_params",
+    "JIT_EXTRA_COMPILE_ARGS",
 ]
 
 DOLFINX_VERSION = dolfinx.__version__
@@ -27,10 +28,38 @@ XDMFFile = dolfinx.io.XDMFFile
 VTKFile = dolfinx.io.VTKFile
 
 
+#: C compiler flags appended to dolfinx's JIT flags (``cffi_extra_compile_args``: the
+#: default ``-O2 -g0`` or a user's ``dolfinx_jit_parameters.json``) for fxcontact's forms.
+#: ``-fno-math-errno``: ``sqrt`` and ``pow`` no longer set ``errno``, so GCC may inline ``sqrt``
+#: and merge repeated ``pow`` calls with the same arguments — the FFCx Norton–Hoff tangent
+#: calls ``pow(z, m-1)`` / ``pow(z, m-3)`` 36 times per quadrature point, which GCC cannot
+#: merge otherwise. The same floating-point operations run, so the element tensors are
+#: bitwise identical (no ``-march=native``: FMA contraction would change the round-off, and
+#: the JIT cache, keyed by the flags, may be shared between machines). ``[]``: dolfinx's flags.
+#: The flags are part of FFCx's cache key (a changed list compiles new modules).
+JIT_EXTRA_COMPILE_ARGS = ["-fno-math-errno"]
+
+
+def jit_params(user=None) -> dict:
+    """dolfinx ``jit_params`` for fxcontact's forms: ``user``'s, and unless they set
+    ``cffi_extra_compile_args`` themselves, dolfinx's compiler flags plus
+    :data:`JIT_EXTRA_COMPILE_ARGS`."""
+    p = dict(user or {})
+    if "cffi_extra_compile_args" not in p and JIT_EXTRA_COMPILE_ARGS:
+        import dolfinx.jit
+        base = list(dolfinx.jit.get_parameters()["cffi_extra_compile_args"])
+        p["cffi_extra_compile_args"] = base + [a for a in JIT_EXTRA_COMPILE_ARGS
+                                               if a not in base]
+    return p
+
+
 def form(f, jit_params=None):
-    """Compile a UFL form (or nested list of forms)."""
+    """Compile a UFL form (or nested list of forms) with :func:`jit_params`."""
     fcp = {}
-    return dolfinx.fem.form(f, form_compiler_params=fcp, jit_params=dict(jit_params or {}))
+    return dolfinx.fem.form(f, form_compiler_params=fcp, jit_params=_jit(jit_params))
+
+
+_jit = jit_params
 
 
 def expression(expr, points):

@@ -231,7 +231,9 @@ class CondensedPC:
         self._mats = {}
         self._Sp = None
         self._wvec = None
-        self.times = {"condense": 0.0, "inner_setup": 0.0}
+        #: wall times: forming S, the inner set-up, and the whole set-up / application calls
+        #: (``setup``, ``apply``: the PC's share of the linear solve, errors included)
+        self.times = {"condense": 0.0, "inner_setup": 0.0, "setup": 0.0, "apply": 0.0}
         #: message of the last failed inner solve (None: none since the last reset)
         self.error: Optional[str] = None
         self.setups = 0
@@ -303,6 +305,20 @@ class CondensedPC:
 
     # -- PC interface -------------------------------------------------------------------
     def setUp(self, pc):
+        t0 = time.perf_counter()
+        try:
+            self._setup(pc)
+        finally:
+            self.times["setup"] += time.perf_counter() - t0
+
+    def apply(self, pc, x, y):
+        t0 = time.perf_counter()
+        try:
+            self._apply(pc, x, y)
+        finally:
+            self.times["apply"] += time.perf_counter() - t0
+
+    def _setup(self, pc):
         t0 = time.perf_counter()
         self.setups += 1
         _, P = pc.getOperators()
@@ -391,7 +407,7 @@ class CondensedPC:
         arr = b.getArray(readonly=True)
         return np.abs(arr[lay.retained[lay.other_pos]])
 
-    def apply(self, pc, x, y):
+    def _apply(self, pc, x, y):
         lay = self.lay
         Alb, Abl, D = self._mats["lb"], self._mats["bl"], self._mats["Dinv"]
         xb = x.getSubVector(lay.is_b)

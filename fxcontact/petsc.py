@@ -29,7 +29,7 @@ import dolfinx.fem.petsc
 from fxcontact import compat
 
 __all__ = ["NodalTerms", "NonlinearProblem", "ContactProblem", "Timers", "add_nodal_residual",
-           "add_nodal_jacobian", "ContributorError"]
+           "add_nodal_jacobian", "ContributorError", "lifting_needed"]
 
 log = logging.getLogger(__name__)
 
@@ -73,17 +73,21 @@ class Timers:
         self.times.clear()
 
     class _Ctx:
-        def __init__(self, timers, name):
-            self.timers, self.name = timers, name
+        def __init__(self, timers, names):
+            self.timers, self.names = timers, names
 
         def __enter__(self):
             self.t0 = time.perf_counter()
 
         def __exit__(self, *exc):
-            self.timers.add(self.name, time.perf_counter() - self.t0)
+            dt = time.perf_counter() - self.t0
+            for name in self.names:
+                self.timers.add(name, dt)
 
-    def __call__(self, name: str):
-        return Timers._Ctx(self, name)
+    def __call__(self, *names: str):
+        """Context manager adding its wall time to every one of ``names`` (e.g. a phase and
+        its sub-phase)."""
+        return Timers._Ctx(self, names)
 
 
 def add_nodal_residual(b: PETSc.Vec, terms: NodalTerms):
@@ -111,18 +115,33 @@ def add_nodal_jacobian(A: PETSc.Mat, terms: NodalTerms, bc_marker: np.ndarray):
     A.setValuesLocalRCV(rows, rows, vals, addv=PETSc.InsertMode.ADD_VALUES)
 
 
+def lifting_needed(bcs, x0: PETSc.Vec, work: PETSc.Vec, bc_owned: np.ndarray, comm) -> bool:
+    """False if ``x0`` equals the prescribed value at every owned Dirichlet dof of every rank,
+    bitwise (collective): the lifting ``A (g − x0)`` of the residual is then exactly zero.
+
+    ``work`` is a scratch vector of the layout of ``x0``; ``bc_owned`` the owned Dirichlet dofs
+    (local indices). A NaN in ``x0`` counts as a difference."""
+    with work.localForm() as wl:
+        wl.set(0.0)
+    dolfinx.fem.petsc.set_bc(work, bcs, x0, 1.0)       # work[bc] = g − x0
+    diff = work.getArray(readonly=True)[bc_owned]
+    return bool(comm.allreduce(bool(np.any(diff != 0.0)), op=MPI.LOR))
+
+
 def assemble_residual_with_terms(b: PETSc.Vec, L, a, bcs, x0: PETSc.Vec, terms, timers,
-                                 constraints=(), w=None):
+                                 constraints=(), w=None, lift: bool = True):
     """The residual sequence (PLATFORM order): UFL vector, lifting, reverse ghost update, THEN
     the nodal entries of ``terms`` (None: a contributor refused the iterate → NaN residual),
     THEN ``set_bc``; ``constraints`` (symmetry planes) record the residual before the BCs and
-    project it after them."""
-    with timers("assembly"):
+    project it after them. ``lift=False`` skips the lifting (only when it is exactly zero:
+    :func:`lifting_needed`)."""
+    with timers("assembly", "assembly_residual"):
         with b.localForm() as bl:
             bl.set(0.0)
         dolfinx.fem.petsc.assemble_vector(b, L)
-        # x0 must have current ghost values: use the (scattered) solution vector
-        dolfinx.fem.petsc.apply_lifting(b, [a], bcs=[bcs], x0=[x0], scale=-1.0)
+        if lift:
+            # x0 must have current ghost values: use the (scattered) solution vector
+            dolfinx.fem.petsc.apply_lifting(b, [a], bcs=[bcs], x0=[x0], scale=-1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     if terms is None:  # a contributor refused this iterate: poison the residual
         b.set(np.nan)
@@ -130,7 +149,7 @@ def assemble_residual_with_terms(b: PETSc.Vec, L, a, bcs, x0: PETSc.Vec, terms, 
     with timers("contact"):
         for t in terms:
             add_nodal_residual(b, t)
-    with timers("assembly"):
+    with timers("assembly", "assembly_residual"):
         for c in constraints:
             c.record_residual(b)
         dolfinx.fem.petsc.set_bc(b, bcs, x0, -1.0)
@@ -148,7 +167,7 @@ def assemble_jacobian_with_terms(A: PETSc.Mat, a, bcs, terms, bc_marker, timers,
         with timers("contact"):
             for t in terms:
                 add_nodal_jacobian(A, t, bc_marker)
-    with timers("assembly"):
+    with timers("assembly", "assembly_jacobian"):
         dolfinx.fem.petsc.assemble_matrix(A, a, bcs=bcs)
         A.assemble()
         for c in constraints:
@@ -176,6 +195,12 @@ class NonlinearProblem:
             complement (:mod:`fxcontact.condense`); None: not available.
     """
 
+    #: skip the lifting of the residual when it is exactly zero (the iterate holds the
+    #: Dirichlet values bitwise): the lifting runs the Jacobian kernel on every cell with a
+    #: Dirichlet dof, ~3× the cost of the residual vector itself on the wire drawing
+    #: (``benchmarks/bench_assembly.py``); False: always lift (dolfinx's sequence)
+    skip_zero_lifting: bool = True
+
     def __init__(self, F, w, bcs=(), J=None, contributors: Sequence = (), jit_params=None,
                  constraints: Sequence = (), schur_weight=None):
         import ufl
@@ -200,6 +225,11 @@ class NonlinearProblem:
             c.setup(self.bc_marker)
         self.error: Optional[str] = None
         self._cache_terms: Optional[List[NodalTerms]] = None
+        nown = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+        self._bc_owned = np.flatnonzero(self.bc_marker[:nown]).astype(np.int32)
+        self._lift_work: Optional[PETSc.Vec] = None
+        #: residual evaluations that skipped / did the lifting (see skip_zero_lifting)
+        self.liftings = {"skipped": 0, "done": 0}
 
     def create_vector(self) -> PETSc.Vec:
         return dolfinx.fem.petsc.create_vector(self.L)
@@ -230,12 +260,27 @@ class NonlinearProblem:
             return None
         return terms
 
+    def _lift(self) -> bool:
+        """Whether the residual needs its lifting ``A (g − x0)`` at the current iterate
+        (collective): not when :attr:`skip_zero_lifting` and the iterate holds the prescribed
+        values exactly, which every Newton iterate does once the first one does (the
+        Dirichlet rows of the step are ``x0 − g = 0``)."""
+        if not (self.skip_zero_lifting and self.bcs):
+            return bool(self.bcs)
+        with self.timers("assembly", "assembly_residual"):
+            if self._lift_work is None:
+                self._lift_work = self.w.vector.duplicate()
+            need = lifting_needed(self.bcs, self.w.vector, self._lift_work, self._bc_owned,
+                                  self.comm)
+        self.liftings["done" if need else "skipped"] += 1
+        return need
+
     def residual(self, snes, x: PETSc.Vec, b: PETSc.Vec):
         """SNES residual callback."""
         self._update(x)
         terms = self._evaluate_contributors(jacobian=False) if self.contributors else []
         assemble_residual_with_terms(b, self.L, self.a, self.bcs, self.w.vector, terms,
-                                     self.timers, self.constraints, self.w)
+                                     self.timers, self.constraints, self.w, lift=self._lift())
 
     def jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat):
         """SNES Jacobian callback."""
@@ -296,7 +341,7 @@ class ContactProblem(dolfinx.fem.petsc.NonlinearProblem):
                  form_compiler_params=None, jit_params=None):
         super().__init__(F, u, bcs=list(bcs or []), J=J,
                          form_compiler_params=dict(form_compiler_params or {}),
-                         jit_params=dict(jit_params or {}))
+                         jit_params=compat.jit_params(jit_params))
         self.u = u
         self.contributors = list(contributors)
         self.comm = u.function_space.mesh.comm

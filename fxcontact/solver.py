@@ -237,6 +237,9 @@ class SolveInfo:
     linear_iterations: int = 0
     #: Newton iterations of the softened and of the full stage (penalty continuation), or None
     stage_iterations: Optional[tuple] = None
+    #: number of residual and Jacobian evaluations (SNES callbacks) of the solve: one
+    #: residual at the start plus one per line-search trial, one Jacobian per iteration
+    evaluations: Dict[str, int] = field(default_factory=dict)
 
 
 class BorderedPC:
@@ -366,8 +369,14 @@ class NewtonSolver:
         self._rtol = options.rtol
         #: number of times the SNES/KSP/PC objects were rebuilt after a failed solve
         self.resets = 0
-        PETSc.Log.begin()
-        self._ev = [PETSc.Log.Event("KSPSolve"), PETSc.Log.Event("PCSetUp")]
+        #: wall time and number of calls of the SNES callbacks (residual, Jacobian, convergence
+        #: test) since the solver was built
+        self.callback_times = {"residual": 0.0, "jacobian": 0.0, "test": 0.0}
+        self.callback_calls = {"residual": 0, "jacobian": 0, "test": 0}
+        #: wall time of the linear solves since the solver was built (see :meth:`solve`)
+        self.linear_time = 0.0
+        self._linear_start: Optional[float] = None
+        PETSc.Log.begin()   # PETSc's event log on (benchmarks read its events)
 
     def _write_options(self):
         """Write this solver's options under its prefix (those of an earlier solver under the
@@ -392,9 +401,9 @@ class NewtonSolver:
         self.b = self.problem.create_vector()
         snes = PETSc.SNES().create(self.comm)
         snes.setOptionsPrefix(self.options.prefix)
-        snes.setFunction(self.problem.residual, self.b)
+        snes.setFunction(self._residual, self.b)
         if self.border is None:
-            snes.setJacobian(self.problem.jacobian, self.A, self.A)
+            snes.setJacobian(self._jacobian, self.A, self.A)
         else:
             if self._J_shell is not None:
                 self._J_shell.destroy()
@@ -405,11 +414,14 @@ class NewtonSolver:
             self._J_shell = J
 
             def jacobian(snes_, x, J_, P):
-                self.problem.jacobian(snes_, x, P, P)
+                self._jacobian(snes_, x, P, P)
                 J_.assemble()
             snes.setJacobian(jacobian, J, self.A)
-        snes.setConvergenceTest(self._converged)
+        snes.setConvergenceTest(self._converged_timed)
         snes.setFromOptions()
+        # the linear solve runs between the end of the Jacobian callback and the line search's
+        # pre-check (KSPSetOperators, PC set-up, KSPSolve): its wall time is taken there
+        snes.setLineSearchPreCheck(self._precheck)
         ksp = snes.getKSP()
         pc_fs = ksp.getPC()
         if self.border is not None:
@@ -462,6 +474,40 @@ class NewtonSolver:
         old_snes.destroy()
         old_b.destroy()
         self.resets += 1
+
+    # -- SNES callbacks, timed and counted; the linear solve ends at the pre-check -------
+    def _timed(self, key, fn, *args):
+        t0 = time.perf_counter()
+        try:
+            return fn(*args)
+        finally:
+            self.callback_times[key] += time.perf_counter() - t0
+            self.callback_calls[key] += 1
+
+    def _residual(self, snes, x, b):
+        # the trust region (newtontr) has no line-search pre-check: its linear solve ends at
+        # the next residual evaluation (a no-op after the line search's pre-check)
+        self._end_linear()
+        self._timed("residual", self.problem.residual, snes, x, b)
+
+    def _jacobian(self, snes, x, A, P):
+        try:
+            self._timed("jacobian", self.problem.jacobian, snes, x, A, P)
+        finally:
+            self._linear_start = time.perf_counter()
+
+    def _precheck(self, x, y):
+        """Line-search pre-check (the step is not changed): the linear solve ends here."""
+        self._end_linear()
+        return False
+
+    def _end_linear(self):
+        if self._linear_start is not None:
+            self.linear_time += time.perf_counter() - self._linear_start
+            self._linear_start = None
+
+    def _converged_timed(self, snes, it, norms):
+        return self._timed("test", self._converged, snes, it, norms)
 
     def _converged(self, snes, it, norms):
         xnorm, snorm, fnorm = norms
@@ -536,9 +582,6 @@ class NewtonSolver:
             _WRITTEN_OPTIONS.setdefault(self.options.prefix, set()).add(key)
         self.snes.setFromOptions()
 
-    def _linear_time(self) -> float:
-        return sum(e.getPerfInfo()["time"] for e in self._ev)
-
     def solve(self) -> SolveInfo:
         """Solve from the current content of ``problem.w`` (the initial guess); with
         ``penalty_continuation``, a softened first stage then the full problem."""
@@ -566,6 +609,8 @@ class NewtonSolver:
         info.linear_iterations += first.linear_iterations
         for key, val in first.times.items():
             info.times[key] = info.times.get(key, 0.0) + val
+        for key, val in first.evaluations.items():
+            info.evaluations[key] = info.evaluations.get(key, 0) + val
         info.stage_iterations = (first.iterations, info.iterations - first.iterations)
         return info
 
@@ -579,8 +624,10 @@ class NewtonSolver:
         w = prob.w
         x = w.vector.copy()
         self._cycle_message = ""
+        calls0 = dict(self.callback_calls)
+        lin0 = self.linear_time
+        self._linear_start = None
         t0 = time.perf_counter()
-        lin0 = self._linear_time()
         cpc = self._condensed_pc
         inner0 = cpc.inner_iterations if cpc is not None else 0
         cond0 = cpc.times["condense"] if cpc is not None else 0.0
@@ -588,10 +635,12 @@ class NewtonSolver:
             cpc.error = None
         try:
             self.snes.solve(None, x)
+            self._end_linear()   # a failed linear solve stops the SNES before the line search
             reason = self.snes.getConvergedReason()
             its = self.snes.getIterationNumber()
             msg = ""
         except Exception as e:  # a contributor error raised through PETSc (collective)
+            self._end_linear()
             reason, its = -100, self.snes.getIterationNumber()
             msg = prob.error or (f"PETSc error inside the Newton solve ({e}; see the PETSc "
                                  f"traceback on stderr)")
@@ -615,16 +664,29 @@ class NewtonSolver:
         if not converged:
             # a failed attempt must not poison the next one (factorisation, locked vectors)
             self.reset()
-        lin = self._linear_time() - lin0
+        # linear solve: from the end of each Jacobian callback to the line search's pre-check
+        # (or the end of the SNES after a failed linear solve): KSPSetOperators, the PC set-up
+        # (MUMPS factorisation; condensation and inner set-up), the Krylov iterations or
+        # triangular solves. (Not the PETSc KSPSolve/PCSetUp log events: a nested solve under
+        # a python PC is counted in both, and an error raised inside an event leaves it open,
+        # so that it is never timed again.) "other": the SNES's vector updates and norms, the
+        # callbacks' Python glue (iterate copy, ghost update, convergence test) and, in
+        # parallel, the waits in their collectives.
+        lin = self.linear_time - lin0
         times = {"assembly": prob.timers.get("assembly"), "contact": prob.timers.get("contact"),
                  "linear_solve": lin}
         times["other"] = max(wall - sum(times.values()), 0.0)
         times["total"] = wall
         if cpc is not None:  # part of linear_solve: forming the condensed system
             times["condensation"] = cond
+        # sub-parts of "assembly"
+        times["assembly_residual"] = prob.timers.get("assembly_residual")
+        times["assembly_jacobian"] = prob.timers.get("assembly_jacobian")
         if not converged and not msg:
             msg = f"SNES diverged: {_reason_name(reason)} after {its} iterations"
-        return SolveInfo(converged, its, reason, list(self._norms), msg, times, lin_its)
+        evals = {k: self.callback_calls[k] - calls0[k] for k in ("residual", "jacobian")}
+        return SolveInfo(converged, its, reason, list(self._norms), msg, times, lin_its,
+                         evaluations=evals)
 
     def destroy(self):
         if self._condensed_pc is not None:
