@@ -104,7 +104,7 @@ DEFAULTS = dict(case=2, R1=150.0, R2=40.0, R=100.0, r=60.0, H=40.0, Rg=40.0, gui
                 increments_per_rev=60, revolutions=2.0, update="cylindrical",
                 scheme="implicit", tools="analytic", facet_size=None, volume_correction="none",
                 mu_bite=0.3, max_increments=100000, output_dir="results/ring_rolling", name=None,
-                pictures=True, vtk_every=0, comm=None)
+                pictures=True, vtk_every=0, checkpoint_every=0, resume=None, comm=None)
 
 #: the reduced size of the tests: coarse ring, a quarter of a revolution
 QUICK = dict(n_theta=100, n_r=3, n_z=1, increments_per_rev=50, revolutions=0.2,
@@ -181,11 +181,13 @@ def run(**parameters) -> dict:
     h_theta = 2.0 * math.pi * R / int(P["n_theta"])
     sp = fx.MixedSpace(msh)
     update = RingAxisUpdate((0.0, 0.0, 0.0)) if P["update"] == "cylindrical" else None
+    files = bool(P["vtk_every"] or P["checkpoint_every"] or P["resume"])
     sim = fx.Simulation(sp, mat, solver_options=fx.SolverOptions(max_it=int(P["max_it"])),
                         kinematics=update,
-                        output_dir=out if P["vtk_every"] else None, name=name,
-                        output_every=max(1, int(P["vtk_every"] or 1)), progress=False,
-                        volume_correction=P["volume_correction"])
+                        output_dir=out if files else None, name=name,
+                        output_every=max(1, int(P["vtk_every"] or 10 ** 9)), progress=False,
+                        volume_correction=P["volume_correction"],
+                        checkpoint_every=int(P["checkpoint_every"]))
     sim.add_velocity_bc(sim.facets(ft, fx.RING_TAGS["mid_plane"]), 0.0, component=2)
 
     # ---- tools: main roll (driven, clockwise), mandrel (idle, fed), guide rolls (idle)
@@ -229,13 +231,18 @@ def run(**parameters) -> dict:
     idle = IdleRotation(contact, mandrel)
     sim.add_controller(idle)
     sim.add_contributor(contact)
-    V0 = sim.volume()
-    # first guess: the ring turning rigidly at the main roll's surface speed
-    x0 = sim.vertex_positions()
-    v0 = np.zeros_like(x0)
-    v0[:, 0], v0[:, 1] = -x0[:, 1] * v_s / R, x0[:, 0] * v_s / R
-    sim.w_prev.x.array[sp.vertex_dofs] = v0
-    sim.w_prev.x.scatter_forward()
+    if P["resume"]:
+        # the state of a checkpoint (True: the newest of this run): fields, geometry, contact,
+        # the controllers (guide-roll and mandrel motions, ω, ring centre) and the history
+        sim.resume(None if P["resume"] is True else P["resume"])
+    V0 = sim.initial_volume
+    if not P["resume"]:
+        # first guess: the ring turning rigidly at the main roll's surface speed
+        x0 = sim.vertex_positions()
+        v0 = np.zeros_like(x0)
+        v0[:, 0], v0[:, 1] = -x0[:, 1] * v_s / R, x0[:, 0] * v_s / R
+        sim.w_prev.x.array[sp.vertex_dofs] = v0
+        sim.w_prev.x.scatter_forward()
 
     def surface_radius(b, c):
         x = sim.vertex_positions()[b.vertices] - c
@@ -277,7 +284,7 @@ def run(**parameters) -> dict:
     snap_at = sorted(set(int(round(f * n_inc)) for f in (0.0, 1 / 3, 2 / 3, 1.0)))
     c0, _ = centring.measure(sim)
     if 0 in snap_at:
-        snaps.append(_snapshot(comm, sim, outer, inner, tools, 0.0, c0))
+        snaps.append(_snapshot(comm, sim, outer, inner, tools, sim.t, c0))
     wall0 = time.perf_counter()
     status, message = "done", ""
     t_end = P["revolutions"] * t_rev
@@ -310,6 +317,7 @@ def run(**parameters) -> dict:
                    + 2 * math.hypot(q["guide2_force_x"], q["guide2_force_y"]),
                    ring_omega=w_ring, ring_omega_nominal=v_s / Ro,
                    mandrel_omega=q["mandrel_omega"],
+                   mandrel_angle=mandrel.motion.angle(sim.t),
                    mandrel_omega_free=q["mandrel_omega_free"],
                    mandrel_idle_torque=2 * q["mandrel_idle_torque"],
                    mandrel_idle_tolerance=2 * q["mandrel_idle_tolerance"],
@@ -339,7 +347,7 @@ def run(**parameters) -> dict:
                history=rows, t_rev=t_rev, dt=dt, feed_per_rev=dh, feed_speed=v_f,
                window=window, contact_length=L, strain_rate_bite=rate, sigma0=sigma0,
                force_estimate=force_est["force"], Q=force_est["Q"], wall=wall,
-               volume_initial=2.0 * V0, h_theta=h_theta)
+               volume_initial=2.0 * V0, h_theta=h_theta, sim_history=list(sim.history))
     res.update(_summary(res, comm, msh))
     paths = {}
     if comm.rank == 0 and out:

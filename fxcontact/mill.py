@@ -143,6 +143,37 @@ class ControlledMotion(RigidMotion):
     def current_angular_velocity(self) -> float:
         return float(self._st["w"][-1])
 
+    def checkpoint_state(self) -> dict:
+        """The stages of rates set so far (plain numbers and lists): what a resumed run needs
+        to place the tool where the checkpointed run had it (:mod:`fxcontact.checkpoint`)."""
+        st = self._st
+        return {"t": [float(x) for x in st["t"]], "th": [float(x) for x in st["th"]],
+                "w": [float(x) for x in st["w"]],
+                "c": np.asarray(st["c"], dtype=np.float64).tolist(),
+                "v": np.asarray(st["v"], dtype=np.float64).tolist()}
+
+    def restore_state(self, state: dict):
+        """Restore the stages of :meth:`checkpoint_state` (ValueError if malformed)."""
+        try:
+            t = np.asarray(state["t"], dtype=np.float64).reshape(-1)
+            th = np.asarray(state["th"], dtype=np.float64).reshape(-1)
+            w = np.asarray(state["w"], dtype=np.float64).reshape(-1)
+            c = np.asarray(state["c"], dtype=np.float64).reshape(-1, 3)
+            v = np.asarray(state["v"], dtype=np.float64).reshape(-1, 3)
+        except (KeyError, TypeError, ValueError) as e:
+            raise ValueError(f"not a ControlledMotion state ({e}): {state!r:.200}") from None
+        n = len(t)
+        if n == 0 or not (len(th) == len(w) == len(c) == len(v) == n) or \
+                np.any(np.diff(t) <= 0) or not all(np.all(np.isfinite(a))
+                                                   for a in (t, th, w, c, v)):
+            raise ValueError(f"not a ControlledMotion state: {n} stage times, {len(th)} angles, "
+                             f"{len(w)} rotation speeds, {len(c)} positions, {len(v)} "
+                             f"velocities (the same number > 0, finite, increasing times)")
+        st = self._st
+        st["t"], st["th"], st["w"] = [float(x) for x in t], [float(x) for x in th], \
+            [float(x) for x in w]
+        st["c"], st["v"] = [x.copy() for x in c], [x.copy() for x in v]
+
 
 def _controlled(tool: Tool) -> ControlledMotion:
     if not isinstance(getattr(tool, "motion", None), ControlledMotion):
@@ -356,6 +387,18 @@ class IdleRotation:
         out[f"{n}_surface_slip"] = (self.omega - w_free) * R
         return out
 
+    def checkpoint_state(self) -> dict:
+        """ω of the last increment (the first trial of the next one) and the tool's motion."""
+        return {"tool": self.tool.name, "omega": float(self.omega),
+                "motion": self.motion.checkpoint_state()}
+
+    def restore_state(self, state: dict):
+        if state.get("tool") != self.tool.name:
+            raise ValueError(f"the checkpoint's idle rotation is of tool {state.get('tool')!r}, "
+                             f"this one of '{self.tool.name}'")
+        self.omega = float(state["omega"])
+        self.motion.restore_state(state["motion"])
+
 
 class RingAxisUpdate:
     """Cylindrical configuration update (THEORY §5) about the axis through a centre that is
@@ -379,6 +422,16 @@ class RingAxisUpdate:
     def positions(self, x, v, dt):
         from fxcontact.cylindrical import cylindrical_update
         return cylindrical_update(x, v, dt, self.center, self.axis, derivatives=False)[0]
+
+    def checkpoint_state(self) -> dict:
+        return {"center": self.center.copy(), "axis": self.axis.copy()}
+
+    def restore_state(self, state: dict):
+        axis = unit_vector(state["axis"], "ring axis")
+        if not np.allclose(axis, self.axis, rtol=0.0, atol=1e-12):
+            raise ValueError(f"the checkpoint's ring axis {axis.tolist()} is not this update's "
+                             f"{self.axis.tolist()}")
+        self.set_center(state["center"])
 
 
 class RingCentring:
@@ -485,3 +538,20 @@ class RingCentring:
         return {"ring_center_x": float(c[0]), "ring_center_y": float(c[1]),
                 "ring_center_z": float(c[2]), "ring_outer_radius": float(self.radius),
                 "ring_center_offset": float(np.linalg.norm(off))}
+
+    def checkpoint_state(self) -> dict:
+        """The guide rolls' motions and the last measured centre and outer radius."""
+        return {"guides": [g.name for g in self.guides],
+                "center": None if self.center is None else np.asarray(self.center).tolist(),
+                "radius": None if self.radius is None else float(self.radius),
+                "motions": [m.checkpoint_state() for m in self.motions]}
+
+    def restore_state(self, state: dict):
+        names = [g.name for g in self.guides]
+        if state.get("guides") != names:
+            raise ValueError(f"the checkpoint's centring guides {state.get('guides')} are not "
+                             f"these {names}")
+        self.center = None if state["center"] is None else np.asarray(state["center"], float)
+        self.radius = None if state["radius"] is None else float(state["radius"])
+        for m, st in zip(self.motions, state["motions"]):
+            m.restore_state(st)
