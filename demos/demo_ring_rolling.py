@@ -90,13 +90,14 @@ from mpi4py import MPI
 import fxcontact as fx
 from fxcontact import forming
 from fxcontact.console import add_verbosity_arguments, configure_logging
-from fxcontact.mill import ControlledMotion, IdleRotation, RingAxisUpdate, RingCentring
+from fxcontact.mill import (AxialRolls, ControlledMotion, IdleRotation, RingAxisUpdate,
+                            RingCentring)
 
 #: the thesis's academic cases (THEORY §12.1): lengths mm, stresses MPa, times s
 CASES = {1: dict(rpm=20.0, feed_speed=1.5, main_friction=("norton", 0.5, 0.15),
-                 mandrel_friction=None),
+                 mandrel_friction=None, cone_speed=0.4),
          2: dict(rpm=60.0, feed_speed=1.5, main_friction=("coulomb", 0.3, 0.6),
-                 mandrel_friction=("coulomb", 0.3, 0.6))}
+                 mandrel_friction=("coulomb", 0.3, 0.6), cone_speed=None)}
 
 DEFAULTS = dict(case=2, R1=150.0, R2=40.0, R=100.0, r=60.0, H=40.0, Rg=40.0, guide_angle=60.0,
                 K=1900.0, m=0.14, n_theta=160, n_r=4, n_z=2, initial_bite=0.05,
@@ -104,7 +105,8 @@ DEFAULTS = dict(case=2, R1=150.0, R2=40.0, R=100.0, r=60.0, H=40.0, Rg=40.0, gui
                 increments_per_rev=60, revolutions=2.0, update="cylindrical",
                 scheme="implicit", tools="analytic", facet_size=None, volume_correction="none",
                 mu_bite=0.3, max_increments=100000, output_dir="results/ring_rolling", name=None,
-                pictures=True, vtk_every=0, checkpoint_every=0, resume=None, comm=None)
+                pictures=True, vtk_every=0, checkpoint_every=0, resume=None,
+                cones=False, cone_half_angle=30.0, cone_speed=None, comm=None)
 
 #: the reduced size of the tests: coarse ring, a quarter of a revolution
 QUICK = dict(n_theta=100, n_r=3, n_z=1, increments_per_rev=50, revolutions=0.2,
@@ -153,8 +155,18 @@ def run(**parameters) -> dict:
         raise ValueError(f"update must be 'cylindrical' or 'cartesian', got {P['update']!r}")
     if P["tools"] not in ("analytic", "faceted"):
         raise ValueError(f"tools must be 'analytic' or 'faceted', got {P['tools']!r}")
+    if not (isinstance(P["cone_half_angle"], (int, float)) and
+            0.0 < P["cone_half_angle"] < 60.0):
+        raise ValueError(f"cone_half_angle must be in (0, 60) degrees, got "
+                         f"{P['cone_half_angle']!r}")
     comm = P["comm"] or MPI.COMM_WORLD
     case = CASES[P["case"]]
+    cone_speed = case["cone_speed"] if P["cone_speed"] is None else P["cone_speed"]
+    if P["cones"] and cone_speed is None:
+        raise ValueError(f"case {P['case']} has no axial rolls: give cone_speed (the opening "
+                         f"speed of the axial gap) to add them")
+    if P["cones"] and not (isinstance(cone_speed, (int, float)) and math.isfinite(cone_speed)):
+        raise ValueError(f"cone_speed must be a finite number, got {cone_speed!r}")
     R1, R2, R, r, H, Rg = (float(P[k]) for k in ("R1", "R2", "R", "r", "H", "Rg"))
     w1 = case["rpm"] * 2.0 * math.pi / 60.0          # main roll, rad/s
     v_s = w1 * R1                                      # its surface speed
@@ -209,15 +221,33 @@ def run(**parameters) -> dict:
         guides.append(_tool(P["tools"], f"guide{k + 1}", Rg, c, H,
                             ControlledMotion(axis_point=c), fs))
     tools = [main, mandrel] + guides
+    cone_geo = None
+    if P["cones"]:
+        # upper axial roll: apex on the mill line at the ring's centre, lower generatrix in the
+        # top face (z = H/2, less the initial bite), pointing away from the main roll; the lower
+        # axial roll is its mirror image in the mid-plane (the symmetry of the half model)
+        alpha = math.radians(P["cone_half_angle"])
+        apex = (0.0, 0.0, 0.5 * H - e0)
+        w_axis = (-math.cos(alpha), 0.0, math.sin(alpha))
+        # rolling without slip on the face: ω_cone sin α = ω_ring (apex on the ring axis)
+        w_cone = v_s / R / math.sin(alpha)
+        cone = fx.MovedTool(fx.Cone(apex, w_axis, alpha, name="cone"),
+                            ControlledMotion(velocity=(0.0, 0.0, 0.5 * cone_speed),
+                                             angular_velocity=w_cone, axis_point=apex,
+                                             axis=w_axis), name="cone")
+        tools.append(cone)
+        cone_geo = dict(alpha=alpha, s0=0.5 * r, s1=R + 0.5 * (R - r))
     # the exact (analytic) surfaces of the same tools, moved by the same motions: the true
     # penetration is measured against them for every variant (a faceted tool's vertices lie on
     # them, its flat facets cut inside by up to the sagitta s²/8R)
     exact = [_tool("analytic", t.name, rad, t.motion.axis_point, H, t.motion, fs)
-             for t, rad in zip(tools, [R1, R2, Rg, Rg])]
+             for t, rad in zip(tools, [R1, R2, Rg, Rg])] + tools[4:]
     friction = {"main_roll": _friction(case["main_friction"])}
     if case["mandrel_friction"] is not None:
         friction["mandrel"] = _friction(case["mandrel_friction"])
     tags = [fx.RING_TAGS["outer"], fx.RING_TAGS["inner"]]
+    if P["cones"]:
+        tags.append(fx.RING_TAGS["top"])
     contact = fx.NodalContact(fx.ContactBoundary(sp, ft, tags), tools, scheme=P["scheme"],
                               friction=friction, slip_velocity=1e-3 * v_s, name="mill",
                               gap_stiffness=P["gap_stiffness"],
@@ -230,6 +260,10 @@ def run(**parameters) -> dict:
     sim.add_controller(centring)
     idle = IdleRotation(contact, mandrel)
     sim.add_controller(idle)
+    axial = None
+    if P["cones"]:
+        # the half model's cone rises at half the opening speed of the axial gap
+        axial = sim.add_controller(AxialRolls(contact, [cone], centring, [0.5 * cone_speed]))
     sim.add_contributor(contact)
     if P["resume"]:
         # the state of a checkpoint (True: the newest of this run): fields, geometry, contact,
@@ -249,6 +283,12 @@ def run(**parameters) -> dict:
         num = float(np.sum(b.areas * np.hypot(x[:, 0], x[:, 1])))
         num, den = comm.allreduce(np.array([num, float(np.sum(b.areas))]), op=MPI.SUM)
         return num / den
+
+    def cone_depth():
+        """Largest depth of the top-face vertices inside the cone (all ranks)."""
+        X = sim.vertex_positions()[top.vertices]
+        d = float(np.max(-cone.project(X, sim.t, hessian=False).gap)) if len(X) else 0.0
+        return comm.allreduce(d, op=MPI.MAX)
 
     def top_height(c):
         z = sim.vertex_positions()[top.vertices][:, 2]
@@ -328,6 +368,9 @@ def run(**parameters) -> dict:
                    penetration_exact=exact_depth(),
                    nodes_main=nodes_on(0), nodes_mandrel=nodes_on(1),
                    nodes_guides=nodes_on(2) + nodes_on(3),
+                   height_max=2 * comm.allreduce(float(np.max(
+                       sim.vertex_positions()[top.vertices][:, 2], initial=-np.inf)),
+                       op=MPI.MAX),
                    newton_iterations=q["newton_iterations_all"], cutbacks=q["cutbacks"],
                    wall=q["wall_increment_all"], volume_change=V / V0 - 1.0,
                    center_x=c[0], center_y=c[1], center_offset=q["ring_center_offset"],
@@ -336,6 +379,9 @@ def run(**parameters) -> dict:
                    max_strain_rate=comm.allreduce(
                        float(np.max(sim.strain_rate.x.array, initial=0.0)), op=MPI.MAX),
                    min_quality=q["min_quality"])
+        if P["cones"]:
+            row.update(_cone_row(q, nodes_on(4), cone_depth(), Hm, Ro, Ri, w_ring, cone_geo,
+                                 P["K"], P["m"]))
         rows.append(row)
         if (it + 1 in snap_at and it + 1 < n_inc) or sim.t >= t_end * (1.0 - 1e-9):
             snaps.append(_snapshot(comm, sim, outer, inner, tools, sim.t, c))
@@ -347,7 +393,8 @@ def run(**parameters) -> dict:
                history=rows, t_rev=t_rev, dt=dt, feed_per_rev=dh, feed_speed=v_f,
                window=window, contact_length=L, strain_rate_bite=rate, sigma0=sigma0,
                force_estimate=force_est["force"], Q=force_est["Q"], wall=wall,
-               volume_initial=2.0 * V0, h_theta=h_theta, sim_history=list(sim.history))
+               volume_initial=2.0 * V0, h_theta=h_theta, sim_history=list(sim.history),
+               cone_geometry=cone_geo, cone_speed=cone_speed if P["cones"] else None)
     res.update(_summary(res, comm, msh))
     paths = {}
     if comm.rank == 0 and out:
@@ -362,6 +409,35 @@ def run(**parameters) -> dict:
             paths.update(_pictures(res, snaps, out, name))
     res["paths"] = comm.bcast(paths, root=0)
     return res
+
+
+def _cone_row(q, nodes, depth, Hm, Ro, Ri, w_ring, geo, K, m) -> dict:
+    """The upper cone's outputs and the axial-force estimate of ring-rolling theory.
+
+    The cone reduces the half height Hm/2 of the arriving ring to its apex level z_a: the
+    reduction δ = Hm/2 − z_a, less the penalty penetration of the nodes (δ_eff = δ − depth),
+    is taken by a flat face under a cone whose normal radius of curvature across the
+    generatrix is R_c = s tan α at the mid-wall s = (R + r)/2 from the apex: contact length
+    L_a = √(2 δ_eff R_c) (THEORY §14.4 with Σ = 1/R_c), force ≈ 2k B L_a with B the wall and
+    k = σ₀/√3 at the axial bite's strain rate (δ_eff/(Hm/2)) · ω_ring s / L_a. The factor Q
+    of the radial estimate is not applied: Hm/L_a is far above its range (the cone does not
+    penetrate the height plastically; for such shallow bites the mean pressure lies between
+    2k and the indentation value (2 + π)k)."""
+    za = q["cone_apex_axial"]
+    s_m = 0.5 * (Ro + Ri)
+    Rc = s_m * math.tan(geo["alpha"])
+    delta = 0.5 * Hm - za
+    d_eff = delta - depth
+    est = L_a = k = 0.0
+    if d_eff > 0:
+        L_a = math.sqrt(2.0 * d_eff * Rc)
+        rate = d_eff / (0.5 * Hm) * abs(w_ring) * s_m / L_a
+        k = float(forming.flow_stress(K, m, rate)) / math.sqrt(3.0)
+        est = 2.0 * k * (Ro - Ri) * L_a
+    return dict(cone_force=q["cone_force_z"], cone_force_line=q["cone_force_x"],
+                nodes_cone=nodes, cone_penetration=depth, cone_gap=2.0 * za,
+                cone_apex_x=q["cone_apex_line"], cone_omega=q["cone_omega"],
+                cone_reduction=delta, cone_contact_length=L_a, cone_force_estimate=est)
 
 
 def _summary(res, comm, msh) -> dict:
@@ -392,7 +468,20 @@ def _summary(res, comm, msh) -> dict:
         mandrel_speed_ratio=float(np.mean([q["mandrel_omega"] * res["parameters"]["R2"]
                                            / q["bore_speed"] for q in second])),
         outer_growth=last["outer_diameter"] / (2 * res["parameters"]["R"]) - 1.0,
+        **(_cone_summary(rows) if "cone_force" in last else {}),
         wall_per_rev=res["wall"] / max(last["revolutions"], 1e-300))
+
+
+def _cone_summary(rows) -> dict:
+    est = [q for q in rows if q["cone_force_estimate"] > 0 and q["nodes_cone"] > 0]
+    return dict(
+        cone_force_max=max(q["cone_force"] for q in rows),
+        cone_nodes_mean=float(np.mean([q["nodes_cone"] for q in rows])),
+        cone_penetration_max=max(q["cone_penetration"] for q in rows),
+        cone_force_ratio=(float(np.mean([q["cone_force"] / q["cone_force_estimate"]
+                                         for q in est])) if est else float("nan")),
+        height_max=max(q["height_max"] for q in rows),
+        cone_gap_last=rows[-1]["cone_gap"])
 
 
 def _edge_lengths(msh):
@@ -452,18 +541,37 @@ def _pictures(res, snaps, out, name) -> dict:
                 q = np.vstack([p[o], p[o][:1]])
                 ax.plot(q[:, 0], q[:, 1], "-", color=col, lw=1.2)
         for nm, x, y, _, ang in s["tools"]:
+            if nm == "cone":
+                g = res["cone_geometry"]
+                # the upper cone seen from above: its footprint from s0 to s1 along the line
+                # (half-opening α about the generatrix), hatched, apex marked
+                th = math.atan(math.tan(g["alpha"]) * math.cos(g["alpha"]))
+                px = [x - g["s0"] * math.cos(th), x - g["s1"] * math.cos(th),
+                      x - g["s1"] * math.cos(th), x - g["s0"] * math.cos(th)]
+                py = [y + g["s0"] * math.sin(th), y + g["s1"] * math.sin(th),
+                      y - g["s1"] * math.sin(th), y - g["s0"] * math.sin(th)]
+                ax.fill(px, py, facecolor="tab:orange", alpha=0.25, edgecolor="tab:orange",
+                        hatch="//", lw=1.0, label="cone (above the ring)")
+                ax.plot([x, x - g["s1"] * math.cos(th)], [y, y], color="tab:orange", lw=1.2,
+                        ls="--")
+                ax.plot(x, y, marker="^", color="tab:orange", ms=7)
+                continue
             rad = radii.get(nm, 10.0)
             th = np.linspace(0, 2 * np.pi, 200)
             ax.fill(x + rad * np.cos(th), y + rad * np.sin(th), color="0.75", alpha=0.6)
             ax.plot([x, x + rad * math.cos(ang)], [y, y + rad * math.sin(ang)], "k-", lw=0.8)
         ax.plot(*s["center"][:2], "r+", ms=8)
+        if any(tl[0] == "cone" for tl in s["tools"]):
+            ax.legend(loc="lower left", fontsize=7)
         ax.set_aspect("equal")
         ax.set_xlim(-1.35 * P["R"] - 20, P["R"] + 2 * P["R1"] + 10)
         ax.set_ylim(-1.6 * P["R"], 1.6 * P["R"])
         ax.set_title(f"t = {s['t']:.2f} s ({s['t'] / res['t_rev']:.2f} rev)", fontsize=10)
         ax.tick_params(labelsize=8)
     fig.suptitle(f"ring rolling case {P['case']}: top view (ring top face, tools grey, "
-                 f"black line = tool angle)", fontsize=10)
+                 f"black line = tool angle"
+                 + (", upper cone orange, apex ▲" if res.get("cone_geometry") else "") + ")",
+                 fontsize=10)
     fig.tight_layout()
     paths["top_view"] = os.path.join(out, f"{name}_top.png")
     fig.savefig(paths["top_view"], dpi=100)
@@ -497,6 +605,10 @@ def curves_png(res, path) -> str:
     ax.plot(t, [q["main_force_x"] / 1e3 for q in h], label="main roll, radial")
     ax.plot(t, [-q["mandrel_force_x"] / 1e3 for q in h], label="mandrel, radial")
     ax.plot(t, [q["guide_force"] / 1e3 for q in h], label="guide rolls (sum |F|)")
+    if "cone_force" in q0:
+        ax.plot(t, [q["cone_force"] / 1e3 for q in h], label="upper cone, axial")
+        ax.plot(t, [q["cone_force_estimate"] / 1e3 for q in h], ":",
+                label="cone, 2kBL_a estimate")
     ax.axhline(res["force_estimate"] / 1e3, color="k", ls="--", label="2kHLQ estimate")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("force [kN] (whole ring)")
@@ -552,6 +664,12 @@ def report(res) -> str:
             f"mandrel: max |torque| {res['mandrel_torque_max']:.3g} N mm (tolerance up to "
             f"{res['mandrel_torque_tol_max']:.3g}); surface slip max {res['mandrel_slip_max']:.3g}"
             f" mm/s; mandrel surface / bore speed {res['mandrel_speed_ratio']:.4f}",
+            *([f"cones (gap opening {res['cone_speed']} mm/s): axial force max "
+               f"{res['cone_force_max'] / 1e3:.1f} kN, {res['cone_nodes_mean']:.1f} contact "
+               f"nodes on average, max penetration {res['cone_penetration_max']:.4f} mm, "
+               f"force / 2kBL_a {res['cone_force_ratio']:.2f}; max height "
+               f"{res['height_max']:.3f} mm, final cone gap {res['cone_gap_last']:.3f} mm"]
+              if "cone_force_max" in res else []),
             f"max penetration {res['max_penetration']:.4f} mm; centre off the mill line max "
             f"{res['max_center_offset']:.4f} mm (smallest edge {res['min_edge']:.2f} mm); max "
             f"strain {res['max_strain']:.3f}, max strain rate {res['max_strain_rate']:.3f} 1/s"]
@@ -569,6 +687,13 @@ def main(argv=None):
     for k in ("increments_per_rev", "n_theta", "n_r", "n_z"):
         ap.add_argument(f"--{k}", type=int)
     ap.add_argument("--vtk_every", type=int)
+    ap.add_argument("--cones", action=argparse.BooleanOptionalAction, default=None,
+                    help="axial (cone) rolls (case 1; case 2 needs --cone_speed)")
+    ap.add_argument("--cone_half_angle", type=float, help="degrees")
+    ap.add_argument("--cone_speed", type=float, help="opening speed of the axial gap, mm/s")
+    ap.add_argument("--checkpoint_every", type=int)
+    ap.add_argument("--resume", action="store_true", default=None,
+                    help="resume from the newest checkpoint of the run in --output-dir")
     ap.add_argument("--update", choices=("cylindrical", "cartesian"))
     ap.add_argument("--scheme", choices=("implicit", "implicit-exact", "quasi-implicit",
                                          "explicit"))
