@@ -17,8 +17,8 @@
 # * **case 1**: Norton–Hoff K = 1900 MPa·s^m, m = 0.14 (as printed; K only scales the forces:
 #   with Norton, Tresca-limited Coulomb and β-scaled penalties the velocity field does not depend
 #   on K); main roll: viscoplastic friction α_f = 0.5, q = 0.15; mandrel frictionless; main roll
-#   20 rpm; mandrel feed 1.5 mm/s (3.0 mm per ring revolution). **The axial cone rolls (rising
-#   0.4 mm/s) are not modelled** (no cone: the ring's height is free).
+#   20 rpm; mandrel feed 1.5 mm/s (3.0 mm per ring revolution); frictionless axial cone
+#   rolls whose gap opens at 0.4 mm/s (``--cones``, see below; off by default).
 # * **case 2**: the same material; Coulomb μ = 0.3 limited by Tresca m̄ = 0.6 on the main roll
 #   and the mandrel; 60 rpm; feed 1.5 mm/s (1.0 mm per revolution).
 #
@@ -72,8 +72,37 @@
 #   0.94 mm/s), main roll force 0.66 × 2kHLQ (still rising), centre ≤ 0.32 mm off the line.
 #   **Two revolutions of case 2 were not run** (about 3 h at this size).
 #
-# Not modelled: the axial cone rolls (case 1), temperature. With this coarse mesh the bite
-# (L = 15.5 mm in case 1, 8.9 mm in case 2) holds only a few nodes around.
+# **Axial cone rolls** (``--cones`` / ``cones=True``; case 1; case 2 has none, ``--cone_speed``
+# adds them to it). The thesis's table gives "ring/cone: sliding (frictionless) contact" and
+# "cone: translation along z, 0.4 mm/s", and says the cones are there to stop the material
+# rising ("empêcher la matière de remonter"; without them the computed ring rises too much).
+# **Interpretation**: the cones hold the height, they do not feed it: the upper cone moves up
+# at 0.4 mm/s with the lower one fixed, so the axial gap opens at ``cone_speed`` = 0.4 mm/s
+# and the cones limit the height wherever the ring grows faster than that (a negative
+# ``cone_speed`` is an axial feed that closes the gap). In the half model the mid-plane is
+# the symmetry plane: one cone on the top face, rising at ``cone_speed``/2 (the lower cone
+# is its mirror image). Geometry, from the ring's (not tuned to the default ring): an analytic
+# cone (:class:`fxcontact.Cone`) of half-angle ``cone_half_angle`` (30°), axis in the
+# vertical plane of the mill line inclined by the half-angle so that its lower generatrix
+# lies in the top face, apex on the mill line at the ring's centre and pointing away from the
+# main roll (the far side); with the apex on the ring's axis a cone turning at ω_ring/sin α
+# rolls without slip at every radius. At t = 0 the cone is ``initial_bite`` into the face like
+# the radial rolls (the gap is H − 2·initial_bite). The cone is idle and frictionless: its ω
+# has no effect and is set after each solve to the rolling speed of its contact nodes;
+# :class:`fxcontact.mill.AxialRolls` moves its apex, within each increment, to the projection
+# of the ring's centroid on the mill line (the cones retreat as the ring grows). The cone is
+# analytic also with ``--tools faceted``. Outputs: ``cone_force`` (axial force of one cone),
+# ``nodes_cone``, ``cone_penetration``, ``cone_gap``, ``height_max``, and the estimate
+# ``cone_force_estimate`` = 2k·B·L_a of ring-rolling theory with the axial contact length
+# L_a = √(2δR_c) (δ the reduction of the half height under the cone less the penalty
+# penetration, R_c = s tan α the cone's radius of curvature across the generatrix at the
+# mid-wall, k at the axial bite's strain rate). On the coarse meshes L_a (~1 mm) is much
+# shorter than an element (6 mm): the cone bears on one row of nodes and its force is the
+# penalty/mesh-resolution value, several times the estimate (measured 4.3× on the first
+# increments of the quick case; see ``benchmarks/README.md`` if a run there says more).
+#
+# Not modelled: temperature. With this coarse mesh the bite (L = 15.5 mm in case 1, 8.9 mm in
+# case 2) holds only a few nodes around.
 
 # %%
 from __future__ import annotations

@@ -1,6 +1,7 @@
 """Checkpoints of a ring-rolling run (demos/demo_ring_rolling.py): the mill's controllers
 (guide rolls placed by :class:`~fxcontact.mill.RingCentring`, the idle mandrel's ω, the
-controlled tool motions, the ring's centre of the cylindrical update) are saved and restored,
+cones of :class:`~fxcontact.mill.AxialRolls`, the controlled tool motions, the ring's centre
+of the cylindrical update) are saved and restored,
 so a resumed run equals the uninterrupted one; a checkpoint is refused, with a clear
 ValueError, by a simulation with other controllers."""
 
@@ -27,8 +28,8 @@ from checkpoint_driver import build  # noqa: E402
 from helpers import shared_tmpdir  # noqa: E402
 
 NI = demo.QUICK["increments_per_rev"]
-#: four increments of the quick (coarse) case 1, a checkpoint every two
-SHORT = {**demo.QUICK, "case": 1, "revolutions": 4.0 / NI, "pictures": False}
+#: four increments of the quick (coarse) case 1 with the cones, a checkpoint every two
+SHORT = {**demo.QUICK, "case": 1, "cones": True, "revolutions": 4.0 / NI, "pictures": False}
 
 
 def _json_round_trip(state):
@@ -102,7 +103,7 @@ def runs():
     full = demo.run(**SHORT, output_dir=os.path.join(d, "full"), checkpoint_every=2)
     ck = list_checkpoints(os.path.join(d, "full", "checkpoints"))
     resumed = demo.run(**SHORT, output_dir=os.path.join(d, "resumed"), resume=ck[0])
-    yield full, resumed, ck
+    yield full, resumed, ck, d
     MPI.COMM_WORLD.barrier()
     if MPI.COMM_WORLD.rank == 0:
         shutil.rmtree(d, ignore_errors=True)
@@ -116,7 +117,7 @@ def test_resumed_ring_rolling_equals_uninterrupted(runs):
     9e-4 rad after 2 increments; with faceted tools the facets would then be elsewhere); the
     guide rolls are placed by a velocity (target − position)/dt that corrects a wrong
     position within one increment, the frictionless mandrel's ω does not change the field."""
-    full, resumed, ck = runs
+    full, resumed, ck, _ = runs
     assert [os.path.basename(p)[-6:] for p in ck] == ["000002", "000004"]
     assert full["status"] == resumed["status"] == "done"
     ha, hb = full["sim_history"], resumed["sim_history"]
@@ -138,13 +139,22 @@ def test_resumed_ring_rolling_equals_uninterrupted(runs):
     assert not bad, bad
     man = json.load(open(os.path.join(ck[0], "manifest.json")))
     types = [c["type"] for c in man["controllers"]]
-    assert types[:2] == ["RingCentring", "IdleRotation"]
+    assert types == ["RingCentring", "IdleRotation", "AxialRolls"]
     assert man["controllers"][1]["state"]["omega"] == pytest.approx(
         ha[1]["mandrel_omega"], rel=1e-14)
     # the update's centre: measured at the start of increment 2, i.e. after increment 1
     assert man["kinematics"]["center"] == pytest.approx(
         [ha[0]["ring_center_x"], ha[0]["ring_center_y"], ha[0]["ring_center_z"]], rel=1e-12,
         abs=1e-12)
+
+
+def test_ring_checkpoint_without_cones_refused(runs):
+    """The checkpoint of the run with cones, resumed by the same mill without them: refused."""
+    _, _, ck, d = runs
+    with pytest.raises(ValueError, match=r"\['RingCentring', 'IdleRotation', 'AxialRolls'\]; "
+                                         r"this simulation has \['RingCentring', 'IdleRotation'\]"):
+        demo.run(**{**SHORT, "cones": False}, output_dir=os.path.join(d, "other"),
+                 resume=ck[0])
 
 
 class _Counter:
