@@ -456,9 +456,10 @@ def _cone_row(q, nodes, depth, Hm, Ro, Ri, w_ring, geo, K, m) -> dict:
     s_m = 0.5 * (Ro + Ri)
     Rc = s_m * math.tan(geo["alpha"])
     delta = 0.5 * Hm - za
+    depth = max(depth, 0.0)             # < 0: the cone is off the face by −depth
     d_eff = delta - depth
     est = L_a = k = 0.0
-    if d_eff > 0:
+    if delta > 0 and d_eff > 0 and nodes > 0:
         L_a = math.sqrt(2.0 * d_eff * Rc)
         rate = d_eff / (0.5 * Hm) * abs(w_ring) * s_m / L_a
         k = float(forming.flow_stress(K, m, rate)) / math.sqrt(3.0)
