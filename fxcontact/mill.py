@@ -13,6 +13,12 @@ axis), and guide (centring) rolls that keep the ring on the mill line. This modu
   on the mill line) and the cylindrical configuration update about the ring's current centre.
 * :class:`RingAxisUpdate` — the cylindrical update of THEORY §5 about an axis re-set at each
   increment (the ring's centre moves as the ring grows).
+* :class:`AxialRolls` — idle, frictionless axial (cone) rolls of a radial–axial mill whose apex
+  follows the ring's centre on the mill line, moving along the ring axis at a given speed.
+
+Every controller (and :class:`ControlledMotion`) saves what changes during a run with
+``checkpoint_state()`` and gets it back with ``restore_state()`` (checkpoints of
+:class:`~fxcontact.Simulation`).
 
 Controllers are registered with :meth:`fxcontact.Simulation.add_controller`; they act at the
 start of each increment (before the contributors project on the tools) and, for
