@@ -27,9 +27,7 @@ import demo_ring_rolling as demo  # noqa: E402
 from checkpoint_driver import build  # noqa: E402
 from helpers import shared_tmpdir  # noqa: E402
 
-NI = demo.QUICK["increments_per_rev"]
-#: two increments of the quick (coarse) case 1 with the cones, a checkpoint at each
-SHORT = {**demo.QUICK, "case": 1, "cones": True, "revolutions": 2.0 / NI, "pictures": False}
+from ring_runs import CONES as SHORT, cone_runs  # noqa: E402
 
 
 def _json_round_trip(state):
@@ -98,15 +96,8 @@ def _scale(row, key):
 @pytest.fixture(scope="module")
 def runs():
     """The uninterrupted run (a checkpoint at each increment) and the run resumed from its
-    checkpoint of increment 1, on the current number of ranks."""
-    d = shared_tmpdir("fxc_ring_ckpt_")
-    full = demo.run(**SHORT, output_dir=os.path.join(d, "full"), checkpoint_every=1)
-    ck = list_checkpoints(os.path.join(d, "full", "checkpoints"))
-    resumed = demo.run(**SHORT, output_dir=os.path.join(d, "resumed"), resume=ck[0])
-    yield full, resumed, ck, d
-    MPI.COMM_WORLD.barrier()
-    if MPI.COMM_WORLD.rank == 0:
-        shutil.rmtree(d, ignore_errors=True)
+    checkpoint of increment 1, on the current number of ranks (tests/ring_runs.py)."""
+    return cone_runs()
 
 
 def test_resumed_ring_rolling_equals_uninterrupted(runs):

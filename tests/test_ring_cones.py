@@ -14,15 +14,14 @@ from mpi4py import MPI
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "demos"))
 import demo_ring_rolling as demo  # noqa: E402
 
-NI = demo.QUICK["increments_per_rev"]
-#: two increments of the quick (coarse) case 1 with the cones
-CONES = {**demo.QUICK, "case": 1, "cones": True, "revolutions": 2.0 / NI, "output_dir": None,
-         "pictures": False}
+from ring_runs import CONES, NI, cone_runs  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def run():
-    return demo.run(**CONES)
+    """Two increments of the quick case 1 with the cones (shared with
+    test_ring_checkpoint.py)."""
+    return cone_runs()[0]
 
 
 def test_cone_holds_the_height(run):
@@ -83,7 +82,8 @@ def test_volume_and_mesh(run):
 
 def test_one_and_two_ranks_agree(run):
     """The first increment on all ranks (the module's run) and on COMM_SELF agree to 1e-8."""
-    res = demo.run(**{**CONES, "revolutions": 1.0 / NI, "comm": MPI.COMM_SELF})
+    res = demo.run(**{**CONES, "revolutions": 1.0 / NI, "comm": MPI.COMM_SELF,
+                      "output_dir": None})
     a, b = run["history"][0], res["history"][0]
     for k in ("cone_force", "nodes_cone", "cone_penetration", "cone_omega", "main_force_x",
               "mandrel_force_x", "height", "height_max"):
