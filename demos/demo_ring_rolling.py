@@ -17,8 +17,8 @@
 # * **case 1**: Norton–Hoff K = 1900 MPa·s^m, m = 0.14 (as printed; K only scales the forces:
 #   with Norton, Tresca-limited Coulomb and β-scaled penalties the velocity field does not depend
 #   on K); main roll: viscoplastic friction α_f = 0.5, q = 0.15; mandrel frictionless; main roll
-#   20 rpm; mandrel feed 1.5 mm/s (3.0 mm per ring revolution). **The axial cone rolls (rising
-#   0.4 mm/s) are not modelled** (no cone: the ring's height is free).
+#   20 rpm; mandrel feed 1.5 mm/s (3.0 mm per ring revolution); frictionless axial cone
+#   rolls whose gap opens at 0.4 mm/s (``--cones``, see below; off by default, see why).
 # * **case 2**: the same material; Coulomb μ = 0.3 limited by Tresca m̄ = 0.6 on the main roll
 #   and the mandrel; 60 rpm; feed 1.5 mm/s (1.0 mm per revolution).
 #
@@ -48,8 +48,11 @@
 #
 # Run: ``python demos/demo_ring_rolling.py --case 2`` (two revolutions at the default mesh
 # 160 × 4 × 2), ``--quick`` (the short, coarse version of the tests), ``--help`` for the rest;
-# on 2 ranks with ``mpirun -n 2``. The thesis's three variants (explicit + faceted, explicit +
-# analytic, implicit + analytic with the cylindrical update) are compared by
+# on 2 ranks with ``mpirun -n 2``; ``--checkpoint_every n`` writes checkpoints (with the mill's
+# controllers) and ``--resume`` continues from the newest one (the demo's CSV and pictures then
+# hold the resumed part; ``res["sim_history"]`` and the Simulation's CSV hold all). The
+# thesis's three variants (explicit + faceted, explicit + analytic, implicit + analytic with
+# the cylindrical update) are compared by
 # ``benchmarks/bench_thesis_ring_rolling.py`` (table in ``benchmarks/README.md``).
 #
 # **Results** (coarse ring 100 × 3 × 1, 30 increments per revolution, one rank on a shared
@@ -76,8 +79,57 @@
 #   Newton solve per increment, 1.3–2.7× fewer Newton iterations, the same ω and forces
 #   (``benchmarks/README.md``). ``--idle_guides`` makes the guide rolls idle with friction too.
 #
-# Not modelled: the axial cone rolls (case 1), temperature. With this coarse mesh the bite
-# (L = 15.5 mm in case 1, 8.9 mm in case 2) holds only a few nodes around.
+# **Axial cone rolls** (``--cones`` / ``cones=True``; case 1; case 2 has none, ``--cone_speed``
+# adds them to it). The thesis's table gives "ring/cone: sliding (frictionless) contact" and
+# "cone: translation along z, 0.4 mm/s", and says the cones are there to stop the material
+# rising ("empêcher la matière de remonter"; without them the computed ring rises too much).
+# **Interpretation**: the cones hold the height, they do not feed it: the upper cone moves up
+# at 0.4 mm/s with the lower one fixed, so the axial gap opens at ``cone_speed`` = 0.4 mm/s
+# and the cones limit the height wherever the ring grows faster than that (a negative
+# ``cone_speed`` is an axial feed that closes the gap). In the half model the mid-plane is
+# the symmetry plane: one cone on the top face, rising at ``cone_speed``/2 (the lower cone
+# is its mirror image). Geometry, from the ring's (not tuned to the default ring): an analytic
+# cone (:class:`fxcontact.Cone`) of half-angle ``cone_half_angle`` (30°), axis in the
+# vertical plane of the mill line inclined by the half-angle so that its lower generatrix
+# lies in the top face, apex on the mill line at the ring's centre and pointing away from the
+# main roll (the far side); with the apex on the ring's axis a cone turning at ω_ring/sin α
+# rolls without slip at every radius. At t = 0 the cone is ``initial_bite`` into the face like
+# the radial rolls (the gap is H − 2·initial_bite). The cone is idle and frictionless: its ω
+# has no effect and is set after each solve to the rolling speed of its contact nodes;
+# :class:`fxcontact.mill.AxialRolls` moves its apex, within each increment, to the projection
+# of the ring's centroid on the mill line (the cones retreat as the ring grows). The cone is
+# analytic also with ``--tools faceted``. Outputs: ``cone_force`` (axial force of one cone),
+# ``nodes_cone``, ``cone_penetration``, ``cone_gap``, ``height_max``, and the estimate
+# ``cone_force_estimate`` = 2k·B·L_a of ring-rolling theory with the axial contact length
+# L_a = √(2δR_c) (δ the reduction of the half height under the cone less the penalty
+# penetration, R_c = s tan α the cone's radius of curvature across the generatrix at the
+# mid-wall, k at the axial bite's strain rate). L_a (~1 mm) is much shorter than an element
+# (6 mm around on the quick mesh, 4 mm on the default one): the cone bears on one row of
+# nodes, and its force is set by the mesh resolution and the penalty more than by L_a.
+#
+# Measured (one rank on a shared machine; the commands are those of the Run line plus
+# ``--cones``):
+#
+# * ``--quick --case 1 --cones --revolutions 1.2``: 60 increments, no cut-back, Newton 29.6
+#   iterations per increment on average (the same as without cones), 1405 s. The cone bears on
+#   the face during the initial bite only: 4 increments (0.08 rev), 4 contact nodes, axial
+#   force 614 → 135 kN = 6.1, 4.2, 2.6, 1.1 × 2kBL_a as the interference decreases, penetration
+#   ≤ 0.035 mm. It then lifts off for good: the gap opens at 0.4 mm/s while the ring's mean
+#   height grows at about 0.2 mm/s (40.50 mm at 1.2 rev against a gap of 40.86 mm; the
+#   highest top-face node, 41.5 mm, is not under the cone). Volume −0.10 %, outer diameter
+#   +2.2 %, main roll force 1.05 × 2kHLQ over the second half.
+# * default mesh 160 × 4 × 2, ``--case 1 --cones --revolutions 0.0667``: 4 increments, no
+#   cut-back, 18–31 Newton iterations, 5–10 cone contact nodes, axial force 354, 214, 324,
+#   187 kN = 2.0, 1.2, 5.7, 2.0 × 2kBL_a, penetration ≤ 0.028 mm.
+#
+# The cones are **off by default**: with the thesis's opening gap they act only during the
+# first 0.08 revolution of these meshes (the modelled ring rises more slowly than 0.4 mm/s),
+# the full two revolutions with cones were not run at the default size, and the recorded
+# case-1 results and the benchmark of the three contact variants stay those of the radial
+# mill.
+#
+# Not modelled: temperature. With this coarse mesh the bite (L = 15.5 mm in case 1, 8.9 mm in
+# case 2) holds only a few nodes around.
 
 # %%
 from __future__ import annotations
@@ -94,13 +146,14 @@ from mpi4py import MPI
 import fxcontact as fx
 from fxcontact import forming
 from fxcontact.console import add_verbosity_arguments, configure_logging
-from fxcontact.mill import ControlledMotion, IdleRotation, RingAxisUpdate, RingCentring
+from fxcontact.mill import (AxialRolls, ControlledMotion, IdleRotation, RingAxisUpdate,
+                            RingCentring)
 
 #: the thesis's academic cases (THEORY §12.1): lengths mm, stresses MPa, times s
 CASES = {1: dict(rpm=20.0, feed_speed=1.5, main_friction=("norton", 0.5, 0.15),
-                 mandrel_friction=None),
+                 mandrel_friction=None, cone_speed=0.4),
          2: dict(rpm=60.0, feed_speed=1.5, main_friction=("coulomb", 0.3, 0.6),
-                 mandrel_friction=("coulomb", 0.3, 0.6))}
+                 mandrel_friction=("coulomb", 0.3, 0.6), cone_speed=None)}
 
 DEFAULTS = dict(case=2, R1=150.0, R2=40.0, R=100.0, r=60.0, H=40.0, Rg=40.0, guide_angle=60.0,
                 K=1900.0, m=0.14, n_theta=160, n_r=4, n_z=2, initial_bite=0.05,
@@ -108,7 +161,8 @@ DEFAULTS = dict(case=2, R1=150.0, R2=40.0, R=100.0, r=60.0, H=40.0, Rg=40.0, gui
                 increments_per_rev=60, revolutions=2.0, update="cylindrical",
                 scheme="implicit", tools="analytic", facet_size=None, volume_correction="none",
                 mu_bite=0.3, max_increments=100000, output_dir="results/ring_rolling", name=None,
-                pictures=True, vtk_every=0, comm=None)
+                pictures=True, vtk_every=0, checkpoint_every=0, resume=None,
+                cones=False, cone_half_angle=30.0, cone_speed=None, comm=None)
 #: how the idle mandrel's rotation speed is found (fxcontact.IdleRotation's method)
 DEFAULTS["idle_method"] = "auto"
 #: the guide rolls with the mandrel's friction, idle too (one IdleRotation for all idle tools)
@@ -161,8 +215,18 @@ def run(**parameters) -> dict:
         raise ValueError(f"update must be 'cylindrical' or 'cartesian', got {P['update']!r}")
     if P["tools"] not in ("analytic", "faceted"):
         raise ValueError(f"tools must be 'analytic' or 'faceted', got {P['tools']!r}")
+    if not (isinstance(P["cone_half_angle"], (int, float)) and
+            0.0 < P["cone_half_angle"] < 60.0):
+        raise ValueError(f"cone_half_angle must be in (0, 60) degrees, got "
+                         f"{P['cone_half_angle']!r}")
     comm = P["comm"] or MPI.COMM_WORLD
     case = CASES[P["case"]]
+    cone_speed = case["cone_speed"] if P["cone_speed"] is None else P["cone_speed"]
+    if P["cones"] and cone_speed is None:
+        raise ValueError(f"case {P['case']} has no axial rolls: give cone_speed (the opening "
+                         f"speed of the axial gap) to add them")
+    if P["cones"] and not (isinstance(cone_speed, (int, float)) and math.isfinite(cone_speed)):
+        raise ValueError(f"cone_speed must be a finite number, got {cone_speed!r}")
     R1, R2, R, r, H, Rg = (float(P[k]) for k in ("R1", "R2", "R", "r", "H", "Rg"))
     w1 = case["rpm"] * 2.0 * math.pi / 60.0          # main roll, rad/s
     v_s = w1 * R1                                      # its surface speed
@@ -189,11 +253,13 @@ def run(**parameters) -> dict:
     h_theta = 2.0 * math.pi * R / int(P["n_theta"])
     sp = fx.MixedSpace(msh)
     update = RingAxisUpdate((0.0, 0.0, 0.0)) if P["update"] == "cylindrical" else None
+    files = bool(P["vtk_every"] or P["checkpoint_every"] or P["resume"])
     sim = fx.Simulation(sp, mat, solver_options=fx.SolverOptions(max_it=int(P["max_it"])),
                         kinematics=update,
-                        output_dir=out if P["vtk_every"] else None, name=name,
-                        output_every=max(1, int(P["vtk_every"] or 1)), progress=False,
-                        volume_correction=P["volume_correction"])
+                        output_dir=out if files else None, name=name,
+                        output_every=max(1, int(P["vtk_every"] or 10 ** 9)), progress=False,
+                        volume_correction=P["volume_correction"],
+                        checkpoint_every=int(P["checkpoint_every"]))
     sim.add_velocity_bc(sim.facets(ft, fx.RING_TAGS["mid_plane"]), 0.0, component=2)
 
     # ---- tools: main roll (driven, clockwise), mandrel (idle, fed), guide rolls (idle)
@@ -215,17 +281,35 @@ def run(**parameters) -> dict:
         guides.append(_tool(P["tools"], f"guide{k + 1}", Rg, c, H,
                             ControlledMotion(axis_point=c), fs))
     tools = [main, mandrel] + guides
+    cone_geo = None
+    if P["cones"]:
+        # upper axial roll: apex on the mill line at the ring's centre, lower generatrix in the
+        # top face (z = H/2, less the initial bite), pointing away from the main roll; the lower
+        # axial roll is its mirror image in the mid-plane (the symmetry of the half model)
+        alpha = math.radians(P["cone_half_angle"])
+        apex = (0.0, 0.0, 0.5 * H - e0)
+        w_axis = (-math.cos(alpha), 0.0, math.sin(alpha))
+        # rolling without slip on the face: ω_cone sin α = ω_ring (apex on the ring axis)
+        w_cone = v_s / R / math.sin(alpha)
+        cone = fx.MovedTool(fx.Cone(apex, w_axis, alpha, name="cone"),
+                            ControlledMotion(velocity=(0.0, 0.0, 0.5 * cone_speed),
+                                             angular_velocity=w_cone, axis_point=apex,
+                                             axis=w_axis), name="cone")
+        tools.append(cone)
+        cone_geo = dict(alpha=alpha, s0=0.5 * r, s1=R + 0.5 * (R - r))
     # the exact (analytic) surfaces of the same tools, moved by the same motions: the true
     # penetration is measured against them for every variant (a faceted tool's vertices lie on
     # them, its flat facets cut inside by up to the sagitta s²/8R)
     exact = [_tool("analytic", t.name, rad, t.motion.axis_point, H, t.motion, fs)
-             for t, rad in zip(tools, [R1, R2, Rg, Rg])]
+             for t, rad in zip(tools, [R1, R2, Rg, Rg])] + tools[4:]
     friction = {"main_roll": _friction(case["main_friction"])}
     if case["mandrel_friction"] is not None:
         friction["mandrel"] = _friction(case["mandrel_friction"])
         if P["idle_guides"]:
             friction.update({g.name: _friction(case["mandrel_friction"]) for g in guides})
     tags = [fx.RING_TAGS["outer"], fx.RING_TAGS["inner"]]
+    if P["cones"]:
+        tags.append(fx.RING_TAGS["top"])
     contact = fx.NodalContact(fx.ContactBoundary(sp, ft, tags), tools, scheme=P["scheme"],
                               friction=friction, slip_velocity=1e-3 * v_s, name="mill",
                               gap_stiffness=P["gap_stiffness"],
@@ -239,20 +323,35 @@ def run(**parameters) -> dict:
     idle = IdleRotation(contact, [mandrel] + guides if P["idle_guides"] else mandrel,
                         method=P["idle_method"])
     sim.add_controller(idle)
+    axial = None
+    if P["cones"]:
+        # the half model's cone rises at half the opening speed of the axial gap
+        axial = sim.add_controller(AxialRolls(contact, [cone], centring, [0.5 * cone_speed]))
     sim.add_contributor(contact)
-    V0 = sim.volume()
-    # first guess: the ring turning rigidly at the main roll's surface speed
-    x0 = sim.vertex_positions()
-    v0 = np.zeros_like(x0)
-    v0[:, 0], v0[:, 1] = -x0[:, 1] * v_s / R, x0[:, 0] * v_s / R
-    sim.w_prev.x.array[sp.vertex_dofs] = v0
-    sim.w_prev.x.scatter_forward()
+    if P["resume"]:
+        # the state of a checkpoint (True: the newest of this run): fields, geometry, contact,
+        # the controllers (guide-roll and mandrel motions, ω, ring centre) and the history
+        sim.resume(None if P["resume"] is True else P["resume"])
+    V0 = sim.initial_volume
+    if not P["resume"]:
+        # first guess: the ring turning rigidly at the main roll's surface speed
+        x0 = sim.vertex_positions()
+        v0 = np.zeros_like(x0)
+        v0[:, 0], v0[:, 1] = -x0[:, 1] * v_s / R, x0[:, 0] * v_s / R
+        sim.w_prev.x.array[sp.vertex_dofs] = v0
+        sim.w_prev.x.scatter_forward()
 
     def surface_radius(b, c):
         x = sim.vertex_positions()[b.vertices] - c
         num = float(np.sum(b.areas * np.hypot(x[:, 0], x[:, 1])))
         num, den = comm.allreduce(np.array([num, float(np.sum(b.areas))]), op=MPI.SUM)
         return num / den
+
+    def cone_depth():
+        """Largest depth of the top-face vertices inside the cone (all ranks)."""
+        X = sim.vertex_positions()[top.vertices]
+        d = float(np.max(-cone.project(X, sim.t, hessian=False).gap)) if len(X) else 0.0
+        return comm.allreduce(d, op=MPI.MAX)
 
     def top_height(c):
         z = sim.vertex_positions()[top.vertices][:, 2]
@@ -288,7 +387,7 @@ def run(**parameters) -> dict:
     snap_at = sorted(set(int(round(f * n_inc)) for f in (0.0, 1 / 3, 2 / 3, 1.0)))
     c0, _ = centring.measure(sim)
     if 0 in snap_at:
-        snaps.append(_snapshot(comm, sim, outer, inner, tools, 0.0, c0))
+        snaps.append(_snapshot(comm, sim, outer, inner, tools, sim.t, c0))
     wall0 = time.perf_counter()
     status, message = "done", ""
     t_end = P["revolutions"] * t_rev
@@ -321,6 +420,7 @@ def run(**parameters) -> dict:
                    + 2 * math.hypot(q["guide2_force_x"], q["guide2_force_y"]),
                    ring_omega=w_ring, ring_omega_nominal=v_s / Ro,
                    mandrel_omega=q["mandrel_omega"],
+                   mandrel_angle=mandrel.motion.angle(sim.t),
                    mandrel_omega_free=q["mandrel_omega_free"],
                    mandrel_idle_torque=2 * q["mandrel_idle_torque"],
                    mandrel_idle_tolerance=2 * q["mandrel_idle_tolerance"],
@@ -331,6 +431,9 @@ def run(**parameters) -> dict:
                    penetration_exact=exact_depth(),
                    nodes_main=nodes_on(0), nodes_mandrel=nodes_on(1),
                    nodes_guides=nodes_on(2) + nodes_on(3),
+                   height_max=2 * comm.allreduce(float(np.max(
+                       sim.vertex_positions()[top.vertices][:, 2], initial=-np.inf)),
+                       op=MPI.MAX),
                    newton_iterations=q["newton_iterations_all"], cutbacks=q["cutbacks"],
                    wall=q["wall_increment_all"], volume_change=V / V0 - 1.0,
                    center_x=c[0], center_y=c[1], center_offset=q["ring_center_offset"],
@@ -339,6 +442,9 @@ def run(**parameters) -> dict:
                    max_strain_rate=comm.allreduce(
                        float(np.max(sim.strain_rate.x.array, initial=0.0)), op=MPI.MAX),
                    min_quality=q["min_quality"])
+        if P["cones"]:
+            row.update(_cone_row(q, nodes_on(4), cone_depth(), Hm, Ro, Ri, w_ring, cone_geo,
+                                 P["K"], P["m"]))
         rows.append(row)
         if (it + 1 in snap_at and it + 1 < n_inc) or sim.t >= t_end * (1.0 - 1e-9):
             snaps.append(_snapshot(comm, sim, outer, inner, tools, sim.t, c))
@@ -350,7 +456,8 @@ def run(**parameters) -> dict:
                history=rows, t_rev=t_rev, dt=dt, feed_per_rev=dh, feed_speed=v_f,
                window=window, contact_length=L, strain_rate_bite=rate, sigma0=sigma0,
                force_estimate=force_est["force"], Q=force_est["Q"], wall=wall,
-               volume_initial=2.0 * V0, h_theta=h_theta)
+               volume_initial=2.0 * V0, h_theta=h_theta, sim_history=list(sim.history),
+               cone_geometry=cone_geo, cone_speed=cone_speed if P["cones"] else None)
     res.update(_summary(res, comm, msh))
     paths = {}
     if comm.rank == 0 and out:
@@ -365,6 +472,36 @@ def run(**parameters) -> dict:
             paths.update(_pictures(res, snaps, out, name))
     res["paths"] = comm.bcast(paths, root=0)
     return res
+
+
+def _cone_row(q, nodes, depth, Hm, Ro, Ri, w_ring, geo, K, m) -> dict:
+    """The upper cone's outputs and the axial-force estimate of ring-rolling theory.
+
+    The cone reduces the half height Hm/2 of the arriving ring to its apex level z_a: the
+    reduction δ = Hm/2 − z_a, less the penalty penetration of the nodes (δ_eff = δ − depth),
+    is taken by a flat face under a cone whose normal radius of curvature across the
+    generatrix is R_c = s tan α at the mid-wall s = (R + r)/2 from the apex: contact length
+    L_a = √(2 δ_eff R_c) (THEORY §14.4 with Σ = 1/R_c), force ≈ 2k B L_a with B the wall and
+    k = σ₀/√3 at the axial bite's strain rate (δ_eff/(Hm/2)) · ω_ring s / L_a. The factor Q
+    of the radial estimate is not applied: Hm/L_a is far above its range (the cone does not
+    penetrate the height plastically; for such shallow bites the mean pressure lies between
+    2k and the indentation value (2 + π)k)."""
+    za = q["cone_apex_axial"]
+    s_m = 0.5 * (Ro + Ri)
+    Rc = s_m * math.tan(geo["alpha"])
+    delta = 0.5 * Hm - za
+    depth = max(depth, 0.0)             # < 0: the cone is off the face by −depth
+    d_eff = delta - depth
+    est = L_a = k = 0.0
+    if delta > 0 and d_eff > 0 and nodes > 0:
+        L_a = math.sqrt(2.0 * d_eff * Rc)
+        rate = d_eff / (0.5 * Hm) * abs(w_ring) * s_m / L_a
+        k = float(forming.flow_stress(K, m, rate)) / math.sqrt(3.0)
+        est = 2.0 * k * (Ro - Ri) * L_a
+    return dict(cone_force=q["cone_force_z"], cone_force_line=q["cone_force_x"],
+                nodes_cone=nodes, cone_penetration=depth, cone_gap=2.0 * za,
+                cone_apex_x=q["cone_apex_line"], cone_omega=q["cone_omega"],
+                cone_reduction=delta, cone_contact_length=L_a, cone_force_estimate=est)
 
 
 def _summary(res, comm, msh) -> dict:
@@ -395,7 +532,20 @@ def _summary(res, comm, msh) -> dict:
         mandrel_speed_ratio=float(np.mean([q["mandrel_omega"] * res["parameters"]["R2"]
                                            / q["bore_speed"] for q in second])),
         outer_growth=last["outer_diameter"] / (2 * res["parameters"]["R"]) - 1.0,
+        **(_cone_summary(rows) if "cone_force" in last else {}),
         wall_per_rev=res["wall"] / max(last["revolutions"], 1e-300))
+
+
+def _cone_summary(rows) -> dict:
+    est = [q for q in rows if q["cone_force_estimate"] > 0 and q["nodes_cone"] > 0]
+    return dict(
+        cone_force_max=max(q["cone_force"] for q in rows),
+        cone_nodes_mean=float(np.mean([q["nodes_cone"] for q in rows])),
+        cone_penetration_max=max(q["cone_penetration"] for q in rows),
+        cone_force_ratio=(float(np.mean([q["cone_force"] / q["cone_force_estimate"]
+                                         for q in est])) if est else float("nan")),
+        height_max=max(q["height_max"] for q in rows),
+        cone_gap_last=rows[-1]["cone_gap"])
 
 
 def _edge_lengths(msh):
@@ -455,18 +605,37 @@ def _pictures(res, snaps, out, name) -> dict:
                 q = np.vstack([p[o], p[o][:1]])
                 ax.plot(q[:, 0], q[:, 1], "-", color=col, lw=1.2)
         for nm, x, y, _, ang in s["tools"]:
+            if nm == "cone":
+                g = res["cone_geometry"]
+                # the upper cone seen from above: its footprint from s0 to s1 along the line
+                # (half-opening α about the generatrix), hatched, apex marked
+                th = math.atan(math.tan(g["alpha"]) * math.cos(g["alpha"]))
+                px = [x - g["s0"] * math.cos(th), x - g["s1"] * math.cos(th),
+                      x - g["s1"] * math.cos(th), x - g["s0"] * math.cos(th)]
+                py = [y + g["s0"] * math.sin(th), y + g["s1"] * math.sin(th),
+                      y - g["s1"] * math.sin(th), y - g["s0"] * math.sin(th)]
+                ax.fill(px, py, facecolor="tab:orange", alpha=0.25, edgecolor="tab:orange",
+                        hatch="//", lw=1.0, label="cone (above the ring)")
+                ax.plot([x, x - g["s1"] * math.cos(th)], [y, y], color="tab:orange", lw=1.2,
+                        ls="--")
+                ax.plot(x, y, marker="^", color="tab:orange", ms=7)
+                continue
             rad = radii.get(nm, 10.0)
             th = np.linspace(0, 2 * np.pi, 200)
             ax.fill(x + rad * np.cos(th), y + rad * np.sin(th), color="0.75", alpha=0.6)
             ax.plot([x, x + rad * math.cos(ang)], [y, y + rad * math.sin(ang)], "k-", lw=0.8)
         ax.plot(*s["center"][:2], "r+", ms=8)
+        if any(tl[0] == "cone" for tl in s["tools"]):
+            ax.legend(loc="lower left", fontsize=7)
         ax.set_aspect("equal")
         ax.set_xlim(-1.35 * P["R"] - 20, P["R"] + 2 * P["R1"] + 10)
         ax.set_ylim(-1.6 * P["R"], 1.6 * P["R"])
         ax.set_title(f"t = {s['t']:.2f} s ({s['t'] / res['t_rev']:.2f} rev)", fontsize=10)
         ax.tick_params(labelsize=8)
     fig.suptitle(f"ring rolling case {P['case']}: top view (ring top face, tools grey, "
-                 f"black line = tool angle)", fontsize=10)
+                 f"black line = tool angle"
+                 + (", upper cone orange, apex ▲" if res.get("cone_geometry") else "") + ")",
+                 fontsize=10)
     fig.tight_layout()
     paths["top_view"] = os.path.join(out, f"{name}_top.png")
     fig.savefig(paths["top_view"], dpi=100)
@@ -500,6 +669,10 @@ def curves_png(res, path) -> str:
     ax.plot(t, [q["main_force_x"] / 1e3 for q in h], label="main roll, radial")
     ax.plot(t, [-q["mandrel_force_x"] / 1e3 for q in h], label="mandrel, radial")
     ax.plot(t, [q["guide_force"] / 1e3 for q in h], label="guide rolls (sum |F|)")
+    if "cone_force" in q0:
+        ax.plot(t, [q["cone_force"] / 1e3 for q in h], label="upper cone, axial")
+        ax.plot(t, [q["cone_force_estimate"] / 1e3 for q in h], ":",
+                label="cone, 2kBL_a estimate")
     ax.axhline(res["force_estimate"] / 1e3, color="k", ls="--", label="2kHLQ estimate")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("force [kN] (whole ring)")
@@ -555,6 +728,12 @@ def report(res) -> str:
             f"mandrel: max |torque| {res['mandrel_torque_max']:.3g} N mm (tolerance up to "
             f"{res['mandrel_torque_tol_max']:.3g}); surface slip max {res['mandrel_slip_max']:.3g}"
             f" mm/s; mandrel surface / bore speed {res['mandrel_speed_ratio']:.4f}",
+            *([f"cones (gap opening {res['cone_speed']} mm/s): axial force max "
+               f"{res['cone_force_max'] / 1e3:.1f} kN, {res['cone_nodes_mean']:.1f} contact "
+               f"nodes on average, max penetration {res['cone_penetration_max']:.4f} mm, "
+               f"force / 2kBL_a {res['cone_force_ratio']:.2f}; max height "
+               f"{res['height_max']:.3f} mm, final cone gap {res['cone_gap_last']:.3f} mm"]
+              if "cone_force_max" in res else []),
             f"max penetration {res['max_penetration']:.4f} mm; centre off the mill line max "
             f"{res['max_center_offset']:.4f} mm (smallest edge {res['min_edge']:.2f} mm); max "
             f"strain {res['max_strain']:.3f}, max strain rate {res['max_strain_rate']:.3f} 1/s"]
@@ -572,6 +751,13 @@ def main(argv=None):
     for k in ("increments_per_rev", "n_theta", "n_r", "n_z"):
         ap.add_argument(f"--{k}", type=int)
     ap.add_argument("--vtk_every", type=int)
+    ap.add_argument("--cones", action=argparse.BooleanOptionalAction, default=None,
+                    help="axial (cone) rolls (case 1; case 2 needs --cone_speed)")
+    ap.add_argument("--cone_half_angle", type=float, help="degrees")
+    ap.add_argument("--cone_speed", type=float, help="opening speed of the axial gap, mm/s")
+    ap.add_argument("--checkpoint_every", type=int)
+    ap.add_argument("--resume", action="store_true", default=None,
+                    help="resume from the newest checkpoint of the run in --output-dir")
     ap.add_argument("--update", choices=("cylindrical", "cartesian"))
     ap.add_argument("--scheme", choices=("implicit", "implicit-exact", "quasi-implicit",
                                          "explicit"))

@@ -4,7 +4,8 @@ A checkpoint is a directory ``<output_dir>/checkpoints/<name>_<increment>/`` hol
 
 * ``manifest.json`` (rank 0): format and package version, time, increment, the step-size state,
   the history rows, a fingerprint of the initial mesh and of the set-up (space, contributors),
-  and the contributors' scalar state;
+  the contributors' scalar state, and the state of the controllers (``add_controller``: type
+  and ``checkpoint_state()``, e.g. the rates a ring mill has set so far) and of the kinematics;
 * ``rank<r>.npz`` (one per rank): the owned values of the solution, the accumulated strain, the
   geometry, the displacement and the contributors' per-vertex state, each **keyed by global
   numbers that do not depend on the partition**: a geometry node by its index in the mesh input

@@ -13,6 +13,12 @@ axis), and guide (centring) rolls that keep the ring on the mill line. This modu
   on the mill line) and the cylindrical configuration update about the ring's current centre.
 * :class:`RingAxisUpdate` — the cylindrical update of THEORY §5 about an axis re-set at each
   increment (the ring's centre moves as the ring grows).
+* :class:`AxialRolls` — idle, frictionless axial (cone) rolls of a radial–axial mill whose apex
+  follows the ring's centre on the mill line, moving along the ring axis at a given speed.
+
+Every controller (and :class:`ControlledMotion`) saves what changes during a run with
+``checkpoint_state()`` and gets it back with ``restore_state()`` (checkpoints of
+:class:`~fxcontact.Simulation`).
 
 Controllers are registered with :meth:`fxcontact.Simulation.add_controller`; they act at the
 start of each increment (before the contributors project on the tools) and, for
@@ -92,7 +98,7 @@ from fxcontact.contact.friction import LAW_NONE
 from fxcontact.tools.base import RigidMotion, Tool, unit_vector
 
 __all__ = ["ControlledMotion", "IdleRotation", "RingCentring", "RingAxisUpdate",
-           "rolling_speed"]
+           "rolling_speed", "AxialRolls"]
 
 log = logging.getLogger(__name__)
 
@@ -180,6 +186,37 @@ class ControlledMotion(RigidMotion):
 
     def current_angular_velocity(self) -> float:
         return float(self._st["w"][-1])
+
+    def checkpoint_state(self) -> dict:
+        """The stages of rates set so far (plain numbers and lists): what a resumed run needs
+        to place the tool where the checkpointed run had it (:mod:`fxcontact.checkpoint`)."""
+        st = self._st
+        return {"t": [float(x) for x in st["t"]], "th": [float(x) for x in st["th"]],
+                "w": [float(x) for x in st["w"]],
+                "c": np.asarray(st["c"], dtype=np.float64).tolist(),
+                "v": np.asarray(st["v"], dtype=np.float64).tolist()}
+
+    def restore_state(self, state: dict):
+        """Restore the stages of :meth:`checkpoint_state` (ValueError if malformed)."""
+        try:
+            t = np.asarray(state["t"], dtype=np.float64).reshape(-1)
+            th = np.asarray(state["th"], dtype=np.float64).reshape(-1)
+            w = np.asarray(state["w"], dtype=np.float64).reshape(-1)
+            c = np.asarray(state["c"], dtype=np.float64).reshape(-1, 3)
+            v = np.asarray(state["v"], dtype=np.float64).reshape(-1, 3)
+        except (KeyError, TypeError, ValueError) as e:
+            raise ValueError(f"not a ControlledMotion state ({e}): {state!r:.200}") from None
+        n = len(t)
+        if n == 0 or not (len(th) == len(w) == len(c) == len(v) == n) or \
+                np.any(np.diff(t) <= 0) or not all(np.all(np.isfinite(a))
+                                                   for a in (t, th, w, c, v)):
+            raise ValueError(f"not a ControlledMotion state: {n} stage times, {len(th)} angles, "
+                             f"{len(w)} rotation speeds, {len(c)} positions, {len(v)} "
+                             f"velocities (the same number > 0, finite, increasing times)")
+        st = self._st
+        st["t"], st["th"], st["w"] = [float(x) for x in t], [float(x) for x in th], \
+            [float(x) for x in w]
+        st["c"], st["v"] = [x.copy() for x in c], [x.copy() for x in v]
 
 
 def _controlled(tool: Tool) -> ControlledMotion:
@@ -797,6 +834,21 @@ class IdleRotation:
             out[f"{n}_surface_slip"] = (self.omegas[j] - w_free) * R
         return out
 
+    def checkpoint_state(self) -> dict:
+        """ω of the last increment (the first trial of the next one) and the motion of each
+        idle tool."""
+        return {"tools": [t.name for t in self.tools], "omegas": [float(w) for w in self.omegas],
+                "motions": [m.checkpoint_state() for m in self.motions]}
+
+    def restore_state(self, state: dict):
+        names = state.get("tools")
+        if names != [t.name for t in self.tools]:
+            raise ValueError(f"the checkpoint's idle rotation is of tools {names!r}, this one "
+                             f"of {[t.name for t in self.tools]}")
+        self.omegas = [float(w) for w in state["omegas"]]
+        for m, ms in zip(self.motions, state["motions"]):
+            m.restore_state(ms)
+
 
 class RingAxisUpdate:
     """Cylindrical configuration update (THEORY §5) about the axis through a centre that is
@@ -820,6 +872,16 @@ class RingAxisUpdate:
     def positions(self, x, v, dt):
         from fxcontact.cylindrical import cylindrical_update
         return cylindrical_update(x, v, dt, self.center, self.axis, derivatives=False)[0]
+
+    def checkpoint_state(self) -> dict:
+        return {"center": self.center.copy(), "axis": self.axis.copy()}
+
+    def restore_state(self, state: dict):
+        axis = unit_vector(state["axis"], "ring axis")
+        if not np.allclose(axis, self.axis, rtol=0.0, atol=1e-12):
+            raise ValueError(f"the checkpoint's ring axis {axis.tolist()} is not this update's "
+                             f"{self.axis.tolist()}")
+        self.set_center(state["center"])
 
 
 class RingCentring:
@@ -926,3 +988,118 @@ class RingCentring:
         return {"ring_center_x": float(c[0]), "ring_center_y": float(c[1]),
                 "ring_center_z": float(c[2]), "ring_outer_radius": float(self.radius),
                 "ring_center_offset": float(np.linalg.norm(off))}
+
+    def checkpoint_state(self) -> dict:
+        """The guide rolls' motions and the last measured centre and outer radius."""
+        return {"guides": [g.name for g in self.guides],
+                "center": None if self.center is None else np.asarray(self.center).tolist(),
+                "radius": None if self.radius is None else float(self.radius),
+                "motions": [m.checkpoint_state() for m in self.motions]}
+
+    def restore_state(self, state: dict):
+        names = [g.name for g in self.guides]
+        if state.get("guides") != names:
+            raise ValueError(f"the checkpoint's centring guides {state.get('guides')} are not "
+                             f"these {names}")
+        self.center = None if state["center"] is None else np.asarray(state["center"], float)
+        self.radius = None if state["radius"] is None else float(state["radius"])
+        for m, st in zip(self.motions, state["motions"]):
+            m.restore_state(st)
+
+
+class AxialRolls:
+    """Axial (cone) rolls of a radial–axial ring mill: their apex follows the ring's centre on
+    the mill line, they move along the ring axis at given speeds, and they are idle.
+
+    Each cone (any tool, usually an analytic :class:`~fxcontact.Cone` whose lower generatrix
+    lies in the face of the ring it rolls) moves with a :class:`ControlledMotion`. At the start
+    of each increment its apex is sent, within the increment, to the projection c* of the
+    ring's centroid on the mill line (measured by ``centring``): the cones retreat along the
+    line as the ring grows, and with the apex on the ring's axis a cone's surface speed
+    ω s sin α equals the face's speed ω_ring ρ at every radius (rolling without slip). Along
+    the ring axis each cone moves at its own constant speed (``axial_speeds``; positive along
+    ``centring.axis``). The cones must be frictionless: their torque about their own axis is
+    then zero for any ω, which is undetermined and has no effect on the solution; it is set
+    after the solve to the rolling speed ω_free of the contact nodes (:func:`rolling_speed`),
+    for the outputs and the drawing.
+
+    Args:
+        contact: the :class:`~fxcontact.contact.NodalContact` holding the cones.
+        cones: the cone tools (each moved by a :class:`ControlledMotion`, apex = its
+            ``axis_point`` at t = 0).
+        centring: the :class:`RingCentring` of the mill (mill line, ring axis, centroid).
+        axial_speeds: speed of each cone along the ring axis [length/time].
+
+    History columns: ``{cone}_apex_line`` (apex position along the mill line from its
+    ``line_point``), ``{cone}_apex_axial`` (along the ring axis) and ``{cone}_omega``.
+    """
+
+    def __init__(self, contact, cones: Sequence[Tool], centring: "RingCentring",
+                 axial_speeds: Sequence[float]):
+        self.contact = contact
+        self.cones = list(cones)
+        if not self.cones:
+            raise ValueError("give at least one cone")
+        if len(axial_speeds) != len(self.cones):
+            raise ValueError(f"give one axial speed per cone ({len(self.cones)} cones, "
+                             f"{len(axial_speeds)} speeds)")
+        self.speeds = [float(v) for v in axial_speeds]
+        if not all(math.isfinite(v) for v in self.speeds):
+            raise ValueError(f"axial speeds must be finite, got {axial_speeds!r}")
+        self.motions = [_controlled(c) for c in self.cones]
+        self.k = []
+        for c in self.cones:
+            if c not in contact.tools:
+                raise ValueError(f"cone '{c.name}' is not one of the contact's tools "
+                                 f"{[t.name for t in contact.tools]}")
+            k = contact.tools.index(c)
+            if contact.friction[k].code != LAW_NONE:
+                raise ValueError(f"cone '{c.name}' must be frictionless (its ω is then free); "
+                                 f"a cone with friction needs the zero-torque condition of "
+                                 f"IdleRotation")
+            self.k.append(k)
+        self.centring = centring
+        self.omega = [m.current_angular_velocity() for m in self.motions]
+        self._t = 0.0
+
+    def _apex(self, m: ControlledMotion, t: float) -> np.ndarray:
+        return m.axis_point_at(t)
+
+    def begin_increment(self, sim, t: float, dt: float, x_t):
+        self._t = t
+        c, _ = self.centring.measure(sim)
+        cz = self.centring
+        target = cz.p0 + ((c - cz.p0) @ cz.e) * cz.e
+        for m, v, w in zip(self.motions, self.speeds, self.omega):
+            now = self._apex(m, t)
+            d = target - now
+            d -= (d @ cz.axis) * cz.axis
+            m.set_rates(t, velocity=d / dt + v * cz.axis, angular_velocity=w)
+
+    def end_increment(self, sim, dt: float):
+        for i, (m, k) in enumerate(zip(self.motions, self.k)):
+            self.omega[i] = rolling_speed(self.contact, k, sim.w)
+            m.set_rates(self._t, angular_velocity=self.omega[i])
+
+    def diagnostics(self) -> Dict[str, float]:
+        cz = self.centring
+        t = self.contact.t + self.contact.dt
+        out = {}
+        for cone, m, w in zip(self.cones, self.motions, self.omega):
+            a = self._apex(m, t) - cz.p0
+            out[f"{cone.name}_apex_line"] = float(a @ cz.e)
+            out[f"{cone.name}_apex_axial"] = float(a @ cz.axis)
+            out[f"{cone.name}_omega"] = float(w)
+        return out
+
+    def checkpoint_state(self) -> dict:
+        return {"cones": [c.name for c in self.cones], "omega": list(self.omega),
+                "motions": [m.checkpoint_state() for m in self.motions]}
+
+    def restore_state(self, state: dict):
+        names = [c.name for c in self.cones]
+        if state.get("cones") != names:
+            raise ValueError(f"the checkpoint's cones {state.get('cones')} are not these {names}")
+        self.omega = [float(w) for w in state["omega"]]
+        for m, st in zip(self.motions, state["motions"]):
+            m.restore_state(st)

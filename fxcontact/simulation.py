@@ -99,6 +99,22 @@ def _time_value(value, t):
     return value
 
 
+def _plain_state(value):
+    """A controller's state as plain JSON values (numpy arrays and scalars to lists/numbers)."""
+    if isinstance(value, dict):
+        return {str(k): _plain_state(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain_state(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    raise ValueError(f"a controller's checkpoint_state() must hold plain numbers, strings, "
+                     f"lists, dicts or numpy arrays, got {type(value).__name__}")
+
+
 def _shear_viscosity_ufl(material, v, dt):
     """Secant shear viscosity of the velocity tangent (UFL) for the Schur preconditioner of
     the condensed iterative solver (:mod:`fxcontact.condense`), or None if unknown:
@@ -280,7 +296,13 @@ class Simulation:
         ``begin_increment(sim, t, dt, x_t)`` (called at the start of each increment, before the
         contributors), ``solve(sim, begin)`` (replaces the increment's Newton solve: it may
         solve several times, calling ``begin()`` to restart the contributors; at most one
-        controller may have it), ``end_increment(sim, dt)`` and ``diagnostics()``."""
+        controller may have it), ``end_increment(sim, dt)`` and ``diagnostics()``.
+
+        Checkpoints: a controller that keeps a state between increments (rates it has set, a
+        measured centre…) saves it with ``checkpoint_state() -> dict`` (plain numbers, lists,
+        dicts, numpy arrays) and gets it back with ``restore_state(dict)``; the kinematics
+        (e.g. :class:`~fxcontact.mill.RingAxisUpdate`) may have the same two methods. A
+        checkpoint is resumed only with the same controllers (number, types, order)."""
         self._check_not_built()
         if hasattr(controller, "solve") and any(hasattr(c, "solve") for c in self.controllers):
             raise ValueError("only one controller may take over the Newton solve (solve()); "
@@ -411,6 +433,12 @@ class Simulation:
     def volume(self) -> float:
         self._build()
         return self.comm.allreduce(dolfinx.fem.assemble_scalar(self._volume_form), op=MPI.SUM)
+
+    @property
+    def initial_volume(self) -> float:
+        """Volume of the body at t = 0 (also after :meth:`resume`)."""
+        self._build()
+        return self._volume_initial
 
     def mean_strain_rate(self) -> float:
         """Volume average of the (un-regularised) equivalent strain rate of the current w."""
@@ -881,6 +909,11 @@ class Simulation:
                             "no state between increments", type(c).__name__)
             states.append(st)
         self._warned_stateless = True
+        controllers = [{"type": type(c).__name__,
+                        "state": _plain_state(c.checkpoint_state())
+                        if hasattr(c, "checkpoint_state") else None}
+                       for c in self.controllers]
+        kin = self.kinematics
         last = self.history[-1] if self.history else None
         manifest = {"format": ck.FORMAT_VERSION, "fxcontact": __version__, "name": self.name,
                     "t": self.t, "increment": self.increment, "history": self.history,
@@ -888,6 +921,9 @@ class Simulation:
                                   else None),
                     "mesh": ck.mesh_fingerprint(self.mesh, self._x_ref),
                     "setup": self._setup_signature(), "contributors": states,
+                    "controllers": controllers,
+                    "kinematics": (_plain_state(kin.checkpoint_state())
+                                   if hasattr(kin, "checkpoint_state") else None),
                     "volume_initial": self._volume_initial}
         path = path or self._checkpoint_path()
         if self.comm.rank == 0:
@@ -913,8 +949,9 @@ class Simulation:
         of checkpoints (the newest is taken); default: the newest one of this run in
         ``output_dir/checkpoints``. The CSV history and the VTK series are continued (rows and
         steps after the checkpoint, from a run that was killed, are dropped). Works on any
-        number of ranks. Raises :class:`~fxcontact.checkpoint.CheckpointError` for a missing
-        checkpoint, another format or package version, another mesh or another set-up.
+        number of ranks. Raises :class:`~fxcontact.checkpoint.CheckpointError` (a ValueError)
+        for a missing checkpoint, another format or package version, another mesh, another
+        set-up or other controllers (:meth:`add_controller`).
         """
         from fxcontact import __version__
         from fxcontact import checkpoint as ck
@@ -947,6 +984,19 @@ class Simulation:
                     if man.get("setup", {}).get(k) != v}
             raise CheckpointError(f"checkpoint {path} was written for a different set-up "
                                   f"(checkpoint vs this run: {diff})")
+        saved = [c["type"] for c in man.get("controllers", [])]
+        mine = [type(c).__name__ for c in self.controllers]
+        if saved != mine:
+            raise CheckpointError(f"checkpoint {path} was written with the controllers {saved}; "
+                                  f"this simulation has {mine}: register the same controllers "
+                                  f"(add_controller), in the same order, as the checkpointed run")
+        for i, (c, e) in enumerate(zip(self.controllers, man.get("controllers", []))):
+            if e["state"] is not None and not hasattr(c, "restore_state"):
+                raise CheckpointError(f"checkpoint {path} holds a state for controller "
+                                      f"{type(c).__name__} #{i}, which cannot restore it")
+            if e["state"] is None and hasattr(c, "restore_state"):
+                raise CheckpointError(f"checkpoint {path} holds no state for controller "
+                                      f"{type(c).__name__} #{i}")
         arrays = ck.read_arrays(path, int(man["nranks"]))
         keys = self._checkpoint_keys()
         sp = self.space
@@ -977,6 +1027,17 @@ class Simulation:
                 else:
                     state[k] = np.asarray(e["value"]) if e.get("array") else e["value"]
             c.restore_state(state)
+        for i, (c, e) in enumerate(zip(self.controllers, man.get("controllers", []))):
+            if e["state"] is not None:
+                try:
+                    c.restore_state(e["state"])
+                except (KeyError, TypeError, ValueError) as err:
+                    raise CheckpointError(f"checkpoint {path}: the state of controller "
+                                          f"{type(c).__name__} #{i} does not fit this one: "
+                                          f"{err}") from None
+        kin = man.get("kinematics")
+        if kin is not None and hasattr(self.kinematics, "restore_state"):
+            self.kinematics.restore_state(kin)
         self.t = float(man["t"])
         self.increment = int(man["increment"])
         self.history = [dict(r) for r in man["history"]]

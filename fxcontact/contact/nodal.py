@@ -782,10 +782,15 @@ class NodalContact:
         """What a resumed run needs (:mod:`fxcontact.checkpoint`): the penalty resolved from β
         at the first increment, the representative strain rate, the slip regularisation and the
         nodal pressures of the last converged increment (explicit friction). The tools are
-        immutable and move as functions of time: restoring t restores their positions."""
+        immutable and move as functions of time: restoring t restores their positions, except
+        for motions whose rates are set during the run (:class:`fxcontact.mill.ControlledMotion`:
+        their ``checkpoint_state()`` is saved too, under ``motions``)."""
         from fxcontact.checkpoint import PerVertex
         return {"name": self.name, "scheme": self.scheme,
                 "tools": [t.name for t in self.tools],
+                "motions": [t.motion.checkpoint_state()
+                            if hasattr(getattr(t, "motion", None), "checkpoint_state") else None
+                            for t in self.tools],
                 "penalty": self._penalty, "strain_rate": self.strain_rate,
                 "slip_velocity": self.slip_velocity,
                 "p_prev": PerVertex(self.boundary.vertices, self._p_prev)}
@@ -804,6 +809,14 @@ class NodalContact:
         if self._slip_velocity_user is None:
             self.slip_velocity = state["slip_velocity"]
         self._p_prev = np.asarray(state["p_prev"].at(self.boundary.vertices), dtype=np.float64)
+        for t, m in zip(self.tools, state.get("motions") or [None] * len(self.tools)):
+            has = hasattr(getattr(t, "motion", None), "restore_state")
+            if (m is None) == has:
+                raise CheckpointError(f"the checkpoint's motion of tool '{t.name}' "
+                                      f"({'none' if m is None else 'rates set during the run'}) "
+                                      f"does not fit this tool's {type(t.motion).__name__}")
+            if m is not None:
+                t.motion.restore_state(m)
 
     # ------------------------------------------------------------------ diagnostics / output
     def pressures(self) -> np.ndarray:
