@@ -19,7 +19,7 @@ Variants (``--variants``; each is a set of options of the library, nothing else 
 * ``tr``: the trust-region Newton (``line_search="trust-region"``, fallback bt), ``max_it`` 100;
 * ``cont0.03``: penalty continuation (``penalty_continuation=0.03``: β·0.03 = 30 first, to a
   relative residual of 1e-3, then β = 1e3), ``max_it`` 100;
-* ``cont0.03+reg1e-3``, ``tr+reg1e-3``, ``beta1e1+reg1e-3+tr``: combinations.
+* ``cont0.03+reg1e-3``, ``tr+reg1e-3`` (``max_it`` 100), ``beta1e1+reg1e-3+tr``: combinations.
 
 Run from the repository root::
 
@@ -58,9 +58,10 @@ VARIANTS = {
     "beta1e1+reg1e-2": ({"beta": 1e1, "regularization": 1e-2 * RATE}, {}),
     "tr": ({}, {"max_it": 100, "line_search": "trust-region", "line_search_fallback": "bt"}),
     "cont0.03": ({}, {"max_it": 100, "penalty_continuation": 0.03}),
-    "cont0.03+reg1e-3": ({"regularization": 1e-3 * RATE}, {"penalty_continuation": 0.03}),
+    "cont0.03+reg1e-3": ({"regularization": 1e-3 * RATE},
+                         {"max_it": 100, "penalty_continuation": 0.03}),
     "tr+reg1e-3": ({"regularization": 1e-3 * RATE},
-                   {"line_search": "trust-region", "line_search_fallback": "bt"}),
+                   {"max_it": 100, "line_search": "trust-region", "line_search_fallback": "bt"}),
     "beta1e1+reg1e-3+tr": ({"beta": 1e1, "regularization": 1e-3 * RATE},
                            {"line_search": "trust-region", "line_search_fallback": "bt"}),
 }
