@@ -93,3 +93,13 @@ def assert_histories_match(h_par, h_ser, keys, rtol=1e-8, scale_key="tool_force_
         F = max(abs(b[scale_key]), 1.0)
         for k in keys:
             assert abs(a[k] - b[k]) <= rtol * F, (k, a["time"], a[k], b[k])
+
+
+def vertex_velocities_by_position(sim, comm=MPI.COMM_WORLD):
+    """The P1 vertex velocities of a Simulation, gathered on every rank and ordered by the
+    vertices' reference positions (compares runs whose partitions differ)."""
+    sp = sim.space
+    own = sp.vertex_owned
+    return gather_by_position(comm, sim._x_ref[sp.vertex_geometry][own],
+                              sim.w.x.array[sp.vertex_dofs[own]])[1]
+
