@@ -136,6 +136,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import logging
 import math
 import os
 import time
@@ -146,6 +147,8 @@ from mpi4py import MPI
 import fxcontact as fx
 from fxcontact import forming
 from fxcontact.console import add_verbosity_arguments, configure_logging
+
+log = logging.getLogger("fxcontact.demo.ring_rolling")
 from fxcontact.mill import (AxialRolls, ControlledMotion, IdleRotation, RingAxisUpdate,
                             RingCentring)
 
@@ -446,6 +449,12 @@ def run(**parameters) -> dict:
             row.update(_cone_row(q, nodes_on(4), cone_depth(), Hm, Ro, Ri, w_ring, cone_geo,
                                  P["K"], P["m"]))
         rows.append(row)
+        # progress of a long run (one line per increment, rank 0; --quiet hides it)
+        if comm.rank == 0:
+            log.info("ring rolling: %.3f / %.2f rev, outer D %.2f mm, main force %.4g N, "
+                     "%d Newton its, %.1f s", row["revolutions"], P["revolutions"],
+                     row["outer_diameter"], math.hypot(row["main_force_x"], row["main_force_y"]),
+                     row["newton_iterations"], row["wall"])
         if (it + 1 in snap_at and it + 1 < n_inc) or sim.t >= t_end * (1.0 - 1e-9):
             snaps.append(_snapshot(comm, sim, outer, inner, tools, sim.t, c))
     sim.close()
