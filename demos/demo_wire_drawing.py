@@ -109,6 +109,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import logging
 import math
 import os
 import time
@@ -120,6 +121,8 @@ import fxcontact as fx
 from fxcontact import compat, forming
 from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.steady import steady_window
+
+log = logging.getLogger("fxcontact.demo.wire_drawing")
 
 #: the thesis case (lengths mm, stresses MPa, times s) and our die
 DEFAULTS = dict(R0=10.0, R1=7.5, length=38.0, sector=120.0, K=445.0, m=0.016, speed=100.0,
@@ -518,6 +521,10 @@ def run(**parameters) -> dict:
             wall_linear_solve=r["wall_linear_solve"], wall_contact=r["wall_contact"],
             volume_change=r["volume_change"], min_quality=r["min_quality"],
             symmetry_violation=r.get("symmetry_violation", 0.0)))
+        if comm.rank == 0:   # progress of a long run (--quiet hides it)
+            log.info("wire drawing: t = %.4g / %.4g s, F/A1 = %.1f MPa, %d Newton its, %.1f s",
+                     sim.t, P["t_end"], rows[-1]["drawing_stress"], rows[-1]["newton_iterations"],
+                     rows[-1]["wall"])
         # steady state: two consecutive windows of `window` mm of pull with the same mean force
         # (each window spans element passages: the nodal force oscillates with them)
         travel = P["speed"] * sim.t
