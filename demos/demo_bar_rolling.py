@@ -161,7 +161,8 @@ DEFAULTS = dict(R0=58.0, R1=48.0, groove_angle=50.0, roll_radius=180.0, edge_rad
                 nose=0.3, push_ratio=0.9, grip_travel=0.6, settle=0.8, window=0.5,
                 steady_tol=0.02, exit_offset=0.5, beta=10.0, regularization=1e-3, m_start=0.1,
                 slip_velocity=1e-3, model="third", mesh="symmetric",
-                scheme="implicit", line_search="bt", max_increments=5000,
+                scheme="implicit", line_search="bt", penalty_continuation=None,
+                max_increments=5000,
                 output_dir="results/bar_rolling", pictures=True, comm=None)
 
 #: the reduced size of the tests: coarse elements, large increments, a short bar
@@ -365,6 +366,15 @@ def _check(P):
     return P
 
 
+def _solver_options(P):
+    """Newton's options: ``line_search`` (trust region with a bt fallback) and
+    ``penalty_continuation`` (see :class:`fxcontact.SolverOptions`)."""
+    ls = P["line_search"]
+    return fx.SolverOptions(line_search=ls,
+                            line_search_fallback="bt" if ls == "trust-region" else "basic",
+                            penalty_continuation=P["penalty_continuation"])
+
+
 def run(**parameters) -> dict:
     """Roll the bar to steady state (or report why not); returns the result dict.
 
@@ -407,7 +417,7 @@ def run(**parameters) -> dict:
     mat.bind(msh, P["m_start"])
     sp = fx.MixedSpace(msh)
     out = P["output_dir"]
-    sim = fx.Simulation(sp, mat, solver_options=fx.SolverOptions(line_search=P["line_search"]),
+    sim = fx.Simulation(sp, mat, solver_options=_solver_options(P),
                         progress=False)
     if third:
         f = {k: sim.facets(ft, DRAWING_BAR_TAGS[k]) for k in ("symmetry_0", "symmetry_1")}
@@ -700,6 +710,11 @@ def main(argv=None):
     ap.add_argument("--model", choices=("third", "full"))
     ap.add_argument("--mesh", choices=("symmetric", "gmsh"))
     ap.add_argument("--scheme")
+    ap.add_argument("--line_search", choices=fx.LINE_SEARCHES,
+                    help="Newton's line search (trust-region: fallback bt)")
+    ap.add_argument("--penalty_continuation", type=float, metavar="F",
+                    help="solve first with the contact penalty x F, then with the penalty "
+                    "(see fxcontact.SolverOptions)")
     ap.add_argument("--output-dir", dest="output_dir")
     add_verbosity_arguments(ap)
     a = ap.parse_args(argv)
