@@ -161,7 +161,7 @@ DEFAULTS = dict(R0=58.0, R1=48.0, groove_angle=50.0, roll_radius=180.0, edge_rad
                 nose=0.3, push_ratio=0.9, grip_travel=0.6, settle=0.8, window=0.5,
                 steady_tol=0.02, exit_offset=0.5, beta=10.0, regularization=1e-3, m_start=0.1,
                 slip_velocity=1e-3, model="third", mesh="symmetric",
-                scheme="implicit", line_search="bt", penalty_continuation=None,
+                scheme="implicit", line_search="trust-region", penalty_continuation=None,
                 max_increments=5000,
                 output_dir="results/bar_rolling", pictures=True, comm=None)
 
