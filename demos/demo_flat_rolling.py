@@ -128,6 +128,9 @@
 # basin is about v₀ wide). A 10× larger v₀ (``--slip_ratio 1e-2``) cuts the mean from 17.9 to
 # 11.7 iterations (max 28 → 16) and changes P/w by −0.7 %, the forward slip from 6.9 to 6.7 %:
 # the default is kept at 10⁻³ (the library's default), the choice is the user's.
+# Newton's trust region (``--line_search trust-region``) and penalty continuation
+# (``--penalty_continuation 0.03`` or ``0.1``) do not reduce them (``--quick``: 18.3 and
+# 21.9 / 21.4 per increment against 17.9, same results to 1e-8; benchmarks/README.md): bt stays.
 #
 # **Formerly known problem.** The default pass on the finer mesh ``--quick --h_x 3.5 --nz 3 --dt
 # 1.5e-3`` without the pseudo-inertia was gripped (the pusher let go at t = 3 ms) but at
