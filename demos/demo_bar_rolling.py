@@ -86,24 +86,26 @@
 # size, a few increments) … (``--help``); on 2 ranks with ``mpirun -n 2``. Outputs in
 # ``results/bar_rolling``.
 #
-# **Results** (implicit scheme, β = 10, third model; serial on a shared, heavily loaded 2-core
-# machine, so the wall times are 3–4× those of an idle one):
+# **Results** (implicit scheme, β = 10, third model; serial on a shared, loaded 2-core
+# machine, so the wall times are 2–4× those of an idle one; the first two rows in one session):
 #
 # | size (command) | per roll: radial force / torque | stand torque / power | exit area, fill of the pass (radius at the roll gap) | power bal. | max \|ΔV/V\| | penetration | Newton mean/max | wall |
 # |---|---|---|---|---|---|---|---|---|
-# | h 16 mm, dt 20 ms, 912 cells, 3868 dofs, edges rounded 5 mm (``--quick``) | 616.7 kN (± 5.8 %) / 21.31 kN m | 63.94 kN m / 35.52 kW | 7513 mm², 99.13 % (57.9 of 61.7 mm) | −1.33 % | 3.2e-5 | 0.119 mm | 25.7 / 156 | 646 s, 94 incr. |
-# | h 16 mm, dt 20 ms, 912 cells, 3868 dofs, sharp groove edges, m_start 0.3 (``--quick --edge_radius 0 --m_start 0.3``) | 624.8 kN (± 4.5 %) / 21.45 kN m | 64.35 kN m / 35.75 kW | 7569 mm², 99.92 % (60.4 of 61.7 mm) | −0.30 % | 3.4e-5 | 0.136 mm | 30.1 / 166 | 1212 s, 82 incr. |
+# | h 16 mm, dt 20 ms, 912 cells, 3868 dofs, edges rounded 5 mm (``--quick``) | 616.9 kN (± 6.8 %) / 21.38 kN m | 64.15 kN m / 35.64 kW | 7512 mm², 99.12 % (57.75 of 61.7 mm) | −1.09 % | 3.2e-5 | 0.12 mm | 19.2 / 153 | 151 s, 88 incr. |
+# | same, Newton with bt (``--quick --line_search bt``, the former default) | 616.7 kN (± 5.8 %) / 21.31 kN m | 63.94 kN m / 35.52 kW | 7513 mm², 99.13 % (57.9 of 61.7 mm) | −1.33 % | 3.2e-5 | 0.119 mm | 25.7 / 156 | 221 s, 94 incr. |
+# | h 16 mm, dt 20 ms, 912 cells, 3868 dofs, sharp groove edges, m_start 0.3, bt (``--quick --edge_radius 0 --m_start 0.3 --line_search bt``) | 624.8 kN (± 4.5 %) / 21.45 kN m | 64.35 kN m / 35.75 kW | 7569 mm², 99.92 % (60.4 of 61.7 mm) | −0.30 % | 3.4e-5 | 0.136 mm | 30.1 / 166 | 1212 s, 82 incr. |
 #
-# Default (rounded edges): steady from increment 79 (gripped at t = 0.315 s, the front
-# 0.8 L_b past the roll axes); contact area of the stand 18 659 mm²; net axial force of the
-# rolls 0 (the bar's ends are free); smallest element quality 0.094 (that of the shaped nose at
-# the start). The exit section (``results/bar_rolling/exit_section_third.png``) fills the
-# inscribed circle and the grooves and spreads into the ears beside the grooves to 57.9 mm of
-# the 61.7 mm corner radius: the **underfill** is 0.87 % of the pass area (the bar lying
-# 0.12 mm inside the rolls adds about 0.5 %). With sharp edges the ears filled further
-# (60.4 mm, underfill 0.08 %). The expected underfill is the open tip of the ears only,
-# between 0 and the ears' share of the pass (4.5 %) — the slow test asserts
-# A_inscribed/A_pass < fill < 1 + perimeter × penetration / A_pass.
+# Default (rounded edges): steady from increment 73 (gripped at t = 0.3025 s; with bt from
+# increment 79, gripped at t = 0.315 s, the front 0.8 L_b past the roll axes); contact area of the
+# stand 18 862 mm² (bt 18 659); net axial force of the rolls 0 (the bar's ends are free); smallest
+# element quality 0.094 (that of the shaped nose at the start). The exit section
+# (``results/bar_rolling/exit_section_third.png``) fills the inscribed circle and the grooves and
+# spreads into the ears beside the grooves to 57.8 mm of the 61.7 mm corner radius: the
+# **underfill** is 0.88 % of the pass area (bt 0.87 %) (the bar lying 0.12 mm inside the rolls
+# adds about 0.5 %). With sharp edges the ears filled further (60.4 mm, underfill 0.08 %). The
+# expected underfill is the open tip of the ears only, between 0 and the ears' share of the pass
+# (4.5 %) — the slow test asserts A_inscribed/A_pass < fill < 1 + perimeter × penetration /
+# A_pass.
 #
 # **Third against the whole model** (``--quick --compare 3``): on the symmetric meshes (the
 # default) the per-roll radial force and torque of the third and of each of the whole model's
@@ -115,17 +117,23 @@
 # in force and their mean differs from the third's by 4–5 %: a discretisation difference
 # (16–18 contact nodes per roll at that size), which the symmetric meshes remove.
 #
-# **Not reached: the thesis size to steady state** (9 mm elements, dt = 1 ms: 4864 cells and
-# 19 452 dofs in the third; 0.1 mm of roll travel per increment, ~1600 increments to steady
-# state). Measured on its first four increments (``run(max_increments=4)``): 13–20 Newton
-# iterations and 15–29 s per increment on the loaded machine, true penetration 0.004 mm,
-# radial force 233 kN per roll in the pusher phase — about 10 h to steady state here, so not
-# run. (With ``m_start = 0.3`` its second increment failed after all cut-backs; 0.1, the
-# default since, passes; with dt = 5 ms the four increments took 17–28 iterations.) At the
-# test size an increment costs ~15 s with 30 Newton iterations on average: Newton is the
-# bottleneck of this case (m = 0.03: the tangent along the flow is 2 m η, nodes enter the bite
-# at nearly every increment, Norton friction with q = 0.15); ``slip_velocity`` and
-# ``regularization`` 10× larger did not reduce the iterations (measured over 14 increments).
+# **Not reached: the thesis size to steady state** (9 mm elements, dt = 1 ms: 4864 cells and 19
+# 452 dofs in the third; 0.1 mm of roll travel per increment, ~1600 increments to steady state).
+# Measured with bt on its first four increments (``run(max_increments=4)``): 13–20 Newton
+# iterations and 15–29 s per increment on the loaded machine, true penetration 0.004 mm, radial
+# force 233 kN per roll in the pusher phase — about 10 h to steady state here, so not run. (With
+# ``m_start = 0.3`` its second increment failed after all cut-backs; 0.1, the default since,
+# passes; with dt = 5 ms the four increments took 17–28 iterations.) At the test size an increment
+# cost ~15 s with 30 Newton iterations on average (bt, more loaded): Newton is the bottleneck of
+# this case (m = 0.03: the tangent along the flow is 2 m η, nodes enter the bite at nearly every
+# increment, Norton friction with q = 0.15); ``slip_velocity`` and ``regularization`` 10× larger
+# did not reduce the iterations (measured over 14 increments).
+# **Newton's trust region** (``line_search="trust-region"``, fallback bt; the default): on
+# ``--quick`` 19.2 iterations per increment instead of 25.7, 11 cut-backs instead of 25, 151 s
+# instead of 221 s, the steady force, torque and exit area within 0.3 % of bt's (far within the ±
+# 6 % oscillation); the gain is in the grip and the filling of the bite. Penalty continuation
+# (``--penalty_continuation``) does not help here (β = 10 is already soft: f = 0.1 took 2.3× bt's
+# iterations over 15 increments); figures in benchmarks/README.md.
 #
 # **Known problem: sharp groove edges.** With sharp edges (``--edge_radius 0``) and 12 mm
 # elements (``--quick --h 12 --edge_radius 0``) the run stopped at t = 0.72 s (increment 41):
@@ -161,7 +169,8 @@ DEFAULTS = dict(R0=58.0, R1=48.0, groove_angle=50.0, roll_radius=180.0, edge_rad
                 nose=0.3, push_ratio=0.9, grip_travel=0.6, settle=0.8, window=0.5,
                 steady_tol=0.02, exit_offset=0.5, beta=10.0, regularization=1e-3, m_start=0.1,
                 slip_velocity=1e-3, model="third", mesh="symmetric",
-                scheme="implicit", line_search="bt", max_increments=5000,
+                scheme="implicit", line_search="trust-region", penalty_continuation=None,
+                max_increments=5000,
                 output_dir="results/bar_rolling", pictures=True, comm=None)
 
 #: the reduced size of the tests: coarse elements, large increments, a short bar
@@ -365,6 +374,15 @@ def _check(P):
     return P
 
 
+def _solver_options(P):
+    """Newton's options: ``line_search`` (trust region with a bt fallback) and
+    ``penalty_continuation`` (see :class:`fxcontact.SolverOptions`)."""
+    ls = P["line_search"]
+    return fx.SolverOptions(line_search=ls,
+                            line_search_fallback="bt" if ls == "trust-region" else "basic",
+                            penalty_continuation=P["penalty_continuation"])
+
+
 def run(**parameters) -> dict:
     """Roll the bar to steady state (or report why not); returns the result dict.
 
@@ -407,7 +425,7 @@ def run(**parameters) -> dict:
     mat.bind(msh, P["m_start"])
     sp = fx.MixedSpace(msh)
     out = P["output_dir"]
-    sim = fx.Simulation(sp, mat, solver_options=fx.SolverOptions(line_search=P["line_search"]),
+    sim = fx.Simulation(sp, mat, solver_options=_solver_options(P),
                         progress=False)
     if third:
         f = {k: sim.facets(ft, DRAWING_BAR_TAGS[k]) for k in ("symmetry_0", "symmetry_1")}
@@ -700,6 +718,11 @@ def main(argv=None):
     ap.add_argument("--model", choices=("third", "full"))
     ap.add_argument("--mesh", choices=("symmetric", "gmsh"))
     ap.add_argument("--scheme")
+    ap.add_argument("--line_search", choices=fx.LINE_SEARCHES,
+                    help="Newton's line search (trust-region: fallback bt)")
+    ap.add_argument("--penalty_continuation", type=float, metavar="F",
+                    help="solve first with the contact penalty x F, then with the penalty "
+                    "(see fxcontact.SolverOptions)")
     ap.add_argument("--output-dir", dest="output_dir")
     add_verbosity_arguments(ap)
     a = ap.parse_args(argv)
