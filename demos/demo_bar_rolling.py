@@ -147,6 +147,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import logging
 import math
 import os
 import time
@@ -161,6 +162,8 @@ from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normal
 from fxcontact.power import (PlasticDissipation, PressurePower, on_configuration,
                              penalty_power)
 from fxcontact.steady import steady_window
+
+log = logging.getLogger("fxcontact.demo.bar_rolling")
 
 #: the thesis case (lengths mm, stresses MPa, times s)
 DEFAULTS = dict(R0=58.0, R1=48.0, groove_angle=50.0, roll_radius=180.0, edge_radius=5.0,
@@ -516,6 +519,9 @@ def run(**parameters) -> dict:
         else:
             row["exit_area"] = math.nan
         rows.append(row)
+        if comm.rank == 0:   # progress of a long run (--quiet hides it)
+            log.info("bar rolling: t = %.4g s, front %.1f mm, roll force %.4g N, %d Newton its, %.1f s",
+                     sim.t, row["front"], row["roll_force"], row["newton_iterations"], row["wall"])
         # ---- grip: the bar runs away from the pusher
         if gripped_at is None:
             if len(rows) >= 2 and rows[-1]["pusher_nodes"] == 0 and rows[-2]["pusher_nodes"] == 0:

@@ -145,6 +145,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import logging
 import math
 import os
 import time
@@ -161,6 +162,8 @@ from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.power import (PlasticDissipation, PressurePower, on_configuration,
                              penalty_power)
 from fxcontact.steady import steady_window
+
+log = logging.getLogger("fxcontact.demo.flat_rolling")
 
 #: the thesis case (lengths mm, stresses MPa, times s)
 DEFAULTS = dict(R=300.0, h0=25.0, reduction=0.28, width=100.0, K=30.0, m=0.3, mu=0.3, mbar=1.0,
@@ -430,6 +433,9 @@ def run(**parameters) -> dict:
                    if D + Pf > 0 else math.nan,
                    stick=r.get("roll_contact_stick", 0), slip=r.get("roll_contact_slip", 0))
         rows.append(row)
+        if comm.rank == 0:   # progress of a long run (--quiet hides it)
+            log.info("flat rolling: t = %.4g s, front %.1f mm, force %.4g N/mm, %d Newton its, %.1f s",
+                     sim.t, row["front"], row["force_per_width"], row["newton_iterations"], row["wall"])
         # ---- grip: the strip runs away from the pusher
         if gripped_at is None:
             if len(rows) >= 2 and rows[-1]["pusher_nodes"] == 0 and rows[-2]["pusher_nodes"] == 0:
