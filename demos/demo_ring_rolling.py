@@ -73,7 +73,16 @@
 #   Newton solves per increment, 1644 s), volume change 1e-10, idle torque ≤ 28 N mm against a
 #   tolerance of 89 N mm, mandrel surface / bore speed 0.997, surface slip ≤ 1.2 mm/s (v₀ =
 #   0.94 mm/s), main roll force 0.66 × 2kHLQ (still rising), centre ≤ 0.32 mm off the line.
-#   **Two revolutions of case 2 were not run** (about 3 h at this size).
+# * case 2 over **two revolutions at the default mesh** 160 × 4 × 2 (``mpirun -n 2 python
+#   demos/demo_ring_rolling.py --case 2``, bordered idle mandrel, 60 increments per revolution):
+#   120 increments, no failure, 4028 s wall on 2 ranks of a loaded machine (2014 s per
+#   revolution), 25.0 Newton iterations per increment (max 39). Volume change −0.036 %
+#   (−0.018 %/rev, cylindrical update, no correction); mean diameter against V/(πHB) within
+#   0.03 %; outer diameter +1.47 %; main roll radial force (second half) 3413 kN = 1.20 ×
+#   2kHLQ (2849 kN); idle mandrel torque ≤ 1e-6 N mm (tolerance up to 148), surface slip
+#   ≤ 0.82 mm/s, mandrel surface / bore speed 1.0006; max penetration 0.13 mm (β = 1000),
+#   centre ≤ 0.49 mm off the mill line (smallest edge 2.43 mm); max strain 0.17, max strain
+#   rate 7.1 1/s.
 # * idle mandrel: the case-2 figures above are those of the outer iteration
 #   (``--idle_method outer``); the default now eliminates ω inside Newton (``bordered``): one
 #   Newton solve per increment, 1.3–2.7× fewer Newton iterations, the same ω and forces
