@@ -377,15 +377,6 @@ def _check(P):
     return P
 
 
-def _solver_options(P):
-    """Newton's options: ``line_search`` (trust region with a bt fallback) and
-    ``penalty_continuation`` (see :class:`fxcontact.SolverOptions`)."""
-    ls = P["line_search"]
-    return fx.SolverOptions(line_search=ls,
-                            line_search_fallback="bt" if ls == "trust-region" else "basic",
-                            penalty_continuation=P["penalty_continuation"])
-
-
 def run(**parameters) -> dict:
     """Roll the bar to steady state (or report why not); returns the result dict.
 
@@ -428,7 +419,9 @@ def run(**parameters) -> dict:
     mat.bind(msh, P["m_start"])
     sp = fx.MixedSpace(msh)
     out = P["output_dir"]
-    sim = fx.Simulation(sp, mat, solver_options=_solver_options(P),
+    opts = fx.SolverOptions(line_search=P["line_search"],
+                            penalty_continuation=P["penalty_continuation"])
+    sim = fx.Simulation(sp, mat, solver_options=opts,
                         progress=False)
     if third:
         f = {k: sim.facets(ft, DRAWING_BAR_TAGS[k]) for k in ("symmetry_0", "symmetry_1")}

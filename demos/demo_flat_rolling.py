@@ -267,15 +267,6 @@ def _contact_arc(comm, contact, sim):
 # ## The run
 
 # %%
-def _solver_options(P):
-    """Newton's options: ``line_search`` (trust region with a bt fallback) and
-    ``penalty_continuation`` (see :class:`fxcontact.SolverOptions`)."""
-    ls = P["line_search"]
-    return fx.SolverOptions(line_search=ls,
-                            line_search_fallback="bt" if ls == "trust-region" else "basic",
-                            penalty_continuation=P["penalty_continuation"])
-
-
 def run(**parameters) -> dict:
     """Roll the strip to steady state (or report why not); returns the result dict.
 
@@ -318,7 +309,9 @@ def run(**parameters) -> dict:
                          int(P["ny"]), int(P["nz"]), 0.5 * h1 + R, R)
     sp = fx.MixedSpace(msh)
     out = P["output_dir"]
-    sim = fx.Simulation(sp, mat, solver_options=_solver_options(P),
+    opts = fx.SolverOptions(line_search=P["line_search"],
+                            penalty_continuation=P["penalty_continuation"])
+    sim = fx.Simulation(sp, mat, solver_options=opts,
                         output_dir=out if P["vtk_every"] else None, name="flat_rolling",
                         output_every=max(1, int(P["vtk_every"] or 1)), progress=False)
     f = {k: sim.facets(ft, v) for k, v in fx.BLOCK_TAGS.items()}

@@ -465,8 +465,7 @@ def run(**parameters) -> dict:
     space = fx.MixedSpace(msh)
     out = P["output_dir"]
     opts = fx.SolverOptions(max_it=int(P["max_it"]), line_search=P["line_search"],
-                           line_search_fallback="bt" if P["line_search"] == "trust-region"
-                           else "basic", penalty_continuation=P["penalty_continuation"])
+                            penalty_continuation=P["penalty_continuation"])
     sim = fx.Simulation(space, mat, solver_options=opts,
                         output_dir=out if P["vtk_every"] else None, name="wire_drawing",
                         output_every=max(1, int(P["vtk_every"] or 1)), progress=False)

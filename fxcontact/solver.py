@@ -138,7 +138,8 @@ class SolverOptions:
             first one fails to converge (before any cut-back), or None. Backtracking on the
             residual norm can stall when contact nodes open and close and friction nodes pass
             between stick and slip in the same iteration (tiny accepted steps, or a 2-cycle);
-            full Newton steps then converge in a few iterations. Default ``"basic"``.
+            full Newton steps then converge in a few iterations. Default ``"auto"``:
+            ``"basic"`` after a line search, ``"bt"`` after the trust region.
         linear_solver: ``"auto"`` (default: :func:`choose_linear_solver` picks a preset from
             the space and its size when the solver is built), a key of
             :data:`LINEAR_SOLVERS` (``"mumps"``: MUMPS on the whole system;
@@ -165,7 +166,7 @@ class SolverOptions:
     stol: float = 1e-9
     max_it: int = 30
     line_search: str = "bt"
-    line_search_fallback: Optional[str] = "basic"
+    line_search_fallback: Optional[str] = "auto"
     linear_solver: object = "auto"
     penalty_continuation: Optional[float] = None
     continuation_rtol: float = 1e-3
@@ -179,6 +180,8 @@ class SolverOptions:
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
         if not (isinstance(self.max_it, (int, np.integer)) and self.max_it >= 1):
             raise ValueError(f"max_it must be an integer >= 1, got {self.max_it!r}")
+        if self.line_search_fallback == "auto":
+            self.line_search_fallback = "bt" if self.line_search == "trust-region" else "basic"
         for name in ("line_search", "line_search_fallback"):
             ls = getattr(self, name)
             if ls not in LINE_SEARCHES and not (name == "line_search_fallback" and ls is None):
