@@ -115,7 +115,10 @@ def test_symmetric_third_and_whole_bar_meshes():
 
 @pytest.fixture(scope="module")
 def third_and_full():
-    return demo.compare(2, **SHORT)
+    # dt = 10 ms: at the quick size's 20 ms the first increment from rest is at Newton's limit
+    # (the third converged in 29-30 iterations, the full model's copy cycled on one grazing node
+    # and cut back, so the two histories were at different times)
+    return demo.compare(2, **{**SHORT, "dt": 0.01})
 
 
 def test_third_equals_full_model(third_and_full):
@@ -124,6 +127,8 @@ def test_third_equals_full_model(third_and_full):
     increment (each of the whole model's rolls) agree to 1e-6 (the acceptance is 1 %), and so
     do the dissipation (× 3) and the volume change."""
     res = third_and_full
+    times = [[q["time"] for q in res[k]["history"]] for k in ("third", "full")]
+    assert times[0] == times[1], f"the two models cut back differently: {times}"
     assert res["max_rel_diff"]["radial_force"] < 1e-6, res["max_rel_diff"]
     assert res["max_rel_diff"]["torque"] < 1e-6, res["max_rel_diff"]
     for qa, qb in zip(res["third"]["history"], res["full"]["history"]):
