@@ -161,6 +161,7 @@ from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.power import (PlasticDissipation, PressurePower, on_configuration,
                              penalty_power)
+from fxcontact.simulation import format_wall_split, wall_split
 from fxcontact.steady import steady_window
 
 log = logging.getLogger("fxcontact.demo.bar_rolling")
@@ -497,7 +498,9 @@ def run(**parameters) -> dict:
                    penetration=rr["roll_contact_penetration_true"],
                    pusher_force=-rr["pusher_force_z"], pusher_nodes=rr["pusher_contact_nodes"],
                    newton_iterations=rr["newton_iterations_all"], cutbacks=rr["cutbacks"],
-                   wall=rr["wall_increment_all"], volume_change=rr["volume"] / V0 - 1.0,
+                   wall=rr["wall_increment_all"], wall_assembly=rr["wall_assembly"],
+                   wall_linear_solve=rr["wall_linear_solve"], wall_contact=rr["wall_contact"],
+                   volume_change=rr["volume"] / V0 - 1.0,
                    min_quality=rr["min_quality"], dissipation=D, friction_power=Pf,
                    roll_power=P_roll, pusher_power=P_push, penalty_power=P_pen,
                    power_balance=(P_roll + P_push) / (D + Pf) - 1.0 if D + Pf > 0 else math.nan,
@@ -548,7 +551,8 @@ def run(**parameters) -> dict:
         raise RuntimeError(f"bar rolling: no increment converged: {message}")
 
     result = dict(status=status, message=message, history=rows, pass_=geo, bite_length=L,
-                  omega=omega, z_r=z_r, gripped_at=gripped_at, wall=wall, increments=len(rows),
+                  omega=omega, z_r=z_r, gripped_at=gripped_at, wall=wall,
+                  wall_split=wall_split(rows), increments=len(rows),
                   parameters={k: v for k, v in P.items() if k != "comm"},
                   cells=comm.allreduce(nc, op=MPI.SUM), factor=factor, n_model_rolls=n_model,
                   dofs=sp.W.dofmap.index_map.size_global * sp.W.dofmap.index_map_bs,
@@ -682,7 +686,8 @@ def report(res) -> str:
     lines += [f"Newton its mean {res['newton_mean']:.1f} max {res['newton_max']}; wall "
               f"{res['wall']:.0f} s for {res['increments']} increments; max |dV/V| "
               f"{res['max_volume_change']:.2e}; max penetration {res['max_penetration']:.3g} mm;"
-              f" min quality {res['min_quality']:.3f}"]
+              f" min quality {res['min_quality']:.3f}",
+              f"wall by part: {format_wall_split(res['wall_split'])}"]
     return "\n".join(lines)
 
 

@@ -85,22 +85,23 @@
 # (``--facet_size``, default h_x/2) with the closest-facet or the Nagata projection.
 #
 # Run: ``python demos/demo_flat_rolling.py`` (the thesis mesh and dt: h_x = 3 mm, 8 × 4
-# elements across the quarter section, dt = 0.75 ms; **not run to steady state**: 17 s per
-# increment serially on an idle machine (11–22 Newton iterations, 1 s each), and about 330
-# increments to steady state (the front 0.8 L past the exit, then two windows of 0.6 L), i.e.
-# about 1.5 h; the thesis's 0.5 s of process is 667 increments), ``--quick`` the reduced
+# elements across the quarter section, 25k dofs, dt = 0.75 ms; on 2 ranks
+# ``mpirun -n 2 python demos/demo_flat_rolling.py`` reaches steady state in 28 min: first row of
+# the table below), ``--quick`` the reduced
 # size of the tests, ``--tail_damping``, ``--slip_ratio``, ``--mu``,
 # ``--reduction``, ``--R``, ``--h_x``, ``--nz``, ``--dt`` … (``--help``); on 2 ranks with
 # ``mpirun -n 2``. Outputs in ``results/flat_rolling``.
 #
 # **Results** (implicit scheme; P/w against the band [Sims, slab] of the same pass, forward slip
-# against the slab's; reproduced by the commands in brackets). The first two rows are with the
+# against the slab's; reproduced by the commands in brackets). The first three rows are with the
 # tail's pseudo-inertia (the default ``tail_damping = 2``); the other rows were computed before
-# it was added (``--tail_damping 0``); the wall times of the first two rows were measured on a
-# machine shared by about a dozen processes (2 cores), the others on a nearly idle one.
+# it was added (``--tail_damping 0``). The wall times of the second and third rows were measured
+# on a machine shared by about a dozen processes (2 cores), the others on a nearly idle one (the
+# thesis-size run's time split and the thesis's CPU times: benchmarks/README.md).
 #
 # | pass, mesh | P/w N/mm (band) | fwd slip (slab) | spread (Hill) | power bal. | Newton mean/max | wall |
 # |---|---|---|---|---|---|---|
+# | default, thesis size (3 mm, 8 × 4, dt 0.75 ms), 2 ranks: steady from increment 242 of 316 | 5434 (6135–6300): 0.86–0.89 | 6.6 % (5.1) | 5.9 % (5.7) | −0.43 % | 15.4 / 23 | 1664 s |
 # | default, ``--quick`` (7.5 mm, 3 × 2, dt 3 ms) | 5455 (6135–6300): 0.87–0.89 | 6.9 % (5.1) | 5.6 % (5.7) | −1.97 % | 17.9 / 28 | 530 s (loaded) |
 # | same, ``--quick --slip_ratio 1e-2`` (v₀ × 10) | 5415: 0.86–0.88 | 6.7 % | 5.8 % | −2.11 % | 11.7 / 16 | 556 s (loaded) |
 # | default, ``--quick``, ``--tail_damping 0`` | 5466 (6135–6300): 0.87–0.89 | 6.9 % (5.1) | 5.6 % (5.7) | −1.35 % | 17.4 / 25 | 94 s |
@@ -161,6 +162,7 @@ from fxcontact import compat, rolling
 from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.power import (PlasticDissipation, PressurePower, on_configuration,
                              penalty_power)
+from fxcontact.simulation import format_wall_split, wall_split
 from fxcontact.steady import steady_window
 
 log = logging.getLogger("fxcontact.demo.flat_rolling")
@@ -415,7 +417,9 @@ def run(**parameters) -> dict:
                    penetration_cylinder=pen_cyl, contact_gap_cylinder=gap_cyl,
                    pusher_force=-r["pusher_force_x"], pusher_nodes=r["pusher_contact_nodes"],
                    newton_iterations=r["newton_iterations_all"], cutbacks=r["cutbacks"],
-                   wall=r["wall_increment_all"], volume_change=r["volume"] / V0 - 1.0,
+                   wall=r["wall_increment_all"], wall_assembly=r["wall_assembly"],
+                   wall_linear_solve=r["wall_linear_solve"], wall_contact=r["wall_contact"],
+                   volume_change=r["volume"] / V0 - 1.0,
                    min_quality=r["min_quality"], max_strain=eps_max, dissipation=D,
                    friction_power=Pf,
                    roll_power=P_roll, pusher_power=P_push, penalty_power=P_pen,
@@ -469,7 +473,8 @@ def run(**parameters) -> dict:
 
     result = dict(status=status, message=message, history=rows, theory=theory, sigma0=sigma0,
                   mean_strain_rate=rate, h1=h1, contact_length_theory=L, bite_angle=alpha,
-                  gripped_at=gripped_at, wall=wall, facet_sag=sag, increments=len(rows), parameters={
+                  gripped_at=gripped_at, wall=wall, wall_split=wall_split(rows), facet_sag=sag,
+                  increments=len(rows), parameters={
                       k: v for k, v in P.items() if k != "comm"},
                   max_volume_change=max(abs(q["volume_change"]) for q in rows),
                   min_quality=min(q["min_quality"] for q in rows),
@@ -642,7 +647,8 @@ def report(res) -> str:
             f"oscillation +-{100 * res['force_oscillation']:.1f} %"]
     lines += [f"Newton its mean {res['newton_mean']:.1f} max {res['newton_max']}; wall "
               f"{res['wall']:.0f} s for {res['increments']} increments; max |dV/V| "
-              f"{res['max_volume_change']:.2e}; min quality {res['min_quality']:.3f}"]
+              f"{res['max_volume_change']:.2e}; min quality {res['min_quality']:.3f}",
+              f"wall by part: {format_wall_split(res['wall_split'])}"]
     return "\n".join(lines)
 
 

@@ -120,6 +120,7 @@ from mpi4py import MPI
 import fxcontact as fx
 from fxcontact import compat, forming
 from fxcontact.console import add_verbosity_arguments, configure_logging
+from fxcontact.simulation import format_wall_split, wall_split
 from fxcontact.steady import steady_window
 
 log = logging.getLogger("fxcontact.demo.wire_drawing")
@@ -547,8 +548,7 @@ def run(**parameters) -> dict:
             newton_mean=float(np.mean([q["newton_iterations"] for q in rows])),
             newton_max=int(max(q["newton_iterations"] for q in rows)),
             cutbacks=int(sum(q["cutbacks"] for q in rows)),
-            wall_split={k: float(sum(q[f"wall_{k}"] for q in rows))
-                        for k in ("assembly", "linear_solve", "contact")})
+            wall_split=wall_split(rows))
         before = [q for q in rows if q["time"] <= 0.1 + 1e-9]
         result["contact_nodes_0.1"] = (before or rows)[-1]["contact_nodes"]
         result["time_0.1"] = (before or rows)[-1]["time"]
@@ -613,8 +613,7 @@ def report(res) -> str:
             f"used {res['max_penetration_tool']:.3g} mm (facet sag {res['facet_sag']:.2g}); "
             f"contact nodes at t = {res['time_0.1']:.3g} s: {res['contact_nodes_0.1']}",
             f"Newton its mean {res['newton_mean']:.1f} max {res['newton_max']}, cut-backs "
-            f"{res['cutbacks']}; wall {res['wall']:.0f} s (assembly {ws['assembly']:.0f}, "
-            f"linear solve {ws['linear_solve']:.0f}, contact {ws['contact']:.0f} s)",
+            f"{res['cutbacks']}; wall {res['wall']:.0f} s: {format_wall_split(ws)}",
             f"max |dV/V| {res['max_volume_change']:.2e}; min element quality "
             f"{res['min_quality']:.3f}"]
     if res.get("pictures"):

@@ -275,6 +275,29 @@ class NonlinearProblem:
         self.liftings["done" if need else "skipped"] += 1
         return need
 
+    def exact_dirichlet_step(self, x: PETSc.Vec, y: PETSc.Vec) -> bool:
+        """Set the Newton step ``y`` to ``x − g`` at the owned Dirichlet dofs, bitwise (what the
+        identity rows of the Jacobian give; collective). A direct solve already gives exactly
+        that; an iterative one only to its tolerance, which would leave every later iterate
+        off the prescribed values by round-off: their residuals would all need the lifting
+        (``skip_zero_lifting``), about twice the residual's cost. Returns whether ``y``
+        changed on some rank."""
+        if not self.bcs:
+            return False
+        if self._lift_work is None:
+            self._lift_work = self.w.vector.duplicate()
+        work = self._lift_work
+        with work.localForm() as wl:
+            wl.set(0.0)
+        dolfinx.fem.petsc.set_bc(work, self.bcs, x, -1.0)      # work[bc] = x − g
+        exact = work.getArray(readonly=True)[self._bc_owned]
+        ya = y.getArray(readonly=False)
+        changed = bool(np.any(ya[self._bc_owned] != exact))
+        if changed:
+            ya[self._bc_owned] = exact
+        del ya
+        return bool(self.comm.allreduce(changed, op=MPI.LOR))
+
     def residual(self, snes, x: PETSc.Vec, b: PETSc.Vec):
         """SNES residual callback."""
         self._update(x)

@@ -500,9 +500,12 @@ class NewtonSolver:
             self._linear_start = time.perf_counter()
 
     def _precheck(self, x, y):
-        """Line-search pre-check (the step is not changed): the linear solve ends here."""
+        """Line-search pre-check: the linear solve ends here; the step's Dirichlet entries
+        are made exact (``NonlinearProblem.exact_dirichlet_step``: an iterative linear solve
+        leaves them within its tolerance)."""
         self._end_linear()
-        return False
+        fix = getattr(self.problem, "exact_dirichlet_step", None)
+        return bool(fix(x, y)) if fix is not None else False
 
     def _end_linear(self):
         if self._linear_start is not None:
