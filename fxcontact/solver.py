@@ -368,6 +368,7 @@ class NewtonSolver:
         self._norms: List[float] = []
         self._f0 = None
         self._states: list = []
+        self._last_it, self._last_stable = -1, False
         self._cycle_message = ""
         self._rtol = options.rtol
         #: number of times the SNES/KSP/PC objects were rebuilt after a failed solve
@@ -519,19 +520,28 @@ class NewtonSolver:
         xnorm, snorm, fnorm = norms
         if not np.isfinite(fnorm):
             return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
-        if it == 0:
-            self._f0 = fnorm
-            self._norms = [fnorm]
-            self._states = []
-        else:
-            self._norms.append(fnorm)
-        o = self.options
-        # every contributor must report a stable state at this (accepted) iterate
-        # (called at every iteration, including 0, so each contributor takes its snapshot)
         contributors = self.problem.contributors
-        stable = all([c.stable() for c in contributors])
+        o = self.options
+        if it > 0 and it == self._last_it:
+            # the trust region re-tests the same iterate after a rejected step (newtontr calls
+            # the test again with the iteration number and residual unchanged): not a new
+            # iterate, so no new entry in the history and no cycle (the repeats would look like
+            # one), and the contributors keep the verdict they gave for this iterate
+            stable = self._last_stable
+            period = 0
+        else:
+            if it == 0:
+                self._f0 = fnorm
+                self._norms = [fnorm]
+                self._states = []
+            else:
+                self._norms.append(fnorm)
+            # every contributor must report a stable state at this (accepted) iterate
+            # (called at every iteration, including 0, so each contributor takes its snapshot)
+            stable = all([c.stable() for c in contributors])
+            period = self._cycle_period(contributors, fnorm)
+        self._last_it, self._last_stable = it, stable
         log.debug("Newton it %d: |R| = %.3e  |dx| = %.3e  stable=%s", it, fnorm, snorm, stable)
-        period = self._cycle_period(contributors, fnorm)
         if period:
             hints = [c.cycle_hint() for c in contributors if hasattr(c, "cycle_hint")]
             self._cycle_message = (
@@ -630,6 +640,7 @@ class NewtonSolver:
         w = prob.w
         x = w.vector.copy()
         self._cycle_message = ""
+        self._last_it = -1
         calls0 = dict(self.callback_calls)
         lin0 = self.linear_time
         self._linear_start = None

@@ -457,3 +457,42 @@ def test_cutback_after_linear_solver_failure_succeeds(mode):
     ref.step(0.05)
     assert res.row["newton_iterations"] == ref.history[-1]["newton_iterations"]
     assert np.allclose(sim.w.x.array, ref.w.x.array, rtol=0, atol=1e-10)
+
+
+def test_trust_region_retest_of_the_same_iterate_is_not_a_cycle():
+    """PETSc's trust region calls the convergence test again, with the same iteration number
+    and residual, after each rejected step. Those repeats are not new iterates: they must not
+    be taken for a cycle (they were: a 2-cycle with 0 nodes changing, which stopped the trust
+    region at the thesis-size wire drawing), nor be added to the residual history; a true
+    cycle over iterations is still found."""
+    from types import SimpleNamespace
+
+    from petsc4py import PETSc
+
+    from fxcontact.solver import NewtonSolver, SolverOptions
+
+    def solver():
+        c = _State()
+        c.stable = lambda: True
+        fake = SimpleNamespace(problem=SimpleNamespace(contributors=[c]),
+                               options=SolverOptions(max_it=100), _rtol=1e-12, _states=[],
+                               _norms=[], _f0=None, _last_it=-1, _last_stable=False,
+                               _cycle_message="", CYCLE_PERIODS=NewtonSolver.CYCLE_PERIODS,
+                               CYCLE_RTOL=NewtonSolver.CYCLE_RTOL)
+        fake._cycle_period = lambda cs, f: NewtonSolver._cycle_period(fake, cs, f)
+        return fake, c, (lambda it, f: NewtonSolver._converged(fake, None, it, (1.0, 1.0, f)))
+
+    R = PETSc.SNES.ConvergedReason
+    fake, c, conv = solver()
+    assert conv(0, 100.0) == R.ITERATING
+    for it in (1, 2):
+        for _ in range(10):              # the first test of the iterate, then 9 rejected steps
+            assert conv(it, 100.0 / (it + 1)) == R.ITERATING
+    assert fake._norms == [100.0, 50.0, 100.0 / 3]
+    # a genuine 2-cycle of iterates (state and residual alternate): stopped at iteration 5
+    fake, c, conv = solver()
+    reasons = []
+    for it in range(8):
+        c.fp = ((it % 2,),)
+        reasons.append(conv(it, 10.0 + it % 2))
+    assert reasons.index(R.DIVERGED_DTOL) == 5
