@@ -85,7 +85,7 @@
 # (``--facet_size``, default h_x/2) with the closest-facet or the Nagata projection.
 #
 # Run: ``python demos/demo_flat_rolling.py`` (the thesis mesh and dt: h_x = 3 mm, 8 × 4
-# elements across the quarter section, 25k dofs, dt = 0.75 ms; on 2 ranks
+# elements across the quarter section, 45.5k dofs, dt = 0.75 ms; on 2 ranks
 # ``mpirun -n 2 python demos/demo_flat_rolling.py`` reaches steady state in 28 min: first row of
 # the table below), ``--quick`` the reduced
 # size of the tests, ``--tail_damping``, ``--slip_ratio``, ``--mu``,
