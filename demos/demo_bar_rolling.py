@@ -121,7 +121,12 @@
 # 452 dofs in the third; 0.1 mm of roll travel per increment, ~1600 increments to steady state).
 # Measured with bt on its first four increments (``run(max_increments=4)``): 13–20 Newton
 # iterations and 15–29 s per increment on the loaded machine, true penetration 0.004 mm, radial
-# force 233 kN per roll in the pusher phase — about 10 h to steady state here, so not run. (With
+# force 233 kN per roll in the pusher phase — about 10 h to steady state here, so not run.
+# Re-measured with the trust region on 2 ranks of the idle machine (``run(max_increments=12)``
+# under ``mpirun -n 2``): 6–30 Newton iterations, 1.2–5.7 s per increment (2.9 s on average;
+# assembly 51 %, linear solve 40 %, contact 1.3 %), one bt fall-back. At that rate 1600 increments
+# take about 1.3 h, but only the pusher phase was timed: once the bar is in the bite, more
+# nodes are in contact and the rate may be slower. (With
 # ``m_start = 0.3`` its second increment failed after all cut-backs; 0.1, the default since,
 # passes; with dt = 5 ms the four increments took 17–28 iterations.) At the test size an increment
 # cost ~15 s with 30 Newton iterations on average (bt, more loaded): Newton is the bottleneck of
