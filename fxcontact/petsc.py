@@ -121,11 +121,17 @@ def lifting_needed(bcs, x0: PETSc.Vec, work: PETSc.Vec, bc_owned: np.ndarray, co
 
     ``work`` is a scratch vector of the layout of ``x0``; ``bc_owned`` the owned Dirichlet dofs
     (local indices). A NaN in ``x0`` counts as a difference."""
+    diff = dirichlet_offset(bcs, x0, work, bc_owned)
+    return bool(comm.allreduce(bool(np.any(diff != 0.0)), op=MPI.LOR))
+
+
+def dirichlet_offset(bcs, x0: PETSc.Vec, work: PETSc.Vec, bc_owned: np.ndarray) -> np.ndarray:
+    """``g − x0`` at the owned Dirichlet dofs ``bc_owned`` (local indices), computed in the
+    scratch vector ``work`` (the layout of ``x0``) by dolfinx's ``set_bc``."""
     with work.localForm() as wl:
         wl.set(0.0)
     dolfinx.fem.petsc.set_bc(work, bcs, x0, 1.0)       # work[bc] = g − x0
-    diff = work.getArray(readonly=True)[bc_owned]
-    return bool(comm.allreduce(bool(np.any(diff != 0.0)), op=MPI.LOR))
+    return work.getArray(readonly=True)[bc_owned]
 
 
 def assemble_residual_with_terms(b: PETSc.Vec, L, a, bcs, x0: PETSc.Vec, terms, timers,
@@ -268,12 +274,16 @@ class NonlinearProblem:
         if not (self.skip_zero_lifting and self.bcs):
             return bool(self.bcs)
         with self.timers("assembly", "assembly_residual"):
-            if self._lift_work is None:
-                self._lift_work = self.w.vector.duplicate()
-            need = lifting_needed(self.bcs, self.w.vector, self._lift_work, self._bc_owned,
+            need = lifting_needed(self.bcs, self.w.vector, self._bc_work(), self._bc_owned,
                                   self.comm)
         self.liftings["done" if need else "skipped"] += 1
         return need
+
+    def _bc_work(self) -> PETSc.Vec:
+        """Scratch vector of the Dirichlet checks (created once)."""
+        if self._lift_work is None:
+            self._lift_work = self.w.vector.duplicate()
+        return self._lift_work
 
     def exact_dirichlet_step(self, x: PETSc.Vec, y: PETSc.Vec) -> bool:
         """Set the Newton step ``y`` to ``x − g`` at the owned Dirichlet dofs, bitwise (what the
@@ -284,13 +294,7 @@ class NonlinearProblem:
         changed on some rank."""
         if not self.bcs:
             return False
-        if self._lift_work is None:
-            self._lift_work = self.w.vector.duplicate()
-        work = self._lift_work
-        with work.localForm() as wl:
-            wl.set(0.0)
-        dolfinx.fem.petsc.set_bc(work, self.bcs, x, -1.0)      # work[bc] = x − g
-        exact = work.getArray(readonly=True)[self._bc_owned]
+        exact = -dirichlet_offset(self.bcs, x, self._bc_work(), self._bc_owned)   # x − g
         ya = y.getArray(readonly=False)
         changed = bool(np.any(ya[self._bc_owned] != exact))
         if changed:
