@@ -24,7 +24,7 @@ ROT = np.array([[np.cos(ANGLE), -np.sin(ANGLE), 0], [np.sin(ANGLE), np.cos(ANGLE
                 [0, 0, 1.0]])
 
 
-def pressed_block(material, n=4, beta=100.0, solver="mumps", prefix="fxc_"):
+def pressed_block(material, n=4, beta=100.0, solver="mumps", prefix="fxc_", petsc_options=None):
     """A unit cube rotated by 30° about z (its faces x'=0, y'=0 are inclined symmetry planes),
     fixed vertically at the bottom, pressed by a descending rigid plane (implicit contact)."""
     comm = MPI.COMM_WORLD
@@ -42,7 +42,8 @@ def pressed_block(material, n=4, beta=100.0, solver="mumps", prefix="fxc_"):
     msh.geometry.x[:] = msh.geometry.x @ ROT.T
     space = fx.MixedSpace(msh)
     sim = fx.Simulation(space, material, progress=False,
-                        solver_options=SolverOptions(linear_solver=solver, prefix=prefix))
+                        solver_options=SolverOptions(linear_solver=solver, prefix=prefix,
+                                                     petsc_options=dict(petsc_options or {})))
     sim.add_symmetry_plane(sim.facets(ft, 1), ROT @ [-1.0, 0, 0], name="p1")
     sim.add_symmetry_plane(sim.facets(ft, 2), ROT @ [0, -1.0, 0], name="p2")
     sim.add_velocity_bc(sim.facets(ft, 3), 0.0, 2)
