@@ -62,6 +62,7 @@ from fxcontact.materials import LinearElastic
 from fxcontact import compat
 from fxcontact.meshing import BLOCK_TAGS, gmsh_session
 from fxcontact.simulation import Simulation
+from fxcontact.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Sphere
 from fxcontact.tools.faceted import FacetedTool
@@ -257,7 +258,7 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
         height=80.0, refine=0.4, growth=0.15, scheme="implicit", penalty=None, beta=1e4, n_steps=3,
         tool="analytic", tool_facet_size=1.0, tool_normals="nvv",
         output_dir="results/hertz_sphere", picture=True, progress=True,
-        comm=MPI.COMM_WORLD, formulation="mixed") -> dict:
+        comm=MPI.COMM_WORLD, formulation="mixed", linear_solver="auto") -> dict:
     """Indent the block by ``indentation`` with the sphere in ``n_steps`` increments.
 
     ``formulation="mixed"`` (default) is fxcontact's MINI velocity–pressure Simulation;
@@ -279,6 +280,8 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
         tool_normals: nodal normals of the Nagata patches: ``"nvv"`` (estimated from the
             facets, default), ``"exact"`` (the sphere's radial normals) or any value
             :class:`FacetedTool` accepts.
+        linear_solver: ``SolverOptions.linear_solver`` of the mixed formulation (``"auto"``:
+            by the problem's size).
     Returns:
         dict with ``force`` (4 × quarter), ``contact_radius`` (FEM, equivalent disc),
         ``contact_radius_bounds`` (largest active / smallest inactive nodal radius),
@@ -303,7 +306,8 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
     msh, _, ft = graded_block(comm, width, height, h_fine, refine, growth, h)
     space = MixedSpace(msh)
     mat = LinearElastic(E, nu)
-    sim = Simulation(space, mat, output_dir=output_dir, name="hertz_sphere", progress=progress)
+    sim = Simulation(space, mat, output_dir=output_dir, name="hertz_sphere", progress=progress,
+                     solver_options=SolverOptions(linear_solver=linear_solver))
     sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["xmin"]), 0.0, 0)   # symmetry
     sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["ymin"]), 0.0, 1)   # symmetry
     bottom = sim.facets(ft, BLOCK_TAGS["zmin"])

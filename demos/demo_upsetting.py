@@ -70,6 +70,7 @@ from fxcontact.forming import flow_stress, upsetting_slab_coulomb, upsetting_upp
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import BILLET_TAGS, cylinder_billet
 from fxcontact.simulation import Simulation
+from fxcontact.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Plane
 
@@ -83,7 +84,7 @@ STARTUP = 0.05
 def run(radius=10.0, height=15.0, h=2.5, K=50.0, m=0.15, die_speed=5.0, reduction=0.3,
         n_steps=15, dies="sticking", mbar=0.3, mu=0.1, output_dir="results/upsetting",
         picture=True, progress=True, comm=MPI.COMM_WORLD, checkpoint_every=0, resume=False,
-        volume_correction="global") -> dict:
+        volume_correction="global", linear_solver="auto") -> dict:
     """Upset the billet by ``reduction`` of its height in ``n_steps`` increments.
 
     Args:
@@ -99,6 +100,7 @@ def run(radius=10.0, height=15.0, h=2.5, K=50.0, m=0.15, die_speed=5.0, reductio
         checkpoint_every: write a checkpoint every n increments (``output_dir/checkpoints``).
         resume: continue from the newest checkpoint (a run that was killed).
         volume_correction: passed to :class:`~fxcontact.simulation.Simulation`.
+        linear_solver: ``SolverOptions.linear_solver`` (``"auto"``: by the problem's size).
     Returns:
         dict with the history, the final height, the maximum radius at mid-height and on the
         end faces (barrelling), the final die force (on the body, full billet; < 0), and per
@@ -117,7 +119,8 @@ def run(radius=10.0, height=15.0, h=2.5, K=50.0, m=0.15, die_speed=5.0, reductio
     sim = Simulation(space, NortonHoff(K=K, m=m, regularization=1e-4 * die_speed / height),
                      output_dir=output_dir, name="upsetting", progress=progress,
                      checkpoint_every=checkpoint_every,
-                     volume_correction=volume_correction)
+                     volume_correction=volume_correction,
+                     solver_options=SolverOptions(linear_solver=linear_solver))
     f = {k: sim.facets(ft, v) for k, v in BILLET_TAGS.items()}
     sim.add_velocity_bc(f["symmetry_x"], 0.0, 0)
     sim.add_velocity_bc(f["symmetry_y"], 0.0, 1)

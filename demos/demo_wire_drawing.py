@@ -123,6 +123,7 @@ from fxcontact import compat, forming
 from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.simulation import format_wall_split, wall_split
 from fxcontact.steady import steady_window
+from fxcontact.solver import LINEAR_SOLVERS
 
 log = logging.getLogger("fxcontact.demo.wire_drawing")
 
@@ -132,6 +133,7 @@ DEFAULTS = dict(R0=10.0, R1=7.5, length=38.0, sector=120.0, K=445.0, m=0.016, sp
                 nose_ratio=0.96, h=0.75, facet=0.5, size=1.0, dt=2.5e-3, t_end=0.37,
                 die="exact", die_mesh="gmsh", scheme="implicit", penalty="gap", beta=100.0, penalty_dt=None,
                 mu=0.0, mbar=0.0, max_it=60, line_search="trust-region", penalty_continuation=None,
+                linear_solver="auto",
                 window=3.0, steady_tol=0.02, settle=None, stop_at_steady=False,
                 output_dir="results/wire_drawing", pictures=True, vtk_every=0,
                 max_cutbacks=4, comm=None)
@@ -467,7 +469,8 @@ def run(**parameters) -> dict:
     space = fx.MixedSpace(msh)
     out = P["output_dir"]
     opts = fx.SolverOptions(max_it=int(P["max_it"]), line_search=P["line_search"],
-                            penalty_continuation=P["penalty_continuation"])
+                            penalty_continuation=P["penalty_continuation"],
+                            linear_solver=P["linear_solver"])
     sim = fx.Simulation(space, mat, solver_options=opts,
                         output_dir=out if P["vtk_every"] else None, name="wire_drawing",
                         output_every=max(1, int(P["vtk_every"] or 1)), progress=False)
@@ -518,6 +521,9 @@ def run(**parameters) -> dict:
             penetration_true=_true_penetration(comm, exact, contact, sim),
             penetration_tool=r["contact_penetration_true"], contact_nodes=r["contact_nodes"],
             newton_iterations=r["newton_iterations_all"], cutbacks=r["cutbacks"],
+            # Krylov iterations of the converged attempt (over its Newton iterations)
+            linear_iterations=r["linear_iterations"],
+            newton_iterations_converged=r["newton_iterations"],
             wall=r["wall_increment_all"], wall_assembly=r["wall_assembly"],
             wall_linear_solve=r["wall_linear_solve"], wall_contact=r["wall_contact"],
             volume_change=r["volume_change"], min_quality=r["min_quality"],
@@ -638,6 +644,9 @@ def main(argv=None):
     ap.add_argument("--line_search", choices=fx.LINE_SEARCHES,
                     help="globalisation of Newton (default trust-region: fewer iterations than bt "
                     "at m = 0.016, see benchmarks/README.md)")
+    ap.add_argument("--linear_solver", choices=sorted(LINEAR_SOLVERS) + ["auto"],
+                    help="linear solver preset (default auto: by the problem's size, see "
+                    "fxcontact.solver.choose_linear_solver)")
     ap.add_argument("--penalty_continuation", type=float,
                     help="factor f in (0, 1): each Newton solve first with the penalty x f "
                     "(see fxcontact.SolverOptions); beta x f about 10-30 helps at m = 0.016")

@@ -573,6 +573,7 @@ class Simulation:
         self.w_prev.x.array[:] = w.x.array
         row = {"increment": self.increment, "time": self.t, "dt": dt,
                "newton_iterations": info.iterations,
+               "linear_iterations": info.linear_iterations,
                "residual": info.residual_norms[-1] if info.residual_norms else float("nan")}
         for k in ("assembly", "linear_solve", "contact", "other", "total"):
             row[f"wall_{k}"] = info.times.get(k, 0.0)
@@ -640,6 +641,17 @@ class Simulation:
                     info = self._try_increment(trial)
                 finally:
                     self.solver.set_line_search(self.solver_options.line_search)
+            if not info.converged and "condensed linear solve failed" in info.message \
+                    and self.solver.fall_back_to_direct():
+                # "auto" chose the iterative solver and it failed: the direct one from now on,
+                # the same dt again
+                log.warning("t = %.6g: %s; the linear solver chosen by 'auto' is switched from "
+                            "condensed-amg to condensed-mumps", self.t, info.message)
+                if self._startup is not None:
+                    self._startup.fall_back_to_direct()
+                failed_its += info.iterations
+                msgs.append(info.message)
+                info = self._try_increment(trial)
             if info.converged and self._accept_geometry(trial, info):
                 row = self._commit(trial, info)
                 row["cutbacks"] = k

@@ -210,3 +210,27 @@ def test_inner_failure_is_reported_and_reset():
     info = sim._try_increment(0.1)
     assert info.converged, info.message
     assert info.linear_iterations > 0
+
+
+def test_auto_iterative_failure_falls_back_to_direct(monkeypatch):
+    """When ``"auto"`` chose the iterative solver and its inner solve fails, the increment is
+    retried at the same dt with condensed MUMPS (no cut-back) and the direct solver is kept;
+    an explicit ``"condensed-amg"`` is never replaced."""
+    import fxcontact.solver as solver_mod
+    monkeypatch.setattr(solver_mod, "AUTO_CONDENSED_MIN_DOFS", 0)
+    monkeypatch.setattr(solver_mod, "AUTO_ITERATIVE_MIN_DOFS", 0)
+    sim = pressed_block(MATERIALS["norton-hoff"](), n=3, solver="auto", prefix="tfb_",
+                        petsc_options={"condensed_ksp_max_it": 2})
+    res = sim.step(0.1, max_cutbacks=0)
+    assert sim.solver.options.linear_solver == "condensed-mumps"
+    assert res.row["cutbacks"] == 0
+    ref = pressed_block(MATERIALS["norton-hoff"](), n=3, solver="condensed-mumps",
+                        prefix="tfbref_")
+    ref.step(0.1, max_cutbacks=0)
+    vel = [vertex_velocities_by_position(s) for s in (ref, sim)]
+    assert np.linalg.norm(vel[0] - vel[1]) <= 1e-8 * np.linalg.norm(vel[0])
+    explicit = pressed_block(MATERIALS["norton-hoff"](), n=3, solver="condensed-amg",
+                             prefix="tfbx_", petsc_options={"condensed_ksp_max_it": 2})
+    with pytest.raises(Exception, match="condensed linear solve failed"):
+        explicit.step(0.1, max_cutbacks=0)
+    assert explicit.solver.options.linear_solver == "condensed-amg"
