@@ -217,12 +217,28 @@ class CondensedPC:
         schur_weight: optional compiled linear form on the mixed space whose pressure rows
             give the lumped, inverse-viscosity-weighted pressure mass (see the module
             docstring); used only when the inner PC is a field split.
+        augment: optional object whose ``augment`` attribute is a compiled bilinear form on
+            the mixed space or None (the problem: the volumetric term of the velocity block,
+            ``NonlinearProblem(augment=)``, compiled on first use): with a field split, its
+            retained (vertex) block is added to the inner *preconditioning* matrix, so that
+            the velocity block the split inverts is not singular for a free dilatation; the
+            inner operator stays the exact condensed matrix. Option
+            ``<prefix>augment_scale`` (default 0: off; 1 gives the full strain rate's
+            velocity block).
+        bcs, constraints: the problem's Dirichlet conditions and constraints (symmetry planes),
+            applied to the augmentation as to the Jacobian.
     """
 
-    def __init__(self, layout: CondensationLayout, prefix: str, schur_weight=None):
+    def __init__(self, layout: CondensationLayout, prefix: str, schur_weight=None,
+                 augment=None, bcs=(), constraints=()):
         self.lay = layout
         self.prefix = prefix
         self.schur_weight = schur_weight
+        #: the problem (or a holder) whose ``augment`` property gives the compiled form
+        self._augment_src = augment
+        self.bcs = list(bcs)
+        self.constraints = [c for c in constraints if getattr(c, "active", True)]
+        self._G = self._Gp = None
         self.comm = layout.comm
         self.ksp = None
         #: the outer KSP whose relative tolerance the inner solve follows (Eisenstat–Walker:
@@ -346,6 +362,10 @@ class CondensedPC:
             self.ksp.setOperators(S, S)
             if self.ksp.getPC().getType() == PETSc.PC.Type.FIELDSPLIT:
                 self._setup_fieldsplit(S, first=False)
+        if self.ksp.getPC().getType() == PETSc.PC.Type.FIELDSPLIT:
+            Sa = self._augmented(S)
+            if Sa is not None:
+                self.ksp.setOperators(S, Sa)
         self.ksp.setUp()
         self.times["inner_setup"] += time.perf_counter() - t0
         self._xb = self._xb or Abb.createVecRight()
@@ -390,6 +410,33 @@ class CondensedPC:
         pre = PETSc.Options().getString(self.prefix + "pc_fieldsplit_schur_precondition", "")
         if pre == "user":
             pc.setFieldSplitSchurPreType(PETSc.PC.SchurPreType.USER, Spp)
+
+    def _augmented(self, S):
+        """S plus the retained block of the augmentation form (Dirichlet rows and columns
+        removed, projected on the constraints), or None without one (collective)."""
+        scale = PETSc.Options().getReal(self.prefix + "augment_scale", 0.0)
+        if self._augment_src is None or scale == 0.0:
+            return None
+        form = self._augment_src.augment
+        if form is None:
+            return None
+        if self._G is None:
+            self._G = dolfinx.fem.petsc.create_matrix(form)
+        G = self._G
+        G.zeroEntries()
+        dolfinx.fem.petsc.assemble_matrix(G, form, bcs=self.bcs, diagonal=0.0)
+        G.assemble()
+        for c in self.constraints:
+            self._Gp = c.project_matrix(G, self._Gp)
+            G = self._Gp
+        Gll = self._sub(G, "Gll", self.lay.is_l, self.lay.is_l)
+        Sa = self._mats.get("Saug")
+        if Sa is None:
+            Sa = self._mats["Saug"] = S.duplicate(copy=True)
+        else:
+            S.copy(Sa, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        Sa.axpy(scale, Gll, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        return Sa
 
     def _weighted_mass(self) -> np.ndarray:
         """Lumped pressure mass weighted by the inverse viscosity, in the order of the
@@ -449,6 +496,10 @@ class CondensedPC:
         for M in self._mats.values():
             M.destroy()
         self._mats = {}
+        for M in (self._G, self._Gp):
+            if M is not None:
+                M.destroy()
+        self._G = self._Gp = None
         for v in (self._xb, self._tb, self._rl, self._yl, self._wvec):
             if v is not None:
                 v.destroy()

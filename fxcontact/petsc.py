@@ -199,6 +199,13 @@ class NonlinearProblem:
             ``(1/η(v)) q dx``: its pressure rows are the lumped, inverse-viscosity-weighted
             pressure mass that the condensed iterative solver uses to precondition the Schur
             complement (:mod:`fxcontact.condense`); None: not available.
+        augment: optional UFL bilinear form on the velocity, e.g. ``(2/3) η div(δv) div(w) dx``,
+            added (with the Dirichlet rows and columns removed and projected like the
+            Jacobian) to the velocity block of the condensed iterative solver's
+            *preconditioning* matrix only: the Norton–Hoff tangent acts on the deviator of the
+            strain rate, so its velocity block alone is singular for a dilatation that the
+            velocity conditions leave free (the pressure fixes it in the whole system), and a
+            Schur field split needs an invertible velocity block. None: no augmentation.
     """
 
     #: skip the lifting of the residual when it is exactly zero (the iterate holds the
@@ -208,7 +215,7 @@ class NonlinearProblem:
     skip_zero_lifting: bool = True
 
     def __init__(self, F, w, bcs=(), J=None, contributors: Sequence = (), jit_params=None,
-                 constraints: Sequence = (), schur_weight=None):
+                 constraints: Sequence = (), schur_weight=None, augment=None):
         import ufl
         self.w = w
         self.bcs = list(bcs)
@@ -218,6 +225,7 @@ class NonlinearProblem:
         self.a = compat.form(J, jit_params=jit_params)
         self.schur_weight = (None if schur_weight is None
                              else compat.form(schur_weight, jit_params=jit_params))
+        self._augment_ufl, self._augment, self._jit_params = augment, None, jit_params
         self.contributors = list(contributors)
         self.timers = Timers()
         self.comm = w.function_space.mesh.comm
@@ -236,6 +244,13 @@ class NonlinearProblem:
         self._lift_work: Optional[PETSc.Vec] = None
         #: residual evaluations that skipped / did the lifting (see skip_zero_lifting)
         self.liftings = {"skipped": 0, "done": 0}
+
+    @property
+    def augment(self):
+        """The compiled ``augment`` form (compiled on first use), or None."""
+        if self._augment is None and self._augment_ufl is not None:
+            self._augment = compat.form(self._augment_ufl, jit_params=self._jit_params)
+        return self._augment
 
     def create_vector(self) -> PETSc.Vec:
         return dolfinx.fem.petsc.create_vector(self.L)

@@ -152,6 +152,18 @@ def _shear_viscosity_ufl(material, v, dt):
     return None
 
 
+def _volumetric_augment_ufl(material, v, W, wt, dx):
+    """``(2/3) η div(δv) div(w) dx`` for a material whose velocity tangent sees only the
+    strain-rate deviator (Norton–Hoff): with it the velocity block of the condensed iterative
+    solver's preconditioner is that of the full strain rate (``NonlinearProblem(augment=)``);
+    None for the other materials."""
+    if not isinstance(material, NortonHoff):
+        return None
+    eta = _shear_viscosity_ufl(material, v, None)
+    du, _ = ufl.split(ufl.TrialFunction(W))
+    return (2.0 / 3.0) * eta * ufl.div(du) * ufl.div(wt) * dx
+
+
 class Simulation:
     """Time stepping of a forming problem with nodal contributors (contact, springs…).
 
@@ -368,7 +380,9 @@ class Simulation:
         schur_weight = None if eta is None else q / eta * sp.dx
         self.problem = NonlinearProblem(F, self.w, [b.bc for b in self._bcs],
                                         contributors=self.contributors, constraints=cons,
-                                        schur_weight=schur_weight)
+                                        schur_weight=schur_weight,
+                                        augment=_volumetric_augment_ufl(self.material, v, sp.W,
+                                                                        wt, sp.dx))
         fs_is = self.fieldsplit_is() if self.solver_options.uses_fieldsplit else None
         self.solver = NewtonSolver(self.problem, self.solver_options, fs_is)
         # start-up problem: the linearised material without contributors gives the first guess
@@ -386,7 +400,8 @@ class Simulation:
             eta0 = _shear_viscosity_ufl(lin_mat, v, self.dt_c)
             self._startup = NewtonSolver(NonlinearProblem(
                 F0, self.w, [b.bc for b in self._bcs], constraints=cons,
-                schur_weight=None if eta0 is None else q / eta0 * sp.dx), opts, fs_is)
+                schur_weight=None if eta0 is None else q / eta0 * sp.dx,
+                augment=_volumetric_augment_ufl(lin_mat, v, sp.W, wt, sp.dx)), opts, fs_is)
         # cell averages of the strain rate, volume
         q0 = ufl.TestFunction(sp.DG0)
         epsd = self._strain_rate_expr(v)

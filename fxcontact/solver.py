@@ -451,7 +451,11 @@ class NewtonSolver:
             if self._condensed_pc is not None:
                 self._condensed_pc.destroy()
             self._condensed_pc = CondensedPC(self._layout, self.options.prefix + "condensed_",
-                                             getattr(self.problem, "schur_weight", None))
+                                             getattr(self.problem, "schur_weight", None),
+                                             augment=self.problem,
+                                             bcs=getattr(self.problem, "bcs", ()),
+                                             constraints=getattr(self.problem, "constraints",
+                                                                 ()))
             if snes.getUseEW():   # Eisenstat–Walker: the inner solve follows the forcing term
                 self._condensed_pc.follow_rtol_of = ksp
             pc = pc_fs

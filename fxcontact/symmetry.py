@@ -256,6 +256,17 @@ class SymmetryPlanes:
                             addv=PETSc.InsertMode.ADD_VALUES)
         A.assemble()
 
+    def project_matrix(self, G: PETSc.Mat, out: PETSc.Mat = None) -> PETSc.Mat:
+        """``P G P`` (no ``Q Qᵀ`` added): a matrix of the Jacobian's layout restricted to the
+        free directions, e.g. a preconditioner's extra term (collective). ``out``: the result
+        of an earlier call on the same matrix, reused."""
+        if self._P is None:
+            self._P = self._projector(G)
+        if out is None:
+            return G.ptap(self._P)
+        G.ptap(self._P, out)
+        return out
+
     def _global(self, local: np.ndarray) -> np.ndarray:
         imap = self.space.W.dofmap.index_map
         bs = self.space.W.dofmap.index_map_bs

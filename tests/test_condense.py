@@ -24,9 +24,13 @@ ROT = np.array([[np.cos(ANGLE), -np.sin(ANGLE), 0], [np.sin(ANGLE), np.cos(ANGLE
                 [0, 0, 1.0]])
 
 
-def pressed_block(material, n=4, beta=100.0, solver="mumps", prefix="fxc_", petsc_options=None):
+def pressed_block(material, n=4, beta=100.0, solver="mumps", prefix="fxc_", petsc_options=None,
+                  contact=True):
     """A unit cube rotated by 30° about z (its faces x'=0, y'=0 are inclined symmetry planes),
-    fixed vertically at the bottom, pressed by a descending rigid plane (implicit contact)."""
+    fixed vertically at the bottom, pressed by a descending rigid plane (implicit contact).
+    ``contact=False``: the top face is moved down at the die's speed instead (a velocity
+    condition) and the bottom is free (no contributor: a dilatation about the top face's
+    corner on the axis is then free for the velocity block)."""
     comm = MPI.COMM_WORLD
     msh = dolfinx.mesh.create_box(comm, [[0, 0, 0], [1, 1, 1]], [n, n, n],
                                   dolfinx.mesh.CellType.tetrahedron)
@@ -46,6 +50,9 @@ def pressed_block(material, n=4, beta=100.0, solver="mumps", prefix="fxc_", pets
                                                      petsc_options=dict(petsc_options or {})))
     sim.add_symmetry_plane(sim.facets(ft, 1), ROT @ [-1.0, 0, 0], name="p1")
     sim.add_symmetry_plane(sim.facets(ft, 2), ROT @ [0, -1.0, 0], name="p2")
+    if not contact:
+        sim.add_velocity_bc(sim.facets(ft, 4), -0.1, 2)
+        return sim
     sim.add_velocity_bc(sim.facets(ft, 3), 0.0, 2)
     die = fx.Plane((0, 0, 1.0), (0, 0, -1), velocity=(0, 0, -0.1), name="die")
     sim.add_contributor(fx.NodalContact(fx.ContactBoundary(space, ft, 4), die, beta=beta,
@@ -234,3 +241,42 @@ def test_auto_iterative_failure_falls_back_to_direct(monkeypatch):
     with pytest.raises(Exception, match="condensed linear solve failed"):
         explicit.step(0.1, max_cutbacks=0)
     assert explicit.solver.options.linear_solver == "condensed-amg"
+
+
+@pytest.mark.serial   # dense eigenvalues of the gathered blocks: one rank
+def test_augmented_velocity_block_removes_the_free_dilatation():
+    """The Norton–Hoff tangent acts on the strain-rate deviator, so the velocity block alone is
+    singular when the velocity conditions leave a dilatation free: here the start-up problem
+    of the pressed block (no contact yet; v_z = 0 at the bottom and the two planes through the
+    z axis leave v = c x free), the mode that stalls the Schur field split of the wire drawing
+    (benchmarks/README.md). With ``condensed_augment_scale = 1`` the preconditioning matrix's
+    velocity block gets (2/3) η div div and is positive definite; the operator is unchanged
+    and the converged solution is the direct solver's."""
+    import scipy.linalg as la
+    sim = pressed_block(MATERIALS["norton-hoff"](), n=2, solver="condensed-amg", prefix="taug_",
+                        petsc_options={"condensed_augment_scale": 1.0}, contact=False)
+    sim.step(0.1, max_cutbacks=0)
+    cpc = sim.solver._condensed_pc
+    iu = cpc._iu.getIndices()
+
+    def uu(M):
+        ai, aj, av = M.getValuesCSR()
+        import scipy.sparse as sps
+        A = sps.csr_matrix((av, aj, ai), shape=M.getSize()).toarray()
+        return A[np.ix_(iu, iu)]
+
+    A, Aa = uu(cpc._mats["S"]), uu(cpc._mats["Saug"])
+    w, V = la.eigh(0.5 * (A + A.T))
+    wa = la.eigvalsh(0.5 * (Aa + Aa.T))
+    assert w[0] < 1e-10 * w[-1] and w[1] > 1e-4 * w[-1], w[:3]    # one zero mode ...
+    # ... a dilatation about the corner of the top face on the axis (the matrix is that of the
+    # start of the increment: the vertices have moved by dt v since)
+    x = cpc.lay.node_coordinates() - ROT @ [0.0, 0.0, 1.0]
+    mode = V[:, 0].reshape(-1, 3)
+    c = np.sum(mode * x) / np.sum(x * x)
+    assert np.linalg.norm(mode - c * x) < 0.05 * np.linalg.norm(mode)
+    assert wa[0] > 1e-3 * wa[-1], (wa[0], wa[-1])           # gone with the augmentation
+    ref = pressed_block(MATERIALS["norton-hoff"](), n=2, prefix="taugref_", contact=False)
+    ref.step(0.1, max_cutbacks=0)
+    vel = [vertex_velocities_by_position(s) for s in (ref, sim)]
+    assert np.linalg.norm(vel[0] - vel[1]) <= 1e-6 * np.linalg.norm(vel[0])
