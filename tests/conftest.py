@@ -26,3 +26,18 @@ def pytest_collection_modifyitems(config, items):
         for item in items:
             if "serial" in item.keywords:
                 item.add_marker(skip)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_solver_options():
+    """PETSc's options database holds at most 512 entries, and every solver prefix writes about
+    30: after each test module, remove the options that solvers wrote under the modules' own
+    prefixes (the library's default prefixes are overwritten in place, not added)."""
+    yield
+    from petsc4py import PETSc
+
+    from fxcontact import solver
+    opts = PETSc.Options()
+    for prefix in [p for p in solver._WRITTEN_OPTIONS if not p.startswith("fxc_")]:
+        for key in solver._WRITTEN_OPTIONS.pop(prefix):
+            opts.delValue(prefix + key)
