@@ -391,6 +391,11 @@ class CondensedPC:
         if self._nsp is not None:
             self._nsp.destroy()
         self._nsp = nsp
+        # the matrix is handed to the field split only when the options ask for it (the
+        # preset does): any other choice (selfp, a11, full) is left to PETSc
+        pre = PETSc.Options().getString(self.prefix + "pc_fieldsplit_schur_precondition", "")
+        if pre != "user":
+            return
         # Schur preconditioner: S_pp + sign · (lumped inverse-viscosity pressure mass)
         Spp = S.createSubMatrix(self._ip, self._ip, submat=self._Sp)
         self._Sp = Spp
@@ -405,11 +410,7 @@ class CondensedPC:
         Spp.setDiagonal(d)
         d.destroy()
         dm.destroy()
-        # the matrix is handed to the field split only when the options ask for it (the
-        # preset does): any other choice (selfp, a11, full) is left to PETSc
-        pre = PETSc.Options().getString(self.prefix + "pc_fieldsplit_schur_precondition", "")
-        if pre == "user":
-            pc.setFieldSplitSchurPreType(PETSc.PC.SchurPreType.USER, Spp)
+        pc.setFieldSplitSchurPreType(PETSc.PC.SchurPreType.USER, Spp)
 
     def _augmented(self, S):
         """S plus the retained block of the augmentation form (Dirichlet rows and columns

@@ -94,6 +94,21 @@ LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
                       "condensed_fieldsplit_p_ksp_type": "preonly",
                       "condensed_fieldsplit_p_pc_type": "jacobi"},
 }
+# the same for the hard cases (nearly rigid-plastic flow with a free dilatation, large
+# viscosity contrasts: the wire drawing at m = 0.016, benchmarks/README.md): the velocity
+# block of the preconditioning matrix augmented by (2/3) η div div (fxcontact.condense), the
+# Schur complement preconditioned by A11 − A10 diag(A00)⁻¹ A01 (selfp, GAMG), and the velocity
+# block solved by up to 20 GAMG-preconditioned GMRES iterations (relative 1e-2) inside the
+# outer FGMRES; several times the cost of "condensed-amg" where that one converges
+LINEAR_SOLVERS["condensed-amg-robust"] = {
+    **LINEAR_SOLVERS["condensed-amg"],
+    "condensed_augment_scale": 1.0,
+    "condensed_pc_fieldsplit_schur_precondition": "selfp",
+    "condensed_fieldsplit_p_pc_type": "gamg",
+    "condensed_fieldsplit_u_ksp_type": "gmres",
+    "condensed_fieldsplit_u_ksp_max_it": 20,
+    "condensed_fieldsplit_u_ksp_rtol": 1e-2,
+}
 
 #: Automatic choice (``linear_solver="auto"``, the default), from the figures of
 #: ``benchmarks/README.md`` (section "Condensed solvers"): spaces without cell-interior dofs
@@ -153,8 +168,10 @@ class SolverOptions:
             :data:`LINEAR_SOLVERS` (``"mumps"``: MUMPS on the whole system;
             ``"condensed-mumps"``: the MINI bubble condensed element by element, MUMPS on the
             P1/P1 system; ``"condensed-amg"``: the condensed system by a Schur field split
-            with algebraic multigrid, :mod:`fxcontact.condense`; ``"fieldsplit"``) or a dict
-            of PETSc options.
+            with algebraic multigrid, :mod:`fxcontact.condense`; ``"condensed-amg-robust"``:
+            the same made to converge on the hard cases — nearly rigid-plastic flow with a
+            free dilatation, the wire drawing — at several times the cost; ``"fieldsplit"``)
+            or a dict of PETSc options.
         penalty_continuation: continuation in the contact penalty, a factor f in (0, 1), or
             None (default, off). Each Newton solve then runs in two stages: the contributors
             that have ``scale_penalty`` (:class:`~fxcontact.contact.NodalContact`) get ρ·f
