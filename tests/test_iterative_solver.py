@@ -98,7 +98,9 @@ def test_hertz_sphere_stiff_penalty():
     "invertible. With the (2/3) eta div-div augmentation of the preconditioning matrix "
     "(condensed_augment_scale 1, off by default) and exact inner solves it converges (90 "
     "iterations start-up, 195 main), but with GAMG on the augmented block it still needs "
-    "290-300. Upsetting (m = 0.015, 0.3) and the Hertz sphere (beta = 1e4) converge"))
+    "290-300 (condensed-amg-robust, with an inner GMRES on the velocity block and a selfp "
+    "Schur preconditioner, converges: next test). Upsetting (m = 0.015, 0.3) and the Hertz "
+    "sphere (beta = 1e4) converge"))
 def test_wire_drawing_demo():
     """The wire-drawing demo at its quick size (m = 0.016, implicit contact with the exact die,
     two inclined symmetry planes, trust-region Newton), four increments: same drawing force
