@@ -642,6 +642,17 @@ class Simulation:
                 break
             t0 = time.perf_counter()
             info = self._try_increment(trial)
+            if not info.converged and "condensed linear solve failed" in info.message \
+                    and self.solver.fall_back_to_direct():
+                # "auto" chose the iterative solver and it failed: the direct one from now on,
+                # the same dt again
+                log.warning("t = %.6g: %s; the linear solver chosen by 'auto' is switched from "
+                            "condensed-amg to condensed-mumps", self.t, info.message)
+                if self._startup is not None:
+                    self._startup.fall_back_to_direct()
+                failed_its += info.iterations
+                msgs.append(info.message)
+                info = self._try_increment(trial)
             fb = self.solver_options.line_search_fallback
             if not info.converged and fb and fb != self.solver_options.line_search \
                     and not self.problem.error:
@@ -656,17 +667,6 @@ class Simulation:
                     info = self._try_increment(trial)
                 finally:
                     self.solver.set_line_search(self.solver_options.line_search)
-            if not info.converged and "condensed linear solve failed" in info.message \
-                    and self.solver.fall_back_to_direct():
-                # "auto" chose the iterative solver and it failed: the direct one from now on,
-                # the same dt again
-                log.warning("t = %.6g: %s; the linear solver chosen by 'auto' is switched from "
-                            "condensed-amg to condensed-mumps", self.t, info.message)
-                if self._startup is not None:
-                    self._startup.fall_back_to_direct()
-                failed_its += info.iterations
-                msgs.append(info.message)
-                info = self._try_increment(trial)
             if info.converged and self._accept_geometry(trial, info):
                 row = self._commit(trial, info)
                 row["cutbacks"] = k
