@@ -217,27 +217,22 @@ class CondensedPC:
         schur_weight: optional compiled linear form on the mixed space whose pressure rows
             give the lumped, inverse-viscosity-weighted pressure mass (see the module
             docstring); used only when the inner PC is a field split.
-        augment: optional object whose ``augment`` attribute is a compiled bilinear form on
-            the mixed space or None (the problem: the volumetric term of the velocity block,
-            ``NonlinearProblem(augment=)``, compiled on first use): with a field split, its
-            retained (vertex) block is added to the inner *preconditioning* matrix, so that
-            the velocity block the split inverts is not singular for a free dilatation; the
-            inner operator stays the exact condensed matrix. Option
-            ``<prefix>augment_scale`` (default 0: off; 1 gives the full strain rate's
-            velocity block).
-        bcs, constraints: the problem's Dirichlet conditions and constraints (symmetry planes),
-            applied to the augmentation as to the Jacobian.
+        problem: optional :class:`~fxcontact.petsc.NonlinearProblem` whose ``augment`` form
+            (the volumetric term of the velocity block, compiled on first use) is used with a
+            field split: its retained (vertex) block, with the problem's Dirichlet rows and
+            columns removed and projected on its constraints, is added to the inner
+            *preconditioning* matrix, so that the velocity block the split inverts is not
+            singular for a free dilatation; the inner operator stays the exact condensed
+            matrix. Option ``<prefix>augment_scale`` (default 0: off; 1 gives the full strain
+            rate's velocity block).
     """
 
     def __init__(self, layout: CondensationLayout, prefix: str, schur_weight=None,
-                 augment=None, bcs=(), constraints=()):
+                 problem=None):
         self.lay = layout
         self.prefix = prefix
         self.schur_weight = schur_weight
-        #: the problem (or a holder) whose ``augment`` property gives the compiled form
-        self._augment_src = augment
-        self.bcs = list(bcs)
-        self.constraints = [c for c in constraints if getattr(c, "active", True)]
+        self.problem = problem
         self._G = self._Gp = None
         self.comm = layout.comm
         self.ksp = None
@@ -416,18 +411,18 @@ class CondensedPC:
         """S plus the retained block of the augmentation form (Dirichlet rows and columns
         removed, projected on the constraints), or None without one (collective)."""
         scale = PETSc.Options().getReal(self.prefix + "augment_scale", 0.0)
-        if self._augment_src is None or scale == 0.0:
-            return None
-        form = self._augment_src.augment
+        form = getattr(self.problem, "augment", None) if scale != 0.0 else None
         if form is None:
             return None
         if self._G is None:
             self._G = dolfinx.fem.petsc.create_matrix(form)
         G = self._G
         G.zeroEntries()
-        dolfinx.fem.petsc.assemble_matrix(G, form, bcs=self.bcs, diagonal=0.0)
+        dolfinx.fem.petsc.assemble_matrix(G, form, bcs=self.problem.bcs, diagonal=0.0)
         G.assemble()
-        for c in self.constraints:
+        for c in self.problem.constraints:
+            if not c.active:
+                continue
             self._Gp = c.project_matrix(G, self._Gp)
             G = self._Gp
         Gll = self._sub(G, "Gll", self.lay.is_l, self.lay.is_l)

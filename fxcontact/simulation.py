@@ -152,14 +152,13 @@ def _shear_viscosity_ufl(material, v, dt):
     return None
 
 
-def _volumetric_augment_ufl(material, v, W, wt, dx):
-    """``(2/3) η div(δv) div(w) dx`` for a material whose velocity tangent sees only the
-    strain-rate deviator (Norton–Hoff): with it the velocity block of the condensed iterative
-    solver's preconditioner is that of the full strain rate (``NonlinearProblem(augment=)``);
-    None for the other materials."""
+def _volumetric_augment_ufl(material, eta, W, wt, dx):
+    """``(2/3) η div(δv) div(w) dx`` (η the secant viscosity of :func:`_shear_viscosity_ufl`)
+    for a material whose velocity tangent sees only the strain-rate deviator (Norton–Hoff):
+    with it the velocity block of the condensed iterative solver's preconditioner is that of
+    the full strain rate (``NonlinearProblem(augment=)``); None for the other materials."""
     if not isinstance(material, NortonHoff):
         return None
-    eta = _shear_viscosity_ufl(material, v, None)
     du, _ = ufl.split(ufl.TrialFunction(W))
     return (2.0 / 3.0) * eta * ufl.div(du) * ufl.div(wt) * dx
 
@@ -381,8 +380,8 @@ class Simulation:
         self.problem = NonlinearProblem(F, self.w, [b.bc for b in self._bcs],
                                         contributors=self.contributors, constraints=cons,
                                         schur_weight=schur_weight,
-                                        augment=_volumetric_augment_ufl(self.material, v, sp.W,
-                                                                        wt, sp.dx))
+                                        augment=_volumetric_augment_ufl(self.material, eta,
+                                                                        sp.W, wt, sp.dx))
         fs_is = self.fieldsplit_is() if self.solver_options.uses_fieldsplit else None
         self.solver = NewtonSolver(self.problem, self.solver_options, fs_is)
         # start-up problem: the linearised material without contributors gives the first guess
@@ -401,7 +400,7 @@ class Simulation:
             self._startup = NewtonSolver(NonlinearProblem(
                 F0, self.w, [b.bc for b in self._bcs], constraints=cons,
                 schur_weight=None if eta0 is None else q / eta0 * sp.dx,
-                augment=_volumetric_augment_ufl(lin_mat, v, sp.W, wt, sp.dx)), opts, fs_is)
+                augment=_volumetric_augment_ufl(lin_mat, eta0, sp.W, wt, sp.dx)), opts, fs_is)
         # cell averages of the strain rate, volume
         q0 = ufl.TestFunction(sp.DG0)
         epsd = self._strain_rate_expr(v)

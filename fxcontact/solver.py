@@ -471,10 +471,7 @@ class NewtonSolver:
                 self._condensed_pc.destroy()
             self._condensed_pc = CondensedPC(self._layout, self.options.prefix + "condensed_",
                                              getattr(self.problem, "schur_weight", None),
-                                             augment=self.problem,
-                                             bcs=getattr(self.problem, "bcs", ()),
-                                             constraints=getattr(self.problem, "constraints",
-                                                                 ()))
+                                             problem=self.problem)
             if snes.getUseEW():   # Eisenstat–Walker: the inner solve follows the forcing term
                 self._condensed_pc.follow_rtol_of = ksp
             pc = pc_fs

@@ -238,15 +238,9 @@ class SymmetryPlanes:
         """``A ← P A P + Q Qᵀ`` (after the final assembly of ``A``; collective)."""
         if not self.active:
             return
-        if self._P is None:
-            self._P = self._projector(A)
         # one product matrix per Jacobian (the start-up and the main problem have their own):
         # PETSc's reused product remembers the matrix it was built from
-        C = self._C.get(A.handle)
-        if C is None:
-            C = self._C[A.handle] = A.ptap(self._P)
-        else:
-            A.ptap(self._P, C)
+        C = self._C[A.handle] = self.project_matrix(A, self._C.get(A.handle))
         A.zeroEntries()
         A.axpy(1.0, C, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
         if len(self.dofs):
