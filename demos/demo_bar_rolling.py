@@ -179,6 +179,7 @@ DEFAULTS = dict(R0=58.0, R1=48.0, groove_angle=50.0, roll_radius=180.0, edge_rad
                 steady_tol=0.02, exit_offset=0.5, beta=10.0, regularization=1e-3, m_start=0.1,
                 slip_velocity=1e-3, model="third", mesh="symmetric",
                 scheme="implicit", line_search="trust-region", penalty_continuation=None,
+                active_set_prediction=False,
                 max_increments=5000,
                 output_dir="results/bar_rolling", pictures=True, comm=None)
 
@@ -426,6 +427,7 @@ def run(**parameters) -> dict:
     sp = fx.MixedSpace(msh)
     out = P["output_dir"]
     opts = fx.SolverOptions(line_search=P["line_search"],
+                            active_set_prediction=bool(P["active_set_prediction"]),
                             penalty_continuation=P["penalty_continuation"])
     sim = fx.Simulation(sp, mat, solver_options=opts,
                         progress=False)
@@ -729,6 +731,9 @@ def main(argv=None):
     ap.add_argument("--scheme")
     ap.add_argument("--line_search", choices=fx.LINE_SEARCHES,
                     help="Newton's line search (trust-region: fallback bt)")
+    ap.add_argument("--active_set_prediction", action="store_true", default=None,
+                    help="correct each Newton step for the contact status changes it "
+                    "predicts (fxcontact.prediction; line searches only, not the trust region)")
     ap.add_argument("--penalty_continuation", type=float, metavar="F",
                     help="solve first with the contact penalty x F, then with the penalty "
                     "(see fxcontact.SolverOptions)")

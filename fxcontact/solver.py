@@ -182,6 +182,14 @@ class SolverOptions:
             section "Newton at m = 0.016"). If the first stage fails, the second starts from
             the predictor. The result is the full-penalty solution either way.
         continuation_rtol: relative residual tolerance of the softened first stage.
+        active_set_prediction: correct each Newton step for the contact status changes it
+            predicts (:mod:`fxcontact.prediction`): the step of the linear system of the
+            predicted penalty branch, by the Woodbury identity, one extra linear solve
+            (back-substitution with a direct solver) per node that changes status. Helps
+            where the full Newton step drives free nodes deep into a tool (nearly
+            rigid-plastic materials). Line searches only (not the trust region). Default off.
+        prediction_max_nodes: the step is left uncorrected at an iteration where more nodes
+            than this change status (the cost is one linear solve per node).
         prefix: PETSc options prefix.
         petsc_options: extra PETSc options (without prefix) that override the presets.
     """
@@ -195,6 +203,8 @@ class SolverOptions:
     linear_solver: object = "auto"
     penalty_continuation: Optional[float] = None
     continuation_rtol: float = 1e-3
+    active_set_prediction: bool = False
+    prediction_max_nodes: int = 200
     prefix: str = "fxc_"
     petsc_options: Dict[str, object] = field(default_factory=dict)
 
@@ -222,6 +232,13 @@ class SolverOptions:
         if pc is not None and not (isinstance(pc, (int, float)) and 0.0 < pc < 1.0):
             raise ValueError(f"penalty_continuation must be None or a factor in (0, 1), got "
                              f"{pc!r}")
+        if not isinstance(self.active_set_prediction, (bool, np.bool_)):
+            raise ValueError(f"active_set_prediction must be True or False, got "
+                             f"{self.active_set_prediction!r}")
+        if not (isinstance(self.prediction_max_nodes, (int, np.integer))
+                and self.prediction_max_nodes >= 1):
+            raise ValueError(f"prediction_max_nodes must be an integer >= 1, got "
+                             f"{self.prediction_max_nodes!r}")
         if not (np.isfinite(self.continuation_rtol) and 0.0 < self.continuation_rtol < 1.0):
             raise ValueError(f"continuation_rtol must be in (0, 1), got "
                              f"{self.continuation_rtol!r}")
@@ -408,6 +425,12 @@ class NewtonSolver:
         #: wall time of the linear solves since the solver was built (see :meth:`solve`)
         self.linear_time = 0.0
         self._linear_start: Optional[float] = None
+        #: the active-set prediction of the Newton steps (None when off); its ``stats``
+        self.prediction = None
+        if self.options.active_set_prediction:
+            from fxcontact.prediction import ActiveSetPrediction
+            self.prediction = ActiveSetPrediction(problem, self.comm,
+                                                  max_nodes=self.options.prediction_max_nodes)
         PETSc.Log.begin()   # PETSc's event log on (benchmarks read its events)
 
     def _write_options(self):
@@ -534,8 +557,17 @@ class NewtonSolver:
         are made exact (``NonlinearProblem.exact_dirichlet_step``: an iterative linear solve
         leaves them within its tolerance)."""
         self._end_linear()
+        changed = False
+        if self.prediction is not None:
+            # more linear solves (with the same factorisation/preconditioner): linear time
+            t0 = time.perf_counter()
+            try:
+                changed = self.prediction.correct(self.snes.getKSP(), y)
+            finally:
+                self.linear_time += time.perf_counter() - t0
         fix = getattr(self.problem, "exact_dirichlet_step", None)
-        return bool(fix(x, y)) if fix is not None else False
+        fixed = bool(fix(x, y)) if fix is not None else False
+        return changed or fixed
 
     def _end_linear(self):
         if self._linear_start is not None:

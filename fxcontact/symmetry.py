@@ -229,9 +229,18 @@ class SymmetryPlanes:
         if not len(self.dofs):
             return
         arr = b.getArray(readonly=False)
+        self.project_entries(arr)
+        r = arr[self.dofs]
+        r += np.einsum("ndm,nm->nd", self._B, self._violation(w))
+        arr[self.dofs] = r
+
+    def project_entries(self, arr: np.ndarray):
+        """``r ← P r`` at the owned constrained vertices of the owned array ``arr`` (a
+        residual-like vector: e.g. a column added to the Jacobian, projected like it)."""
+        if not len(self.dofs):
+            return
         r = arr[self.dofs]
         r -= np.einsum("nde,ne->nd", self._QQ, r)
-        r += np.einsum("ndm,nm->nd", self._B, self._violation(w))
         arr[self.dofs] = r
 
     def apply_jacobian(self, A: PETSc.Mat):

@@ -648,6 +648,7 @@ class NodalContact:
                            tangent_active, jacobian)
         self._h, self._tool, self._feature = h, tool_idx, feature
         self._g = g
+        self._tangent_active, self._rho_eval = tangent_active, rho
         self._point = self._cur_proj.point
         self._r = r
         if not isinstance(self.kin, CartesianUpdate) and \
@@ -666,6 +667,41 @@ class NodalContact:
         if jacobian and self.formulation == "displacement":
             K = K / self.dt
         return NodalTerms(b.dofs, r, K if jacobian else None)
+
+    def active_set_prediction(self, step: np.ndarray):
+        """The nodes whose contact status the Newton step ``step`` would change, for the
+        active-set prediction of :class:`~fxcontact.prediction.ActiveSetPrediction`.
+
+        The penalty force of a node is piecewise linear in the step δ of its values with the
+        gradient ``g`` of the last evaluation: ``S ρ [h + g·δ]₊ g``. The Newton system only
+        knows the branch of the current iterate (the tangent ``S ρ A g⊗g`` with ``A`` the
+        tangent's active flag, the force ``S ρ [h]₊ g``). For the nodes where the predicted
+        status ``h + g·δ > 0`` differs from ``A`` (or where the active branch has an offset
+        the residual lacks: a node kept active by ``sticky_gap`` with h ≤ 0), it returns what
+        turns the Newton system into the one of the predicted branch: the stiffness change
+        ``dc`` along ``g`` (± S ρ) and the residual offset ``o`` along ``g``
+        (``S ρ (want·h − [h]₊)``).
+
+        Args:
+            step: the owned part of the Newton step δ (x_new = x + δ), indexed like the
+                boundary's dofs.
+
+        Returns:
+            ``(dofs (k, d), g (k, d), dc (k,), o (k,))`` for the k selected owned nodes (the
+            gradient with respect to the unknown: ``g/dt`` in displacement form).
+        """
+        d = self.gdim
+        dofs = self.boundary.dofs
+        scale = 1.0 / self.dt if self.formulation == "displacement" else 1.0
+        g = self._g * scale
+        dl = np.where(dofs >= 0, step[np.maximum(dofs, 0)], 0.0)
+        want = self._h + np.einsum("nd,nd->n", g, dl) > 0.0
+        A = self._tangent_active
+        c = self.boundary.areas * self._rho_eval
+        dc = c * (want.astype(float) - A.astype(float))
+        o = c * (np.where(want, self._h, 0.0) - np.maximum(self._h, 0.0))
+        sel = np.flatnonzero((dc != 0.0) | (o != 0.0))
+        return (dofs[sel].reshape(-1, d), np.ascontiguousarray(g[sel]), dc[sel], o[sel])
 
     def _friction_terms(self, v, h, g, tool_idx, jacobian: bool):
         """Friction residual entries and Jacobian blocks at the current iterate (THEORY §9)."""

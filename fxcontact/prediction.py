@@ -1,0 +1,187 @@
+"""Active-set prediction of the Newton step for nodal penalty contact (THEORY §3.6 of
+docs/theory.md, "Active-set prediction").
+
+The nodal penalty force ``S ρ [h]₊ ∇h`` is piecewise linear in the nodal velocity, and the Newton
+system only knows the branch of the current iterate. A node that is free at the iterate but
+that the Newton step drives into the tool does not resist in the linearisation: on a nearly
+rigid-plastic material (the tangent along the flow is m times the secant one) the step pushes
+it deep into the tool, the penalty residual of the full step is huge, and the line search
+creeps with 1–10 % steps for tens of iterations (``benchmarks/README.md``, "Newton at
+m = 0.016"). The prediction solves the Newton system *of the predicted branch* instead:
+
+1. ``y₀ = J⁻¹F`` (the ordinary Newton step, x_new = x − y);
+2. the contributors list the nodes whose status the step changes (``h + ∇h·δ > 0`` differs from
+   the tangent's active flag, δ = −y): their stiffness changes ``dc ∇h⊗∇h`` and residual offsets
+   ``o ∇h``;
+3. ``y = (J + U C Uᵀ)⁻¹ (F + U o)`` by the Woodbury identity, with one solve ``Z = J⁻¹U`` per
+   selected node (back-substitutions with the factorisation of a direct solver), C = diag(dc):
+   ``w = y₀ + Z o``, ``y = w − Z (I + C UᵀZ)⁻¹ C Uᵀ w``;
+4. repeat from 2 with the new step until the predicted set is unchanged (at most ``rounds``
+   times; the solves of nodes already selected are reused).
+
+Each column ``U`` is the node's ``∇h`` at its dofs, zero at the Dirichlet dofs and projected on
+the symmetry planes like the Jacobian. The line search then checks the corrected step on the
+true residual as usual. The converged solution is unchanged (the prediction only changes the
+search direction); the cost is one linear solve per selected node and round.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Dict, List
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+__all__ = ["ActiveSetPrediction", "woodbury_step_numpy"]
+
+log = logging.getLogger(__name__)
+
+
+def woodbury_step_numpy(J: np.ndarray, F: np.ndarray, U: np.ndarray, dc: np.ndarray,
+                        o: np.ndarray) -> np.ndarray:
+    """Reference for the corrected step: ``(J + U diag(dc) Uᵀ)⁻¹ (F + U o)`` by a dense solve
+    (for testing only)."""
+    return np.linalg.solve(J + (U * dc) @ U.T, F + U @ o)
+
+
+class ActiveSetPrediction:
+    """Corrects a Newton step for the contact status changes it predicts (module docstring).
+
+    Args:
+        problem: the :class:`~fxcontact.petsc.NonlinearProblem` (its contributors with
+            ``active_set_prediction``, Dirichlet marker and constraints).
+        comm: the communicator.
+        rounds: maximum number of prediction rounds per Newton step.
+        max_nodes: largest number of selected nodes (over all ranks) for which the step is
+            corrected; above it the step is left as it is for that iteration (the cost is one
+            linear solve per node).
+    """
+
+    def __init__(self, problem, comm, rounds: int = 5, max_nodes: int = 200):
+        self.problem = problem
+        self.comm = comm
+        self.rounds = int(rounds)
+        self.max_nodes = int(max_nodes)
+        #: totals since construction: corrected steps, rounds, column solves, wall time,
+        #: steps left uncorrected because of max_nodes or a singular small system
+        self.stats: Dict[str, float] = {"steps": 0, "corrected": 0, "rounds": 0, "solves": 0,
+                                        "time": 0.0, "skipped": 0}
+
+    def _contributors(self) -> List:
+        return [c for c in self.problem.contributors if hasattr(c, "active_set_prediction")
+                and getattr(c, "_h", None) is not None]
+
+    def _column(self, template: PETSc.Vec, dofs: np.ndarray, g: np.ndarray) -> PETSc.Vec:
+        """The vector with ``g`` at ``dofs`` (owned rows), zero at the Dirichlet dofs, projected
+        on the symmetry planes (collective: every rank calls it, the owner fills it)."""
+        u = template.duplicate()
+        u.set(0.0)
+        if dofs is not None:
+            arr = u.getArray(readonly=False)
+            keep = dofs >= 0
+            idx = dofs[keep]
+            vals = g[keep]
+            ok = ~self.problem.bc_marker[idx]
+            arr[idx[ok]] = vals[ok]
+            for c in self.problem.constraints:
+                c.project_entries(arr)
+            del arr
+        return u
+
+    def correct(self, ksp: PETSc.KSP, y: PETSc.Vec) -> bool:
+        """Replace the Newton step ``y`` (x_new = x − y, ``ksp`` holding the factorisation or
+        preconditioner of J) by the step of the predicted branch; returns whether it changed
+        (collective)."""
+        t0 = time.perf_counter()
+        try:
+            return self._correct(ksp, y)
+        finally:
+            self.stats["time"] += time.perf_counter() - t0
+
+    def _correct(self, ksp, y) -> bool:
+        contribs = self._contributors()
+        comm = self.comm
+        self.stats["steps"] += 1
+        if not comm.allreduce(len(contribs), op=MPI.MAX):
+            return False
+        y0 = y.copy()
+        cur = y.copy()
+        cache: Dict[tuple, tuple] = {}     # (rank, contributor, node dofs) -> (U, Z)
+        prev = None
+        changed = False
+        try:
+            for _ in range(self.rounds):
+                step = -cur.getArray(readonly=True)
+                sel = []
+                for ci, c in enumerate(contribs):
+                    dofs, g, dc, o = c.active_set_prediction(step)
+                    for j in range(len(dc)):
+                        sel.append((ci, tuple(int(v) for v in dofs[j]), g[j], dc[j], o[j]))
+                key = [(ci, d, float(dc_), float(o_)) for ci, d, _, dc_, o_ in sel]
+                keys = comm.allgather(key)
+                if prev is not None and keys == prev:
+                    break
+                prev = keys
+                k = sum(len(kk) for kk in keys)
+                if k == 0:
+                    break
+                if k > self.max_nodes:
+                    log.debug("active-set prediction: %d nodes change status (> max_nodes = "
+                              "%d): step not corrected", k, self.max_nodes)
+                    self.stats["skipped"] += 1
+                    break
+                self.stats["rounds"] += 1
+                Us, Zs, dcs, os_ = [], [], np.zeros(k), np.zeros(k)
+                j = 0
+                for r, kk in enumerate(keys):
+                    for m, (ci, d, dc_, o_) in enumerate(kk):
+                        ck = (r, ci, d)
+                        if ck not in cache:
+                            mine = r == comm.rank
+                            u = self._column(y, np.array(d) if mine else None,
+                                             sel[m][2] if mine else None)
+                            z = y.duplicate()
+                            ksp.solve(u, z)
+                            self.stats["solves"] += 1
+                            cache[ck] = (u, z)
+                        u, z = cache[ck]
+                        Us.append(u)
+                        Zs.append(z)
+                        dcs[j], os_[j] = dc_, o_
+                        j += 1
+                # w = y0 + Z o;  y = w − Z (I + C UᵀZ)⁻¹ C Uᵀ w
+                w = y0.copy()
+                for j in range(k):
+                    if os_[j] != 0.0:
+                        w.axpy(os_[j], Zs[j])
+                UZ = np.array([[Us[a].dot(Zs[b]) for b in range(k)] for a in range(k)])
+                Uw = np.array([Us[a].dot(w) for a in range(k)])
+                M = np.eye(k) + dcs[:, None] * UZ
+                try:
+                    coef = np.linalg.solve(M, dcs * Uw)
+                except np.linalg.LinAlgError:
+                    self.stats["skipped"] += 1
+                    w.destroy()
+                    break
+                if not np.all(np.isfinite(coef)):
+                    self.stats["skipped"] += 1
+                    w.destroy()
+                    break
+                for j in range(k):
+                    w.axpy(-coef[j], Zs[j])
+                w.copy(cur)
+                w.destroy()
+                changed = True
+            if changed:
+                cur.copy(y)
+                self.stats["corrected"] += 1
+        finally:
+            for u, z in cache.values():
+                u.destroy()
+                z.destroy()
+            y0.destroy()
+            cur.destroy()
+        return changed
