@@ -19,7 +19,10 @@ Variants (``--variants``; each is a set of options of the library, nothing else 
 * ``tr``: the trust-region Newton (``line_search="trust-region"``, fallback bt), ``max_it`` 100;
 * ``cont0.03``: penalty continuation (``penalty_continuation=0.03``: β·0.03 = 30 first, to a
   relative residual of 1e-3, then β = 1e3), ``max_it`` 100;
-* ``cont0.03+reg1e-3``, ``tr+reg1e-3`` (``max_it`` 100), ``beta1e1+reg1e-3+tr``: combinations.
+* ``cont0.03+reg1e-3``, ``tr+reg1e-3`` (``max_it`` 100), ``beta1e1+reg1e-3+tr``: combinations;
+* ``pred``: the active-set prediction of the Newton step (``active_set_prediction=True``,
+  :mod:`fxcontact.prediction`), bt, ``max_it`` 100; ``pred+maxit30`` at the default ``max_it``;
+  ``pred+reg1e-3``, ``pred+beta1e1+reg1e-3``: with the other settings.
 
 Run from the repository root::
 
@@ -64,6 +67,12 @@ VARIANTS = {
                    {"max_it": 100, "line_search": "trust-region", "line_search_fallback": "bt"}),
     "beta1e1+reg1e-3+tr": ({"beta": 1e1, "regularization": 1e-3 * RATE},
                            {"line_search": "trust-region", "line_search_fallback": "bt"}),
+    "pred": ({}, {"max_it": 100, "active_set_prediction": True}),
+    "pred+maxit30": ({}, {"active_set_prediction": True}),
+    "pred+reg1e-3": ({"regularization": 1e-3 * RATE},
+                     {"max_it": 100, "active_set_prediction": True}),
+    "pred+beta1e1+reg1e-3": ({"beta": 1e1, "regularization": 1e-3 * RATE},
+                             {"active_set_prediction": True}),
 }
 
 
@@ -89,7 +98,8 @@ def run(variant: str = "default", h: float = 1.6, h_die: float = 0.8, dt: float 
                      "its_all": r["newton_iterations_all"], "cutbacks": r["cutbacks"],
                      "wall": time.perf_counter() - t0, "force": 4.0 * r["front_z"],
                      "penetration": r["contact_penetration_true"],
-                     "residuals": res.info.residual_norms})
+                     "residuals": res.info.residual_norms,
+                     "linear": res.info.times.get("linear_solve", 0.0)})
         if verbose and comm.rank == 0:
             print(f"  {variant:>16s} inc {i + 1}: {r['newton_iterations']:3d} its "
                   f"({r['newton_iterations_all']} with cut-backs, {r['cutbacks']} cut-backs), "
