@@ -162,7 +162,7 @@ from mpi4py import MPI
 
 import fxcontact as fx
 from fxcontact import compat
-from fxcontact.console import add_verbosity_arguments, configure_logging
+from fxcontact.console import add_verbosity_arguments, auto_on_off, configure_logging
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.power import (PlasticDissipation, PressurePower, on_configuration,
                              penalty_power)
@@ -179,7 +179,7 @@ DEFAULTS = dict(R0=58.0, R1=48.0, groove_angle=50.0, roll_radius=180.0, edge_rad
                 steady_tol=0.02, exit_offset=0.5, beta=10.0, regularization=1e-3, m_start=0.1,
                 slip_velocity=1e-3, model="third", mesh="symmetric",
                 scheme="implicit", line_search="trust-region", penalty_continuation=None,
-                active_set_prediction=False,
+                active_set_prediction="auto",
                 max_increments=5000,
                 output_dir="results/bar_rolling", pictures=True, comm=None)
 
@@ -427,7 +427,7 @@ def run(**parameters) -> dict:
     sp = fx.MixedSpace(msh)
     out = P["output_dir"]
     opts = fx.SolverOptions(line_search=P["line_search"],
-                            active_set_prediction=bool(P["active_set_prediction"]),
+                            active_set_prediction=P["active_set_prediction"],
                             penalty_continuation=P["penalty_continuation"])
     sim = fx.Simulation(sp, mat, solver_options=opts,
                         progress=False)
@@ -731,9 +731,10 @@ def main(argv=None):
     ap.add_argument("--scheme")
     ap.add_argument("--line_search", choices=fx.LINE_SEARCHES,
                     help="Newton's line search (trust-region: fallback bt)")
-    ap.add_argument("--active_set_prediction", action="store_true", default=None,
+    ap.add_argument("--active_set_prediction", type=auto_on_off,
                     help="correct each Newton step for the contact status changes it "
-                    "predicts (fxcontact.prediction; line searches only, not the trust region)")
+                    "predicts (fxcontact.prediction; default auto: with a direct linear "
+                    "solver; line searches only, not the trust region)")
     ap.add_argument("--penalty_continuation", type=float, metavar="F",
                     help="solve first with the contact penalty x F, then with the penalty "
                     "(see fxcontact.SolverOptions)")

@@ -159,7 +159,7 @@ import dolfinx.mesh
 
 import fxcontact as fx
 from fxcontact import compat, rolling
-from fxcontact.console import add_verbosity_arguments, configure_logging
+from fxcontact.console import add_verbosity_arguments, auto_on_off, configure_logging
 from fxcontact.power import (PlasticDissipation, PressurePower, on_configuration,
                              penalty_power)
 from fxcontact.simulation import format_wall_split, wall_split
@@ -174,7 +174,7 @@ DEFAULTS = dict(R=300.0, h0=25.0, reduction=0.28, width=100.0, K=30.0, m=0.3, mu
                 settle=0.8, window=0.6,
                 steady_tol=0.03,
                 roll="analytic", facet_size=None, scheme="implicit", line_search="bt",
-                penalty_continuation=None, active_set_prediction=False,
+                penalty_continuation=None, active_set_prediction="auto",
                 max_increments=2000, output_dir="results/flat_rolling",
                 pictures=True, vtk_every=0, comm=None)
 
@@ -312,7 +312,7 @@ def run(**parameters) -> dict:
     sp = fx.MixedSpace(msh)
     out = P["output_dir"]
     opts = fx.SolverOptions(line_search=P["line_search"],
-                            active_set_prediction=bool(P["active_set_prediction"]),
+                            active_set_prediction=P["active_set_prediction"],
                             penalty_continuation=P["penalty_continuation"])
     sim = fx.Simulation(sp, mat, solver_options=opts,
                         output_dir=out if P["vtk_every"] else None, name="flat_rolling",
@@ -664,9 +664,10 @@ def main(argv=None):
     ap.add_argument("--scheme")
     ap.add_argument("--line_search", choices=fx.LINE_SEARCHES,
                     help="Newton's line search (trust-region: fallback bt)")
-    ap.add_argument("--active_set_prediction", action="store_true", default=None,
+    ap.add_argument("--active_set_prediction", type=auto_on_off,
                     help="correct each Newton step for the contact status changes it "
-                    "predicts (fxcontact.prediction; line searches only, not the trust region)")
+                    "predicts (fxcontact.prediction; default auto: with a direct linear "
+                    "solver; line searches only, not the trust region)")
     ap.add_argument("--penalty_continuation", type=float, metavar="F",
                     help="solve first with the contact penalty x F, then with the penalty "
                     "(see fxcontact.SolverOptions)")

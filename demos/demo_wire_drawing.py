@@ -120,7 +120,7 @@ from mpi4py import MPI
 
 import fxcontact as fx
 from fxcontact import compat, forming
-from fxcontact.console import add_verbosity_arguments, configure_logging
+from fxcontact.console import add_verbosity_arguments, auto_on_off, configure_logging
 from fxcontact.simulation import format_wall_split, wall_split
 from fxcontact.steady import steady_window
 from fxcontact.solver import LINEAR_SOLVERS
@@ -133,7 +133,7 @@ DEFAULTS = dict(R0=10.0, R1=7.5, length=38.0, sector=120.0, K=445.0, m=0.016, sp
                 nose_ratio=0.96, h=0.75, facet=0.5, size=1.0, dt=2.5e-3, t_end=0.37,
                 die="exact", die_mesh="gmsh", scheme="implicit", penalty="gap", beta=100.0, penalty_dt=None,
                 mu=0.0, mbar=0.0, max_it=60, line_search="trust-region", penalty_continuation=None,
-                active_set_prediction=False,
+                active_set_prediction="auto",
                 linear_solver="auto",
                 window=3.0, steady_tol=0.02, settle=None, stop_at_steady=False,
                 output_dir="results/wire_drawing", pictures=True, vtk_every=0,
@@ -470,7 +470,7 @@ def run(**parameters) -> dict:
     space = fx.MixedSpace(msh)
     out = P["output_dir"]
     opts = fx.SolverOptions(max_it=int(P["max_it"]), line_search=P["line_search"],
-                            active_set_prediction=bool(P["active_set_prediction"]),
+                            active_set_prediction=P["active_set_prediction"],
                             penalty_continuation=P["penalty_continuation"],
                             linear_solver=P["linear_solver"])
     sim = fx.Simulation(space, mat, solver_options=opts,
@@ -649,9 +649,10 @@ def main(argv=None):
     ap.add_argument("--linear_solver", choices=sorted(LINEAR_SOLVERS) + ["auto"],
                     help="linear solver preset (default auto: by the problem's size, see "
                     "fxcontact.solver.choose_linear_solver)")
-    ap.add_argument("--active_set_prediction", action="store_true", default=None,
+    ap.add_argument("--active_set_prediction", type=auto_on_off,
                     help="correct each Newton step for the contact status changes it "
-                    "predicts (fxcontact.prediction; line searches only, not the trust region)")
+                    "predicts (fxcontact.prediction; default auto: with a direct linear "
+                    "solver; line searches only, not the trust region)")
     ap.add_argument("--penalty_continuation", type=float,
                     help="factor f in (0, 1): each Newton solve first with the penalty x f "
                     "(see fxcontact.SolverOptions); beta x f about 10-30 helps at m = 0.016")

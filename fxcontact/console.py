@@ -34,7 +34,7 @@ import sys
 from mpi4py import MPI
 
 __all__ = ["configure_logging", "add_verbosity_arguments", "progress_enabled", "ALL_RANKS",
-           "RankFilter"]
+           "RankFilter", "auto_on_off"]
 
 #: ``extra=`` argument of a logging call whose message is rank-local (printed by every rank).
 ALL_RANKS = {"all_ranks": True}
@@ -137,6 +137,17 @@ def configure_logging(verbose: bool = False, quiet: bool = False, comm: MPI.Comm
         logging.getLogger(name).setLevel(logging.WARNING if name == "py.warnings" else other)
     _state["progress"] = not quiet
     return handler
+
+
+def auto_on_off(value: str):
+    """argparse ``type=`` for a command-line switch ``auto|on|off``: ``"auto"``, True or False
+    (e.g. ``SolverOptions.active_set_prediction``)."""
+    v = str(value).strip().lower()
+    table = {"auto": "auto", "on": True, "off": False}
+    if v not in table:
+        import argparse
+        raise argparse.ArgumentTypeError(f"expected auto, on or off, got {value!r}")
+    return table[v]
 
 
 def add_verbosity_arguments(parser):

@@ -67,29 +67,34 @@ class ActiveSetPrediction:
         self.max_nodes = int(max_nodes)
         #: totals since construction: corrected steps, rounds, column solves, wall time,
         #: steps left uncorrected because of max_nodes or a singular small system
+        #: ("skipped") or because the predicted set did not settle ("unsettled")
         self.stats: Dict[str, float] = {"steps": 0, "corrected": 0, "rounds": 0, "solves": 0,
-                                        "time": 0.0, "skipped": 0}
+                                        "time": 0.0, "skipped": 0, "unsettled": 0}
 
     def _contributors(self) -> List:
         return [c for c in self.problem.contributors if hasattr(c, "active_set_prediction")
                 and getattr(c, "_h", None) is not None]
 
-    def _column(self, template: PETSc.Vec, dofs: np.ndarray, g: np.ndarray) -> PETSc.Vec:
+    def _column(self, template: PETSc.Vec, dofs: np.ndarray, g: np.ndarray):
         """The vector with ``g`` at ``dofs`` (owned rows), zero at the Dirichlet dofs, projected
-        on the symmetry planes (collective: every rank calls it, the owner fills it)."""
+        on the symmetry planes (collective: every rank calls it, the owner fills it), and its
+        nonzero entries on this rank ``(indices, values)``."""
         u = template.duplicate()
         u.set(0.0)
+        idx = np.zeros(0, dtype=np.int64)
+        vals = np.zeros(0)
         if dofs is not None:
             arr = u.getArray(readonly=False)
             keep = dofs >= 0
-            idx = dofs[keep]
-            vals = g[keep]
-            ok = ~self.problem.bc_marker[idx]
-            arr[idx[ok]] = vals[ok]
+            ii = dofs[keep]
+            ok = ~self.problem.bc_marker[ii]
+            arr[ii[ok]] = g[keep][ok]
             for c in self.problem.constraints:
                 c.project_entries(arr)
+            idx = np.flatnonzero(arr)
+            vals = arr[idx].copy()
             del arr
-        return u
+        return u, idx, vals
 
     def correct(self, ksp: PETSc.KSP, y: PETSc.Vec) -> bool:
         """Replace the Newton step ``y`` (x_new = x − y, ``ksp`` holding the factorisation or
@@ -112,8 +117,9 @@ class ActiveSetPrediction:
         cache: Dict[tuple, tuple] = {}     # (rank, contributor, node dofs) -> (U, Z)
         prev = None
         changed = False
+        settled = False
         try:
-            for _ in range(self.rounds):
+            for rnd in range(self.rounds + 1):
                 step = -cur.getArray(readonly=True)
                 sel = []
                 for ci, c in enumerate(contribs):
@@ -123,15 +129,20 @@ class ActiveSetPrediction:
                 key = [(ci, d, float(dc_), float(o_)) for ci, d, _, dc_, o_ in sel]
                 keys = comm.allgather(key)
                 if prev is not None and keys == prev:
+                    settled = True
                     break
                 prev = keys
                 k = sum(len(kk) for kk in keys)
                 if k == 0:
+                    settled = True
                     break
+                if rnd == self.rounds:
+                    break            # ``rounds`` corrections, and the set still changes
                 if k > self.max_nodes:
                     log.debug("active-set prediction: %d nodes change status (> max_nodes = "
                               "%d): step not corrected", k, self.max_nodes)
                     self.stats["skipped"] += 1
+                    changed = False
                     break
                 self.stats["rounds"] += 1
                 Us, Zs, dcs, os_ = [], [], np.zeros(k), np.zeros(k)
@@ -141,45 +152,59 @@ class ActiveSetPrediction:
                         ck = (r, ci, d)
                         if ck not in cache:
                             mine = r == comm.rank
-                            u = self._column(y, np.array(d) if mine else None,
-                                             sel[m][2] if mine else None)
+                            u, idx, vals = self._column(y, np.array(d) if mine else None,
+                                                        sel[m][2] if mine else None)
                             z = y.duplicate()
                             ksp.solve(u, z)
                             self.stats["solves"] += 1
-                            cache[ck] = (u, z)
-                        u, z = cache[ck]
-                        Us.append(u)
-                        Zs.append(z)
+                            cache[ck] = (u, z, idx, vals)
+                        Us.append(cache[ck][2:])
+                        Zs.append(cache[ck][1])
                         dcs[j], os_[j] = dc_, o_
                         j += 1
-                # w = y0 + Z o;  y = w − Z (I + C UᵀZ)⁻¹ C Uᵀ w
+                # w = y0 + Z o;  y = w − Z (I + C UᵀZ)⁻¹ C Uᵀ w  (U sparse: a few entries per
+                # column, on its owner; one reduction for UᵀZ and Uᵀw)
                 w = y0.copy()
                 for j in range(k):
                     if os_[j] != 0.0:
                         w.axpy(os_[j], Zs[j])
-                UZ = np.array([[Us[a].dot(Zs[b]) for b in range(k)] for a in range(k)])
-                Uw = np.array([Us[a].dot(w) for a in range(k)])
+                za = [z.getArray(readonly=True) for z in Zs]
+                wa = w.getArray(readonly=True)
+                local = np.zeros((k, k + 1))
+                for a, (idx, vals) in enumerate(Us):
+                    if len(idx):
+                        local[a, :k] = [float(vals @ zb[idx]) for zb in za]
+                        local[a, k] = float(vals @ wa[idx])
+                del za, wa
+                tot = comm.allreduce(local, op=MPI.SUM)
+                UZ, Uw = tot[:, :k], tot[:, k]
                 M = np.eye(k) + dcs[:, None] * UZ
                 try:
                     coef = np.linalg.solve(M, dcs * Uw)
                 except np.linalg.LinAlgError:
+                    coef = None
+                if coef is None or not np.all(np.isfinite(coef)):
                     self.stats["skipped"] += 1
                     w.destroy()
-                    break
-                if not np.all(np.isfinite(coef)):
-                    self.stats["skipped"] += 1
-                    w.destroy()
+                    changed = False
                     break
                 for j in range(k):
                     w.axpy(-coef[j], Zs[j])
                 w.copy(cur)
                 w.destroy()
                 changed = True
+            if changed and not settled:   # (a skipped step has changed = False)
+                # the predicted set still changes after ``rounds`` rounds (it cycles, or the
+                # linearised gaps mislead): the plain Newton step is kept
+                log.debug("active-set prediction: the predicted set did not settle in %d "
+                          "rounds: step not corrected", self.rounds)
+                self.stats["unsettled"] += 1
+                changed = False
             if changed:
                 cur.copy(y)
                 self.stats["corrected"] += 1
         finally:
-            for u, z in cache.values():
+            for u, z, _, _ in cache.values():
                 u.destroy()
                 z.destroy()
             y0.destroy()

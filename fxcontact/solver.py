@@ -185,9 +185,14 @@ class SolverOptions:
         active_set_prediction: correct each Newton step for the contact status changes it
             predicts (:mod:`fxcontact.prediction`): the step of the linear system of the
             predicted penalty branch, by the Woodbury identity, one extra linear solve
-            (back-substitution with a direct solver) per node that changes status. Helps
-            where the full Newton step drives free nodes deep into a tool (nearly
-            rigid-plastic materials). Line searches only (not the trust region). Default off.
+            (back-substitution with a direct solver) per node that changes status. Line
+            searches only (the trust region has no pre-check in petsc4py 3.18). ``"auto"``
+            (default): on with a direct linear solver (``ksp_type preonly``, the condensed
+            one's too), off with an iterative one (each extra solve would be a Krylov solve);
+            True / False force it. Figures in ``benchmarks/README.md`` ("active-set
+            prediction"): 1.4–2.5× fewer Newton iterations where nodes enter and leave
+            contact (ironing, grooves, Hertz, nearly rigid-plastic drawing with a stiff
+            penalty), no change where friction sets the count.
         prediction_max_nodes: the step is left uncorrected at an iteration where more nodes
             than this change status (the cost is one linear solve per node).
         prefix: PETSc options prefix.
@@ -203,7 +208,7 @@ class SolverOptions:
     linear_solver: object = "auto"
     penalty_continuation: Optional[float] = None
     continuation_rtol: float = 1e-3
-    active_set_prediction: bool = False
+    active_set_prediction: object = "auto"
     prediction_max_nodes: int = 200
     prefix: str = "fxc_"
     petsc_options: Dict[str, object] = field(default_factory=dict)
@@ -232,8 +237,9 @@ class SolverOptions:
         if pc is not None and not (isinstance(pc, (int, float)) and 0.0 < pc < 1.0):
             raise ValueError(f"penalty_continuation must be None or a factor in (0, 1), got "
                              f"{pc!r}")
-        if not isinstance(self.active_set_prediction, (bool, np.bool_)):
-            raise ValueError(f"active_set_prediction must be True or False, got "
+        if not (isinstance(self.active_set_prediction, (bool, np.bool_))
+                or self.active_set_prediction == "auto"):
+            raise ValueError(f"active_set_prediction must be 'auto', True or False, got "
                              f"{self.active_set_prediction!r}")
         if not (isinstance(self.prediction_max_nodes, (int, np.integer))
                 and self.prediction_max_nodes >= 1):
@@ -257,6 +263,23 @@ class SolverOptions:
     def uses_fieldsplit(self) -> bool:
         """True if the preconditioner is a field split (it needs velocity/pressure ISs)."""
         return self.linear_options().get("pc_type") == "fieldsplit"
+
+    @property
+    def uses_direct_solver(self) -> bool:
+        """True if the linear solve is a direct one (``ksp_type preonly``, and so is the
+        condensed system's solve): extra solves with its factorisation are cheap."""
+        lin = self.linear_options()
+        if lin.get("ksp_type") != "preonly":
+            return False
+        return not self.uses_condensation or lin.get("condensed_ksp_type") == "preonly"
+
+    @property
+    def predicts_active_set(self) -> bool:
+        """Whether the Newton steps get the active-set prediction (``active_set_prediction``
+        resolved: ``"auto"`` means with a direct linear solver)."""
+        if self.active_set_prediction == "auto":
+            return self.linear_solver != "auto" and self.uses_direct_solver
+        return bool(self.active_set_prediction)
 
     @property
     def uses_condensation(self) -> bool:
@@ -427,10 +450,7 @@ class NewtonSolver:
         self._linear_start: Optional[float] = None
         #: the active-set prediction of the Newton steps (None when off); its ``stats``
         self.prediction = None
-        if self.options.active_set_prediction:
-            from fxcontact.prediction import ActiveSetPrediction
-            self.prediction = ActiveSetPrediction(problem, self.comm,
-                                                  max_nodes=self.options.prediction_max_nodes)
+        self._set_prediction()
         PETSc.Log.begin()   # PETSc's event log on (benchmarks read its events)
 
     def _write_options(self):
@@ -647,6 +667,16 @@ class NewtonSolver:
                 return p
         return 0
 
+    def _set_prediction(self):
+        """Create (or drop) the active-set prediction for the current options."""
+        if self.options.predicts_active_set:
+            if self.prediction is None:
+                from fxcontact.prediction import ActiveSetPrediction
+                self.prediction = ActiveSetPrediction(
+                    self.problem, self.comm, max_nodes=self.options.prediction_max_nodes)
+        else:
+            self.prediction = None
+
     def fall_back_to_direct(self) -> bool:
         """After a failed iterative solve: if ``"auto"`` chose ``"condensed-amg"``, switch this
         solver to ``"condensed-mumps"`` for good (rebuilds the SNES; collective) and return
@@ -655,6 +685,7 @@ class NewtonSolver:
         if not (self.auto_chosen and self.options.linear_solver == "condensed-amg"):
             return False
         self.options = dataclasses.replace(self.options, linear_solver="condensed-mumps")
+        self._set_prediction()
         self.reset()
         return True
 

@@ -31,6 +31,8 @@ def test_bad_prediction_options():
     from fxcontact.solver import SolverOptions
     with pytest.raises(ValueError, match="active_set_prediction"):
         SolverOptions(active_set_prediction="yes")
+    with pytest.raises(ValueError, match="active_set_prediction"):
+        SolverOptions(active_set_prediction=None)
     with pytest.raises(ValueError, match="prediction_max_nodes"):
         SolverOptions(active_set_prediction=True, prediction_max_nodes=0)
 
@@ -62,7 +64,7 @@ def test_corrected_step_solves_the_predicted_branch():
         y0 = y.getArray().copy()
         dofs, g, dc, o = contact.active_set_prediction(-y0)
         changed = orig(self, ksp, y)
-        if not len(dc):
+        if not (len(dc) and changed):    # no status change, or the set did not settle
             return changed
         n = len(y0)
         U = np.zeros((n, len(dc)))
@@ -106,7 +108,7 @@ def test_prediction_same_solution_fewer_newton_iterations():
     with the prediction 36, 12, 12."""
     runs = {}
     for pred in (False, True):
-        sim, _ = _sim(active_set_prediction=pred)
+        sim, _ = _sim(active_set_prediction=pred)   # False: the plain Newton
         for _ in range(3):
             sim.step(DT, max_cutbacks=0)
         runs[pred] = sim
@@ -127,9 +129,35 @@ def test_prediction_skipped_above_max_nodes_same_solution():
     """With ``prediction_max_nodes = 1`` the steps that change more nodes are left as they are
     (counted in the stats) and Newton still reaches the same solution."""
     sim, _ = _sim(active_set_prediction=True, prediction_max_nodes=1)
-    ref, _ = _sim()
+    ref, _ = _sim(active_set_prediction=False)
     for s in (sim, ref):
         s.step(DT, max_cutbacks=0)
     st = sim.solver.prediction.stats
     assert st["skipped"] > 0
     assert np.isclose(sim.history[-1]["front_z"], ref.history[-1]["front_z"], rtol=1e-7)
+
+
+def test_auto_prediction_follows_the_linear_solver():
+    """``"auto"`` (the default): on with the direct solvers (extra solves are back-substitutions),
+    off with the iterative ones (each would be a Krylov solve); True/False force it."""
+    from fxcontact.solver import SolverOptions
+    on = {ls: SolverOptions(linear_solver=ls).predicts_active_set
+          for ls in ("mumps", "condensed-mumps", "condensed-amg", "condensed-amg-robust",
+                     "fieldsplit")}
+    assert on == {"mumps": True, "condensed-mumps": True, "condensed-amg": False,
+                  "condensed-amg-robust": False, "fieldsplit": False}
+    assert SolverOptions(linear_solver="condensed-amg", active_set_prediction=True) \
+        .predicts_active_set
+    assert not SolverOptions(linear_solver="mumps", active_set_prediction=False) \
+        .predicts_active_set
+
+
+def test_auto_prediction_is_built_for_the_chosen_direct_solver():
+    """A Simulation with the default options (``"auto"`` linear solver, a few thousand dofs:
+    MUMPS) runs with the prediction; with ``active_set_prediction=False`` it has none."""
+    sim, _ = _sim()
+    sim.step(DT, max_cutbacks=0)
+    assert sim.solver.prediction is not None and sim.solver.prediction.stats["steps"] > 0
+    off, _ = _sim(active_set_prediction=False)
+    off.step(DT, max_cutbacks=0)
+    assert off.solver.prediction is None

@@ -668,6 +668,9 @@ class NodalContact:
             K = K / self.dt
         return NodalTerms(b.dofs, r, K if jacobian else None)
 
+    #: gap (× element size) below which a free node may be predicted to enter contact
+    PREDICTION_GAP = 0.25
+
     def active_set_prediction(self, step: np.ndarray):
         """The nodes whose contact status the Newton step ``step`` would change, for the
         active-set prediction of :class:`~fxcontact.prediction.ActiveSetPrediction`.
@@ -680,7 +683,9 @@ class NodalContact:
         the residual lacks: a node kept active by ``sticky_gap`` with h ≤ 0), it returns what
         turns the Newton system into the one of the predicted branch: the stiffness change
         ``dc`` along ``g`` (± S ρ) and the residual offset ``o`` along ``g``
-        (``S ρ (want·h − [h]₊)``).
+        (``S ρ (want·h − [h]₊)``). Nodes of tools with friction are not selected (their
+        friction force changes with the status too), nor free nodes whose gap exceeds
+        :attr:`PREDICTION_GAP` × the element size.
 
         Args:
             step: the owned part of the Newton step δ (x_new = x + δ), indexed like the
@@ -700,7 +705,20 @@ class NodalContact:
         c = self.boundary.areas * self._rho_eval
         dc = c * (want.astype(float) - A.astype(float))
         o = c * (np.where(want, self._h, 0.0) - np.maximum(self._h, 0.0))
-        sel = np.flatnonzero((dc != 0.0) | (o != 0.0))
+        change = (dc != 0.0) | (o != 0.0)
+        # nodes entering contact: only those already near the tool (end-of-increment gap below
+        # PREDICTION_GAP × h_e); further away the gap's linearisation over a whole step means
+        # little (a curved tool, a rotating body) and the next iterations' projection will see
+        # them
+        far = (want & ~A) & (-self._h * self.dt > self.PREDICTION_GAP * self.element_size)
+        change &= ~far
+        if self.has_friction:
+            # the friction force follows p_n = ρ[h]₊ and the status: a frictional node's
+            # predicted branch is not the normal part alone (a released sticking node would keep
+            # its stick stiffness), so nodes of tools with friction are left to Newton as is
+            codes = np.array([law.code for law in self.friction], dtype=np.int64)
+            change &= codes[self._tool] == LAW_NONE
+        sel = np.flatnonzero(change)
         return (dofs[sel].reshape(-1, d), np.ascontiguousarray(g[sel]), dc[sel], o[sel])
 
     def _friction_terms(self, v, h, g, tool_idx, jacobian: bool):
