@@ -53,16 +53,20 @@ def test_outputs_and_equilibrium(quick):
 
 def test_bore_rotation_changes_nothing(quick):
     """A turning circular bore is the same surface at every instant: during the rotation the
-    force stays at its value at the end of the lift (to 1e-7 relative: the increments converge
-    to rtol 1e-9 of their initial residual) and, once the lift velocity of the initial guess has
-    been removed (the ``settle`` increments), every increment converges in one Newton
-    iteration (the previous solution is the solution)."""
+    force is constant (to 1e-9 relative between the rotation increments; measured 2e-10) and
+    equal to its value at the end of the lift to that increment's convergence (1e-6: it stops
+    at rtol 1e-9 of its own initial residual; measured 2.3e-8 with the plain Newton step,
+    1.4e-7 with the active-set prediction, which gets there in fewer, larger iterations); once
+    the lift velocity of the initial guess has been removed (the ``settle`` increments), every
+    increment converges in one Newton iteration (the previous solution is the solution)."""
     _, res = quick
     h = res["results"][ANALYTIC]["history"]
     n_indent, settle = res["parameters"]["n_indent"], res["parameters"]["settle"]
     F0 = h[n_indent - 1]["tool_force_z"]
+    F_rot = h[n_indent]["tool_force_z"]
+    assert abs(F_rot - F0) <= 1e-6 * abs(F0)
     for row in h[n_indent:]:
-        assert abs(row["tool_force_z"] - F0) <= 1e-7 * abs(F0)
+        assert abs(row["tool_force_z"] - F_rot) <= 1e-9 * abs(F_rot)
     for row in h[n_indent + settle:]:
         assert row["newton_iterations"] <= 1
 
