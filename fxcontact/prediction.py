@@ -20,9 +20,14 @@ m = 0.016"). The prediction solves the Newton system *of the predicted branch* i
    times; the solves of nodes already selected are reused).
 
 Each column ``U`` is the node's ``∇h`` at its dofs, zero at the Dirichlet dofs and projected on
-the symmetry planes like the Jacobian. The line search then checks the corrected step on the
-true residual as usual. The converged solution is unchanged (the prediction only changes the
-search direction); the cost is one linear solve per selected node and round.
+the symmetry planes like the Jacobian. If the predicted set still changes after ``rounds``
+rounds, the plain step is kept. The contributors leave out the nodes of tools with friction
+and free nodes far from the tool (:meth:`NodalContact.active_set_prediction
+<fxcontact.contact.nodal.NodalContact.active_set_prediction>`). The line search then checks the
+corrected step on the true residual as usual. The converged solution is unchanged (the
+prediction only changes the search direction); the cost is one linear solve per selected node
+(a back-substitution with a direct solver: :class:`~fxcontact.solver.SolverOptions` turns it on
+by default only then).
 """
 
 from __future__ import annotations
