@@ -138,14 +138,15 @@ def bar_section_mesh(comm, bar_radius: float, half_width: float, height: float,
 def run_variant(tool_kind: str, facets, scheme: str, *, bar_radius, groove_radius, E, nu,
                 height, half_width, h, h_coarse, fine_depth, growth, clearance, indentation,
                 n_indent, rotation_step, n_rotation, facet_counts, beta, max_cutbacks,
-                output_dir, progress, comm) -> dict:
+                output_dir, progress, comm, newton_rtol=1e-9) -> dict:
     name = ironing.variant_name(tool_kind, facets, scheme)
     msh, ft = bar_section_mesh(comm, bar_radius, half_width, height, h, h, h_coarse,
                                fine_depth, growth)
     space = MixedSpace(msh)
     mat = LinearElastic(E, nu)
     vdir = None if output_dir is None else os.path.join(output_dir, name)
-    sim = Simulation(space, mat, solver_options=SolverOptions(line_search="basic"),
+    sim = Simulation(space, mat, solver_options=SolverOptions(line_search="basic",
+                                                              rtol=newton_rtol),
                      output_dir=vdir, name=name, progress=progress)
     sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["ymin"]), 0.0, 1)
     sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["ymax"]), 0.0, 1)
@@ -189,7 +190,7 @@ def groove_surface(radius: float, n_facets: int, length: float, center):
 def run(bar_radius=5.0, groove_radius=6.0, E=2e5, nu=0.3, height=4.0, half_width=4.0, h=0.25,
         h_coarse=1.0, fine_depth=1.0, growth=1.3, clearance=0.05, indentation=0.05, n_indent=3,
         rotation_step=math.radians(3.7), n_rotation=14, coarse_facets=36, fine_facets=180,
-        beta=1e3, settle=2, max_cutbacks=5, variants=DEFAULT_VARIANTS,
+        beta=1e3, settle=2, max_cutbacks=5, variants=DEFAULT_VARIANTS, newton_rtol=1e-9,
         output_dir="results/groove",
         picture=True, progress=True, comm=MPI.COMM_WORLD) -> dict:
     """Run the groove variants and compare them.
@@ -206,6 +207,7 @@ def run(bar_radius=5.0, groove_radius=6.0, E=2e5, nu=0.3, height=4.0, half_width
         coarse_facets, fine_facets: facets around the faceted grooves.
         beta: dimensionless penalty, gap stiffness k = β E*/h.
         settle: rotation increments excluded from the statistics.
+        newton_rtol: Newton's relative residual tolerance (``SolverOptions.rtol``).
         max_cutbacks: halvings of dt allowed for an increment whose Newton fails.
         variants: (tool, facets, scheme) as in the ironing demo.
         output_dir: outputs (None: nothing written).
@@ -231,7 +233,8 @@ def run(bar_radius=5.0, groove_radius=6.0, E=2e5, nu=0.3, height=4.0, half_width
                   fine_depth=fine_depth, growth=growth, clearance=clearance,
                   indentation=indentation, n_indent=n_indent, rotation_step=rotation_step,
                   n_rotation=n_rotation, facet_counts=facet_counts, beta=beta,
-                  max_cutbacks=max_cutbacks, progress=progress, comm=comm)
+                  max_cutbacks=max_cutbacks, progress=progress, comm=comm,
+                  newton_rtol=newton_rtol)
     results = [run_variant(tk, f, s, output_dir=output_dir, **common) for tk, f, s in variants]
     summary = [ironing.summarize(r, n_indent + settle) for r in results]
     out = {"summary": summary, "by_name": {row["variant"]: row for row in summary},

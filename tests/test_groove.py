@@ -20,7 +20,7 @@ NAGATA, FLAT, ANALYTIC = "nagata-coarse-implicit", "flat-coarse-implicit", "anal
 @pytest.fixture(scope="module")
 def quick():
     d = shared_tmpdir("fxc-groove-")
-    res = demo.run(**demo.QUICK, output_dir=d, progress=False)
+    res = demo.run(**demo.QUICK, output_dir=d, progress=False, newton_rtol=1e-12)
     return d, res
 
 
@@ -53,20 +53,18 @@ def test_outputs_and_equilibrium(quick):
 
 def test_bore_rotation_changes_nothing(quick):
     """A turning circular bore is the same surface at every instant: during the rotation the
-    force is constant (to 1e-9 relative between the rotation increments; measured 2e-10) and
-    equal to its value at the end of the lift to that increment's convergence (1e-6: it stops
-    at rtol 1e-9 of its own initial residual; measured 2.3e-8 with the plain Newton step,
-    1.4e-7 with the active-set prediction, which gets there in fewer, larger iterations); once
-    the lift velocity of the initial guess has been removed (the ``settle`` increments), every
-    increment converges in one Newton iteration (the previous solution is the solution)."""
+    force stays at its value at the end of the lift (to 1e-7 relative; the fixture's Newton
+    runs to rtol 1e-12, so that this does not depend on where a Newton path stops inside the
+    tolerance: at rtol 1e-9 the lift's last force is off by 2.3e-8 with the plain Newton step
+    and 1.4e-7 with the active-set prediction) and, once the lift velocity of the initial guess
+    has been removed (the ``settle`` increments), every increment converges in one Newton
+    iteration (the previous solution is the solution)."""
     _, res = quick
     h = res["results"][ANALYTIC]["history"]
     n_indent, settle = res["parameters"]["n_indent"], res["parameters"]["settle"]
     F0 = h[n_indent - 1]["tool_force_z"]
-    F_rot = h[n_indent]["tool_force_z"]
-    assert abs(F_rot - F0) <= 1e-6 * abs(F0)
     for row in h[n_indent:]:
-        assert abs(row["tool_force_z"] - F_rot) <= 1e-9 * abs(F_rot)
+        assert abs(row["tool_force_z"] - F0) <= 1e-7 * abs(F0)
     for row in h[n_indent + settle:]:
         assert row["newton_iterations"] <= 1
 
@@ -114,7 +112,8 @@ def test_groove_parallel_matches_serial(quick):
         pytest.skip("needs several ranks (the serial run is the reference)")
     _, res = quick
     kw = {**demo.QUICK, "variants": (("nagata", "coarse", "implicit"),)}
-    ref = demo.run(**kw, output_dir=None, progress=False, comm=MPI.COMM_SELF)
+    ref = demo.run(**kw, output_dir=None, progress=False, comm=MPI.COMM_SELF,
+                   newton_rtol=1e-12)   # the fixture's Newton tolerance
     h_par = res["results"][NAGATA]["history"]
     h_ser = ref["results"][NAGATA]["history"]
     assert_histories_match(h_par, h_ser, ("tool_force_z", "tool_force_x", "top_z"), 1e-8)
