@@ -117,15 +117,16 @@ class ActiveSetPrediction:
         self.stats["steps"] += 1
         if not comm.allreduce(len(contribs), op=MPI.MAX):
             return False
-        y0 = y.copy()
-        cur = y.copy()
+        # the copies of the step are made once a node changes status (most Newton steps
+        # change none): until then the current step is y itself
+        y0 = cur = None
         cache: Dict[tuple, tuple] = {}     # (rank, contributor, node dofs) -> (U, Z)
         prev = None
         changed = False
         settled = False
         try:
             for rnd in range(self.rounds + 1):
-                step = -cur.getArray(readonly=True)
+                step = -(y if cur is None else cur).getArray(readonly=True)
                 sel = []
                 for ci, c in enumerate(contribs):
                     dofs, g, dc, o = c.active_set_prediction(step)
@@ -150,6 +151,8 @@ class ActiveSetPrediction:
                     changed = False
                     break
                 self.stats["rounds"] += 1
+                if cur is None:
+                    y0, cur = y.copy(), y.copy()
                 Us, Zs, dcs, os_ = [], [], np.zeros(k), np.zeros(k)
                 j = 0
                 for r, kk in enumerate(keys):
@@ -212,6 +215,7 @@ class ActiveSetPrediction:
             for u, z, _, _ in cache.values():
                 u.destroy()
                 z.destroy()
-            y0.destroy()
-            cur.destroy()
+            if cur is not None:
+                y0.destroy()
+                cur.destroy()
         return changed
