@@ -102,6 +102,39 @@ class NortonHoff(Material):
         return (ufl.inner(self.stress_ufl(eps), ufl.sym(ufl.grad(w))) * dx
                 - p * ufl.div(w) * dx - q * ufl.div(v) * dx)
 
+    # -- primal–dual Newton (fxcontact.dual) -------------------------------------------------
+    def dual_tangent_correction_ufl(self, eps, s_dual, deps, eps_w):
+        """Primal–dual tangent minus the consistent one, as the UFL integrand of a bilinear
+        form (``deps`` the trial strain rate, ``eps_w`` the test one; THEORY §1.1).
+
+        The consistent tangent is 2K z^(m−1) [P_dev − 2(1−m)/z² e⊗e], e = dev ε̇. Newton on the
+        dual relation z^(1−m) s − 2K e = 0 instead of on s = 2K z^(m−1) e (the primal–dual
+        Newton of total-variation problems, Chan–Golub–Mulet) replaces 2K z^(m−1) e in the
+        rank-one term by the dual stress s*, symmetrised here: 2(1−m)/z² · ½(s*⊗e + e⊗s*).
+        With s* equal to the primal stress the two coincide."""
+        e, de, ew = _dev(eps), _dev(deps), _dev(eps_w)
+        z = self.z_ufl(eps)
+        sp = self.stress_ufl(eps)
+        c = 2.0 * (1.0 - self.m) / z**2
+        return c * (ufl.inner(ew, sp) * ufl.inner(e, de)
+                    - 0.5 * ufl.inner(ew, s_dual) * ufl.inner(e, de)
+                    - 0.5 * ufl.inner(ew, e) * ufl.inner(s_dual, de))
+
+    def dual_update_ufl(self, eps_old, eps_new, s_dual):
+        """The dual stress after a Newton step from ε̇_old to ε̇_new, as a UFL expression: the
+        linearisation of the dual relation at (ε̇_old, s*), s_p(ε̇_old) + [2K z^(m−1) P_dev −
+        2(1−m)/z² s*⊗e] : dev(ε̇_new − ε̇_old), its magnitude capped at that of the primal
+        stress at ε̇_new (which keeps the primal–dual tangent positive definite)."""
+        e = _dev(eps_old)
+        de = _dev(eps_new - eps_old)
+        z = self.z_ufl(eps_old)
+        s_new = (self.stress_ufl(eps_old) + 2.0 * self.K * z ** (self.m - 1.0) * de
+                 - 2.0 * (1.0 - self.m) / z**2 * ufl.inner(e, de) * s_dual)
+        sp_new = self.stress_ufl(eps_new)
+        n_new = ufl.sqrt(ufl.inner(s_new, s_new))
+        n_cap = ufl.sqrt(ufl.inner(sp_new, sp_new))
+        return ufl.conditional(ufl.gt(n_new, n_cap), n_cap / n_new, 1.0) * s_new
+
     def linearized(self) -> "NortonHoff":
         """The Newtonian fluid (m = 1) of the same consistency: the start-up guess."""
         return NortonHoff(self.K, 1.0, self.regularization)

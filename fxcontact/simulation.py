@@ -377,11 +377,23 @@ class Simulation:
             self._symmetry.set_prescribed(other)
         eta = _shear_viscosity_ufl(self.material, v, self.dt_c)
         schur_weight = None if eta is None else q / eta * sp.dx
-        self.problem = NonlinearProblem(F, self.w, [b.bc for b in self._bcs],
+        J = None
+        #: the dual stress of the primal–dual Newton (``material_tangent``), or None
+        self.dual = None
+        if self.solver_options.material_tangent == "primal-dual":
+            from fxcontact.dual import DualStress
+            self.dual = DualStress(self.material, sp.W, sp.quadrature_degree)
+            dw = ufl.TrialFunction(sp.W)
+            J = ufl.derivative(F, self.w, dw) + self.dual.jacobian_correction(
+                v, ufl.split(dw)[0], wt, sp.dx)
+        self.problem = NonlinearProblem(F, self.w, [b.bc for b in self._bcs], J=J,
                                         contributors=self.contributors, constraints=cons,
                                         schur_weight=schur_weight,
                                         augment=_volumetric_augment_ufl(self.material, eta,
-                                                                        sp.W, wt, sp.dx))
+                                                                        sp.W, wt, sp.dx),
+                                        multipliers=sp.W.sub(1))
+        if self.dual is not None:
+            self.problem.iterate_hooks.append(self.dual)
         fs_is = self.fieldsplit_is() if self.solver_options.uses_fieldsplit else None
         self.solver = NewtonSolver(self.problem, self.solver_options, fs_is)
         # start-up problem: the linearised material without contributors gives the first guess
@@ -400,7 +412,8 @@ class Simulation:
             self._startup = NewtonSolver(NonlinearProblem(
                 F0, self.w, [b.bc for b in self._bcs], constraints=cons,
                 schur_weight=None if eta0 is None else q / eta0 * sp.dx,
-                augment=_volumetric_augment_ufl(lin_mat, eta0, sp.W, wt, sp.dx)), opts, fs_is)
+                augment=_volumetric_augment_ufl(lin_mat, eta0, sp.W, wt, sp.dx),
+                multipliers=sp.W.sub(1)), opts, fs_is)
         # cell averages of the strain rate, volume
         q0 = ufl.TestFunction(sp.DG0)
         epsd = self._strain_rate_expr(v)

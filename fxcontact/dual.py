@@ -1,0 +1,99 @@
+"""Primal–dual Newton for the Norton–Hoff law: the deviatoric stress as a dual variable at the
+quadrature points (THEORY §1.1, ``SolverOptions(material_tangent="primal-dual")``).
+
+With m ≪ 1 the consistent tangent of s = 2K z^(m−1) e is 2K z^(m−1) [P_dev − 2(1−m)/z² e⊗e]:
+along the current strain-rate direction it is m times the secant one, and a Newton step that
+turns the strain-rate direction of a cell overshoots (in one dimension a step from s ≈ ε̇₀
+lands on −s). Newton on the dual relation z^(1−m) s − 2K e = 0, with s carried from iteration
+to iteration at each quadrature point, replaces the primal stress in the tangent's rank-one term
+by the dual one (the primal–dual Newton of total-variation denoising, Chan, Golub & Mulet
+1999): where the direction turns, the dual stress still points the old way and the tangent
+stays stiff. The residual is the primal one, so the converged solution is the same; at
+convergence the dual stress equals the primal one and the tangent is the consistent one.
+
+:class:`DualStress` keeps the dual stress (a quadrature function of the integrals' degree,
+set from :meth:`~fxcontact.materials.NortonHoff.dual_update_ufl` with
+``dolfinx.fem.Expression.eval``: dolfinx 0.5 cannot interpolate into quadrature spaces), gives
+the Jacobian's correction form, and is called by the Newton solver at the start of each solve
+(``begin``: the primal stress of the initial guess) and at each accepted iterate (``accept``).
+"""
+
+from __future__ import annotations
+
+import basix
+import dolfinx
+import numpy as np
+import ufl
+from petsc4py import PETSc
+
+__all__ = ["DualStress"]
+
+
+class DualStress:
+    """Dual stress of the primal–dual Newton on a mixed (velocity, pressure) space.
+
+    Args:
+        material: a material with ``stress_ufl``, ``dual_tangent_correction_ufl`` and
+            ``dual_update_ufl`` (:class:`~fxcontact.materials.NortonHoff`).
+        W: the mixed function space (velocity first).
+        quadrature_degree: degree of the integrals the dual stress enters (``dx``'s).
+    """
+
+    def __init__(self, material, W, quadrature_degree: int):
+        for name in ("stress_ufl", "dual_tangent_correction_ufl", "dual_update_ufl"):
+            if not hasattr(material, name):
+                raise ValueError(f"the primal-dual Newton needs a Norton-Hoff material; "
+                                 f"{type(material).__name__} has no {name}")
+        self.material = material
+        msh = W.mesh
+        d = msh.geometry.dim
+        Qe = ufl.TensorElement("Quadrature", msh.ufl_cell(), int(quadrature_degree),
+                               quad_scheme="default", shape=(d, d))
+        self.Q = dolfinx.fem.FunctionSpace(msh, Qe)
+        #: the dual stress at the quadrature points
+        self.s = dolfinx.fem.Function(self.Q, name="dual_stress")
+        self._w_old = dolfinx.fem.Function(W)
+        self._w_new = dolfinx.fem.Function(W)
+        cell = basix.cell.string_to_type(msh.topology.cell_type.name)
+        pts, _ = basix.make_quadrature(cell, int(quadrature_degree))
+        eps_old = ufl.sym(ufl.grad(ufl.split(self._w_old)[0]))
+        eps_new = ufl.sym(ufl.grad(ufl.split(self._w_new)[0]))
+        self._primal = dolfinx.fem.Expression(material.stress_ufl(eps_new), pts)
+        self._update = dolfinx.fem.Expression(
+            material.dual_update_ufl(eps_old, eps_new, self.s), pts)
+        tdim = msh.topology.dim
+        imap = msh.topology.index_map(tdim)
+        self._cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
+        dm = np.asarray(self.Q.dofmap.list.array, dtype=np.int64)
+        self._blocks = dm.reshape(len(self._cells), -1).ravel()
+        self._bs = self.Q.dofmap.index_map_bs
+        #: number of dual updates since construction
+        self.updates = 0
+
+    def jacobian_correction(self, v, dv, wt, dx):
+        """The UFL bilinear form to add to the consistent Jacobian (``v`` the velocity of the
+        iterate, ``dv`` the trial and ``wt`` the test velocity)."""
+        return self.material.dual_tangent_correction_ufl(
+            ufl.sym(ufl.grad(v)), self.s, ufl.sym(ufl.grad(dv)), ufl.sym(ufl.grad(wt))) * dx
+
+    def _set(self, expr):
+        vals = expr.eval(self._cells)
+        arr = self.s.x.array.reshape(-1, self._bs)
+        arr[self._blocks] = vals.reshape(-1, self._bs)
+
+    def _load(self, fn, x: PETSc.Vec):
+        x.copy(fn.vector)
+        fn.x.scatter_forward()
+
+    def begin(self, x: PETSc.Vec):
+        """Start of a Newton solve from ``x``: the dual stress is the primal one."""
+        self._load(self._w_new, x)
+        self._set(self._primal)
+        self._w_old.x.array[:] = self._w_new.x.array
+
+    def accept(self, x: PETSc.Vec):
+        """A Newton iterate ``x`` was accepted: update the dual stress along the step."""
+        self._load(self._w_new, x)
+        self._set(self._update)
+        self._w_old.x.array[:] = self._w_new.x.array
+        self.updates += 1
