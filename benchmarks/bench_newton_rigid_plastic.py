@@ -25,9 +25,9 @@ with a direct solver):
 * ``pred``: the active-set prediction of the Newton step (``active_set_prediction=True``,
   :mod:`fxcontact.prediction`), bt, ``max_it`` 100; ``pred+maxit30`` at the default ``max_it``;
   ``pred+reg1e-3``, ``pred+beta1e1+reg1e-3``: with the other settings;
-* ``energy``: the line search on the potential's directional derivative
-  (``line_search="energy"``, :meth:`fxcontact.solver.NewtonSolver.energy_step`), ``max_it``
-  100; ``pred+energy``, ``pred+energy+reg1e-3``: with the prediction (and ε̇₀).
+* ``pd``: the primal–dual Norton–Hoff tangent (``material_tangent="primal-dual"``,
+  :mod:`fxcontact.dual`), bt, ``max_it`` 100; ``pred+pd``, ``pred+pd+reg1e-3``: with the
+  prediction (and ε̇₀).
 
 Run from the repository root::
 
@@ -78,17 +78,12 @@ VARIANTS = {
                      {"max_it": 100, "active_set_prediction": True}),
     "pred+beta1e1+reg1e-3": ({"beta": 1e1, "regularization": 1e-3 * RATE},
                              {"active_set_prediction": True}),
-    "energy": ({}, {"max_it": 100, "line_search": "energy"}),
-    "pred+energy": ({}, {"max_it": 100, "active_set_prediction": True, "line_search": "energy"}),
     "pd": ({}, {"max_it": 100, "material_tangent": "primal-dual"}),
     "pred+pd": ({}, {"max_it": 100, "active_set_prediction": True,
                      "material_tangent": "primal-dual"}),
     "pred+pd+reg1e-3": ({"regularization": 1e-3 * RATE},
                         {"max_it": 100, "active_set_prediction": True,
                          "material_tangent": "primal-dual"}),
-    "pred+energy+reg1e-3": ({"regularization": 1e-3 * RATE},
-                            {"max_it": 100, "active_set_prediction": True,
-                             "line_search": "energy"}),
 }
 
 

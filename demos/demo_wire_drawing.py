@@ -133,7 +133,7 @@ DEFAULTS = dict(R0=10.0, R1=7.5, length=38.0, sector=120.0, K=445.0, m=0.016, sp
                 nose_ratio=0.96, h=0.75, facet=0.5, size=1.0, dt=2.5e-3, t_end=0.37,
                 die="exact", die_mesh="gmsh", scheme="implicit", penalty="gap", beta=100.0, penalty_dt=None,
                 mu=0.0, mbar=0.0, max_it=60, line_search="trust-region", penalty_continuation=None,
-                active_set_prediction="auto",
+                active_set_prediction="auto", material_tangent="consistent",
                 linear_solver="auto",
                 window=3.0, steady_tol=0.02, settle=None, stop_at_steady=False,
                 output_dir="results/wire_drawing", pictures=True, vtk_every=0,
@@ -471,6 +471,7 @@ def run(**parameters) -> dict:
     out = P["output_dir"]
     opts = fx.SolverOptions(max_it=int(P["max_it"]), line_search=P["line_search"],
                             active_set_prediction=P["active_set_prediction"],
+                            material_tangent=P["material_tangent"],
                             penalty_continuation=P["penalty_continuation"],
                             linear_solver=P["linear_solver"])
     sim = fx.Simulation(space, mat, solver_options=opts,
@@ -653,6 +654,9 @@ def main(argv=None):
                     help="correct each Newton step for the contact status changes it "
                     "predicts (fxcontact.prediction; default auto: with a direct linear "
                     "solver; line searches only, not the trust region)")
+    ap.add_argument("--material_tangent", choices=("consistent", "primal-dual"),
+                    help="Norton-Hoff tangent of Newton: consistent, or primal-dual (the "
+                    "stress as a dual variable at the quadrature points, fxcontact.dual)")
     ap.add_argument("--penalty_continuation", type=float,
                     help="factor f in (0, 1): each Newton solve first with the penalty x f "
                     "(see fxcontact.SolverOptions); beta x f about 10-30 helps at m = 0.016")

@@ -206,10 +206,6 @@ class NonlinearProblem:
             strain rate, so its velocity block alone is singular for a dilatation that the
             velocity conditions leave free (the pressure fixes it in the whole system), and a
             Schur field split needs an invertible velocity block. None: no augmentation.
-        multipliers: the sub-space of the Lagrange multipliers (e.g. ``W.sub(1)``, the
-            pressure of a mixed velocity–pressure problem), or None. The ``"energy"`` line
-            search (:meth:`~fxcontact.solver.NewtonSolver.energy_step`) moves only the other
-            unknowns along the step; without it, every unknown is taken as primal.
     """
 
     #: skip the lifting of the residual when it is exactly zero (the iterate holds the
@@ -219,8 +215,7 @@ class NonlinearProblem:
     skip_zero_lifting: bool = True
 
     def __init__(self, F, w, bcs=(), J=None, contributors: Sequence = (), jit_params=None,
-                 constraints: Sequence = (), schur_weight=None, augment=None,
-                 multipliers=None):
+                 constraints: Sequence = (), schur_weight=None, augment=None):
         import ufl
         self.w = w
         self.bcs = list(bcs)
@@ -249,14 +244,10 @@ class NonlinearProblem:
         self._lift_work: Optional[PETSc.Vec] = None
         #: residual evaluations that skipped / did the lifting (see skip_zero_lifting)
         self.liftings = {"skipped": 0, "done": 0}
-        #: objects told of each Newton solve's start, ``begin(x)``, and of each accepted
-        #: iterate, ``accept(x)`` (e.g. :class:`~fxcontact.dual.DualStress`)
+        #: objects told of each Newton solve's start, ``begin(x)`` (the initial guess), and
+        #: of each accepted iterate, ``accept(x)``, by :class:`~fxcontact.solver.NewtonSolver`
+        #: (e.g. :class:`~fxcontact.dual.DualStress`)
         self.iterate_hooks: list = []
-        #: owned local indices (of the PETSc vectors) of the Lagrange multipliers, or None
-        self.multiplier_dofs: Optional[np.ndarray] = None
-        if multipliers is not None:
-            dofs = np.asarray(compat.collapse(multipliers)[1], dtype=np.int64)
-            self.multiplier_dofs = np.unique(dofs[dofs < nown]).astype(np.int32)
 
     @property
     def augment(self):

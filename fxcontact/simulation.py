@@ -390,8 +390,7 @@ class Simulation:
                                         contributors=self.contributors, constraints=cons,
                                         schur_weight=schur_weight,
                                         augment=_volumetric_augment_ufl(self.material, eta,
-                                                                        sp.W, wt, sp.dx),
-                                        multipliers=sp.W.sub(1))
+                                                                        sp.W, wt, sp.dx))
         if self.dual is not None:
             self.problem.iterate_hooks.append(self.dual)
         fs_is = self.fieldsplit_is() if self.solver_options.uses_fieldsplit else None
@@ -412,8 +411,7 @@ class Simulation:
             self._startup = NewtonSolver(NonlinearProblem(
                 F0, self.w, [b.bc for b in self._bcs], constraints=cons,
                 schur_weight=None if eta0 is None else q / eta0 * sp.dx,
-                augment=_volumetric_augment_ufl(lin_mat, eta0, sp.W, wt, sp.dx),
-                multipliers=sp.W.sub(1)), opts, fs_is)
+                augment=_volumetric_augment_ufl(lin_mat, eta0, sp.W, wt, sp.dx)), opts, fs_is)
         # cell averages of the strain rate, volume
         q0 = ufl.TestFunction(sp.DG0)
         epsd = self._strain_rate_expr(v)

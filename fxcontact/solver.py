@@ -42,7 +42,7 @@ from petsc4py import PETSc
 from fxcontact.petsc import NonlinearProblem
 
 __all__ = ["NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS", "choose_linear_solver",
-           "BorderedPC"]
+           "BorderedPC", "MATERIAL_TANGENTS"]
 
 log = logging.getLogger(__name__)
 
@@ -135,7 +135,9 @@ def choose_linear_solver(W) -> str:
 #: PETSc SNES line searches accepted by :class:`SolverOptions`
 #: globalisations of the Newton step: PETSc's line searches (SNES ``newtonls``) and
 #: ``"trust-region"`` (SNES ``newtontr``: dogleg steps inside a trust region, no line search)
-LINE_SEARCHES = ("bt", "basic", "l2", "cp", "nleqerr", "trust-region", "energy")
+LINE_SEARCHES = ("bt", "basic", "l2", "cp", "nleqerr", "trust-region")
+#: values of ``SolverOptions.material_tangent``
+MATERIAL_TANGENTS = ("consistent", "primal-dual")
 
 #: PETSc option keys (without prefix) written by the last solver created under each prefix
 _WRITTEN_OPTIONS: Dict[str, set] = {}
@@ -156,14 +158,7 @@ class SolverOptions:
             overshoots (the power-law tangent along the flow is m times the secant one) and
             the backtracking line search then creeps with 1–10 % steps; the trust region takes
             fewer iterations there (figures in ``benchmarks/README.md``, section "Newton at
-            m = 0.016"). ``"energy"``: a line search on the directional derivative of the
-            problem's potential, g(λ) = R(x − λy)·y (:meth:`NewtonSolver.energy_step`): the
-            full step when |g(1)| ≤ ``energy_tolerance``·g(0), else the root of g in (0, 1)
-            bracketed by safeguarded regula falsi. For a problem that derives from a convex
-            potential (Norton–Hoff flow, elasticity, frictionless penalty contact, the
-            incompressibility constraint once the pressure rows hold) g decreases along the
-            step and its root minimises the potential there; the residual norm that ``"bt"``
-            backtracks on does not, for a power law with m ≪ 1 (|R| of s^m has a cusp at 0).
+            m = 0.016").
         line_search_fallback: line search of a second attempt at the same time step when the
             first one fails to converge (before any cut-back), or None. Backtracking on the
             residual norm can stall when contact nodes open and close and friction nodes pass
@@ -202,14 +197,12 @@ class SolverOptions:
             penalty), no change where friction sets the count.
         prediction_max_nodes: the step is left uncorrected at an iteration where more nodes
             than this change status (the cost is one linear solve per node).
-        material_tangent: ``"consistent"`` (default) or ``"primal-dual"``: the Norton–Hoff
-            tangent of the primal–dual Newton (:mod:`fxcontact.dual`; the dual stress kept at
-            the quadrature points, same residual and solution). Read by
-            :class:`~fxcontact.simulation.Simulation`.
-        energy_tolerance: the ``"energy"`` line search accepts a step length λ where
-            |g(λ)| ≤ energy_tolerance·g(0) (a strong Wolfe curvature condition), in (0, 1).
-        energy_max_evaluations: residual evaluations per ``"energy"`` line search at most
-            (after g(1)); the last bracket's lower end is taken then.
+        material_tangent: ``"consistent"`` or ``"primal-dual"``: the Norton–Hoff tangent
+            of the primal–dual Newton (:mod:`fxcontact.dual`: the deviatoric stress kept as a
+            dual variable at the quadrature points; same residual, same solution). Read by
+            :class:`~fxcontact.simulation.Simulation` (a problem of your own adds
+            :meth:`fxcontact.dual.DualStress.jacobian_correction` to its Jacobian and the
+            :class:`~fxcontact.dual.DualStress` to ``NonlinearProblem.iterate_hooks``).
         prefix: PETSc options prefix.
         petsc_options: extra PETSc options (without prefix) that override the presets.
     """
@@ -226,8 +219,6 @@ class SolverOptions:
     active_set_prediction: object = "auto"
     prediction_max_nodes: int = 200
     material_tangent: str = "consistent"
-    energy_tolerance: float = 0.5
-    energy_max_evaluations: int = 8
     prefix: str = "fxc_"
     petsc_options: Dict[str, object] = field(default_factory=dict)
 
@@ -263,16 +254,9 @@ class SolverOptions:
                 and self.prediction_max_nodes >= 1):
             raise ValueError(f"prediction_max_nodes must be an integer >= 1, got "
                              f"{self.prediction_max_nodes!r}")
-        if self.material_tangent not in ("consistent", "primal-dual"):
-            raise ValueError(f"material_tangent must be 'consistent' or 'primal-dual', got "
-                             f"{self.material_tangent!r}")
-        if not (np.isfinite(self.energy_tolerance) and 0.0 < self.energy_tolerance < 1.0):
-            raise ValueError(f"energy_tolerance must be in (0, 1), got "
-                             f"{self.energy_tolerance!r}")
-        if not (isinstance(self.energy_max_evaluations, (int, np.integer))
-                and self.energy_max_evaluations >= 1):
-            raise ValueError(f"energy_max_evaluations must be an integer >= 1, got "
-                             f"{self.energy_max_evaluations!r}")
+        if self.material_tangent not in MATERIAL_TANGENTS:
+            raise ValueError(f"unknown material tangent {self.material_tangent!r}; choose one "
+                             f"of {MATERIAL_TANGENTS}")
         if not (np.isfinite(self.continuation_rtol) and 0.0 < self.continuation_rtol < 1.0):
             raise ValueError(f"continuation_rtol must be in (0, 1), got "
                              f"{self.continuation_rtol!r}")
@@ -479,13 +463,6 @@ class NewtonSolver:
         #: the active-set prediction of the Newton steps (None when off); its ``stats``
         self.prediction = None
         self._set_prediction()
-        #: the ``"energy"`` line search is on (the SNES runs the basic one on the scaled step)
-        self._energy = options.line_search == "energy"
-        self._ls_x = self._ls_r = None
-        #: ``"energy"`` line search: searches, accepted full steps, shortened steps, residual
-        #: evaluations, steps kept because g(0) <= 0 (not a descent direction of a potential)
-        self.energy_stats = {"searches": 0, "full": 0, "shortened": 0, "evaluations": 0,
-                             "not_descent": 0}
         PETSc.Log.begin()   # PETSc's event log on (benchmarks read its events)
 
     def _write_options(self):
@@ -622,110 +599,7 @@ class NewtonSolver:
                 self.linear_time += time.perf_counter() - t0
         fix = getattr(self.problem, "exact_dirichlet_step", None)
         fixed = bool(fix(x, y)) if fix is not None else False
-        scaled = False
-        if self._energy:
-            lam = self.energy_step(x, y)
-            if lam != 1.0:
-                mult = getattr(self.problem, "multiplier_dofs", None)
-                ya = y.getArray()
-                keep = ya[mult].copy() if mult is not None else None
-                ya *= lam
-                if mult is not None:
-                    ya[mult] = keep
-                del ya
-                scaled = True
-        return changed or fixed or scaled
-
-    def energy_step(self, x: PETSc.Vec, y: PETSc.Vec) -> float:
-        """Step length λ of the ``"energy"`` line search (collective); the pre-check then
-        scales the step's primal entries by λ (the multipliers keep their full Newton step).
-
-        The trial points are x(λ) = (v − λ y_v, p − y_p): the primal unknowns v along the
-        step, the Lagrange multipliers p (``NonlinearProblem.multiplier_dofs``, e.g. the
-        pressure) at their Newton estimate. g(λ) = R_v(x(λ))·y_v is then the derivative,
-        up to its sign, of the Lagrangian with that multiplier frozen, Π(v − λ y_v) +
-        p*·B(v − λ y_v), a convex function of λ when the primal potential Π is (Norton–Hoff
-        flow, elasticity, frictionless penalty contact): g decreases from g(0) > 0 and its
-        root is the minimum along the step. (Moving p with λ too would add the saddle's
-        bilinear term, −2λ y_p·B y_v, whose spurious root sits at λ = ½ whenever the
-        constraint residual dominates.)
-
-        λ = 1 when g(1) ≥ −tol·g(0) (tol = ``energy_tolerance``; g(1) > 0: the full step
-        does not reach the minimum, Newton's length is kept); otherwise the root is
-        bracketed in (0, 1) and approached by regula falsi (Illinois), each new point kept
-        at least 5 % of the bracket from its ends (a step-like g, as with m ≪ 1, still
-        shrinks the bracket geometrically), until |g(λ)| ≤ tol·g(0), the bracket is
-        narrower than 10 % of its upper end, or ``energy_max_evaluations``; then the
-        bracket's lower end (g > 0 there: the Lagrangian still decreases up to it). A
-        residual that is not finite at a trial point (a contributor refused the iterate)
-        counts as past the root. g(0) ≤ 0 (not a descent direction: friction or another
-        non-potential term): λ = 1."""
-        o = self.options
-        st = self.energy_stats
-        st["searches"] += 1
-        prob = self.problem
-        mult = getattr(prob, "multiplier_dofs", None)
-        nown = x.getLocalSize()
-        primal = np.ones(nown, dtype=bool)
-        if mult is not None and len(mult):
-            primal[mult] = False
-        if self._ls_x is None:
-            self._ls_x, self._ls_r = x.duplicate(), x.duplicate()
-        xa, ya = x.getArray(readonly=True), y.getArray(readonly=True)
-        err = prob.error
-
-        def g(lam):
-            xt = self._ls_x.getArray()
-            xt[:] = xa - ya                       # multipliers at their full step
-            xt[primal] = xa[primal] - lam * ya[primal]
-            del xt
-            self._timed("residual", prob.residual, None, self._ls_x, self._ls_r)
-            st["evaluations"] += 1
-            r = self._ls_r.getArray(readonly=True)
-            val = self.comm.allreduce(float(np.dot(r[primal], ya[primal])), op=MPI.SUM)
-            return val if np.isfinite(val) else -np.inf
-
-        try:
-            if self.comm.allreduce(bool(primal.all()), op=MPI.LAND):
-                g0 = self.snes.getFunction()[0].dot(y)   # R(x), computed before the solve
-            else:
-                g0 = g(0.0)
-            if not (np.isfinite(g0) and g0 > 0.0):
-                st["not_descent"] += 1
-                return 1.0
-            tol = o.energy_tolerance * g0
-            g1 = g(1.0)
-            if g1 >= -tol:
-                st["full"] += 1
-                return 1.0
-            a, ga, b, gb = 0.0, g0, 1.0, g1
-            side = 0
-            for _ in range(o.energy_max_evaluations):
-                lam = a + (b - a) * ga / (ga - gb) if np.isfinite(gb) else 0.5 * (a + b)
-                lam = min(max(lam, a + 0.05 * (b - a)), b - 0.05 * (b - a))
-                gl = g(lam)
-                if abs(gl) <= tol:
-                    a = lam
-                    break
-                if gl > 0.0:
-                    a, ga = lam, gl
-                    if side == 1:       # Illinois: the same end kept twice, halve its value
-                        gb *= 0.5
-                    side = 1
-                else:
-                    b, gb = lam, gl
-                    if side == -1:
-                        ga *= 0.5
-                    side = -1
-                if b - a <= 0.1 * b:
-                    break
-            lam = a if a > 0.0 else b
-        finally:
-            prob.error = err     # a refused trial point is not this solve's error
-            del xa, ya
-        st["shortened"] += 1
-        log.debug("energy line search: g(0) = %.3e, g(1) = %.3e, lambda = %.4g", g0, g1, lam)
-        return lam
+        return changed or fixed
 
     def _end_linear(self):
         if self._linear_start is not None:
@@ -755,7 +629,7 @@ class NewtonSolver:
                 self._states = []
             else:
                 self._norms.append(fnorm)
-                for h in getattr(self.problem, "iterate_hooks", ()):
+                for h in self.problem.iterate_hooks:
                     h.accept(snes.getSolution())
             # every contributor must report a stable state at this (accepted) iterate
             # (called at every iteration, including 0, so each contributor takes its snapshot)
@@ -834,7 +708,6 @@ class NewtonSolver:
         :data:`LINE_SEARCHES`."""
         if kind not in LINE_SEARCHES:
             raise ValueError(f"unknown line search {kind!r}; choose one of {LINE_SEARCHES}")
-        self._energy = kind == "energy"
         # petsc4py 3.18 has no SNESLineSearch object: go through the prefixed options
         opts = PETSc.Options()
         for key, val in _globalization_options(kind).items():
@@ -883,7 +756,7 @@ class NewtonSolver:
                 c.begin_solve()
         w = prob.w
         x = w.vector.copy()
-        for h in getattr(prob, "iterate_hooks", ()):
+        for h in prob.iterate_hooks:
             h.begin(x)
         self._cycle_message = ""
         self._last_it = -1
@@ -959,17 +832,12 @@ class NewtonSolver:
             self._J_shell.destroy()
         self.A.destroy()
         self.b.destroy()
-        for v in (self._ls_x, self._ls_r):
-            if v is not None:
-                v.destroy()
 
 
 def _globalization_options(kind: str) -> Dict[str, str]:
     """SNES options (without prefix) of a :data:`LINE_SEARCHES` entry."""
     if kind == "trust-region":
         return {"snes_type": "newtontr"}
-    if kind == "energy":   # the step is scaled at the pre-check (NewtonSolver.energy_step)
-        return {"snes_type": "newtonls", "snes_linesearch_type": "basic"}
     return {"snes_type": "newtonls", "snes_linesearch_type": kind}
 
 
