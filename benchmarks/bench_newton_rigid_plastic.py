@@ -10,7 +10,8 @@ starts from the rigid Newtonian guess, which goes through the die) and over all 
 
 Variants (``--variants``; each is a set of options of the library, nothing else changes; all
 but the ``pred`` ones without the active-set prediction, which the library now uses by default
-with a direct solver):
+with a direct solver, and all but the ``pd`` ones with the consistent Norton–Hoff tangent, where
+the library's default is now the primal–dual one):
 
 * ``default``: the defaults without the prediction (ε̇₀ = 1e-6 1/s, β = 1e3, bt line search);
 * ``reg1e-3``: regularisation ε̇₀ = 1e-3 × the die's mean strain rate (THEORY §14.2);
@@ -94,7 +95,10 @@ def run(variant: str = "default", h: float = 1.6, h_die: float = 0.8, dt: float 
     sim_kw, opt_kw = VARIANTS[variant]
     # the variants without "pred" run the plain Newton step (the prediction off, as before it
     # existed); the library default (``"auto"``) turns it on with the direct solver used here
-    opts = SolverOptions(**{"max_it": max_it, "active_set_prediction": False, **opt_kw})
+    # and the variants without "pd" the consistent Norton–Hoff tangent (the library's
+    # default, "auto", is the primal–dual one for m < 1)
+    opts = SolverOptions(**{"max_it": max_it, "active_set_prediction": False,
+                            "material_tangent": "consistent", **opt_kw})
     sim, die, contact = drawing_simulation(comm, R0=R0, reduction=REDUCTION,
                                            half_angle_deg=np.degrees(ALPHA), h=h, h_die=h_die,
                                            speed=SPEED, solver_options=opts, **sim_kw)

@@ -26,6 +26,8 @@ import numpy as np
 import ufl
 from petsc4py import PETSc
 
+from fxcontact import compat
+
 __all__ = ["DualStress"]
 
 
@@ -58,9 +60,11 @@ class DualStress:
         pts, _ = basix.make_quadrature(cell, int(quadrature_degree))
         eps_old = ufl.sym(ufl.grad(ufl.split(self._w_old)[0]))
         eps_new = ufl.sym(ufl.grad(ufl.split(self._w_new)[0]))
-        self._primal = dolfinx.fem.Expression(material.stress_ufl(eps_new), pts)
+        jit = compat.jit_params()   # -fno-math-errno: the repeated pow calls merged
+        self._primal = dolfinx.fem.Expression(material.stress_ufl(eps_new), pts,
+                                              jit_params=jit)
         self._update = dolfinx.fem.Expression(
-            material.dual_update_ufl(eps_old, eps_new, self.s), pts)
+            material.dual_update_ufl(eps_old, eps_new, self.s), pts, jit_params=jit)
         tdim = msh.topology.dim
         imap = msh.topology.index_map(tdim)
         self._cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)

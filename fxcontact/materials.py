@@ -160,6 +160,37 @@ class NortonHoff(Material):
     def stress(self, eps: np.ndarray) -> np.ndarray:
         return 2.0 * self.K * self._z(eps)[..., None, None] ** (self.m - 1.0) * _dev_np(eps)
 
+    def dual_update(self, eps_old: np.ndarray, eps_new: np.ndarray,
+                    s_dual: np.ndarray) -> np.ndarray:
+        """numpy twin of :meth:`dual_update_ufl`."""
+        e = _dev_np(eps_old)
+        de = _dev_np(eps_new - eps_old)
+        z = self._z(eps_old)[..., None, None]
+        ede = np.einsum("...ij,...ij", e, de)[..., None, None]
+        s_new = (self.stress(eps_old) + 2.0 * self.K * z ** (self.m - 1.0) * de
+                 - 2.0 * (1.0 - self.m) / z**2 * ede * s_dual)
+        sp = self.stress(eps_new)
+        n_new = np.sqrt(np.einsum("...ij,...ij", s_new, s_new))[..., None, None]
+        n_cap = np.sqrt(np.einsum("...ij,...ij", sp, sp))[..., None, None]
+        return np.where(n_new > n_cap, n_cap / np.where(n_new > 0, n_new, 1.0), 1.0) * s_new
+
+    def dual_tangent(self, eps: np.ndarray, s_dual: np.ndarray) -> np.ndarray:
+        """The primal–dual tangent (d×d×d×d, symmetrised), numpy twin of the consistent tangent
+        plus :meth:`dual_tangent_correction_ufl`."""
+        e = _dev_np(eps)
+        z = self._z(eps)
+        sp = self.stress(eps)
+        d = eps.shape[-1]
+        eye = np.eye(d)
+        P = np.eye(d * d).reshape(d, d, d, d)
+        P = 0.5 * (P + np.einsum("ijkl->ijlk", P)) - np.einsum("ij,kl->ijkl", eye, eye) / d
+        corr = 2.0 * (1.0 - self.m) / z**2 * (
+            np.einsum("ij,kl->ijkl", sp, e) - 0.5 * np.einsum("ij,kl->ijkl", s_dual, e)
+            - 0.5 * np.einsum("ij,kl->ijkl", e, s_dual))
+        # the correction acts on deviatoric increments and is tested with deviatoric ones
+        corr = np.einsum("ijab,abcd,cdkl->ijkl", P, corr, P)
+        return self.tangent(eps) + corr
+
     def tangent(self, eps: np.ndarray) -> np.ndarray:
         """Consistent tangent ∂s/∂ε (d×d×d×d), acting on symmetric increments."""
         d = eps.shape[-1]

@@ -152,6 +152,15 @@ def _shear_viscosity_ufl(material, v, dt):
     return None
 
 
+def _uses_dual_stress(material, material_tangent: str) -> bool:
+    """Whether ``SolverOptions.material_tangent`` asks for the primal–dual Newton with this
+    material (``"auto"``: a material that has it, nonlinear)."""
+    if material_tangent == "primal-dual":
+        return True
+    return (material_tangent == "auto" and hasattr(material, "dual_update_ufl")
+            and getattr(material, "m", 1.0) < 1.0)
+
+
 def _volumetric_augment_ufl(material, eta, W, wt, dx):
     """``(2/3) η div(δv) div(w) dx`` (η the secant viscosity of :func:`_shear_viscosity_ufl`)
     for a material whose velocity tangent sees only the strain-rate deviator (Norton–Hoff):
@@ -380,9 +389,10 @@ class Simulation:
         J = None
         #: the dual stress of the primal–dual Newton (``material_tangent``), or None
         self.dual = None
-        if self.solver_options.material_tangent == "primal-dual":
+        if _uses_dual_stress(self.material, self.solver_options.material_tangent):
             from fxcontact.dual import DualStress
             self.dual = DualStress(self.material, sp.W, sp.quadrature_degree)
+            log.debug("Newton with the primal-dual Norton-Hoff tangent (fxcontact.dual)")
             dw = ufl.TrialFunction(sp.W)
             J = ufl.derivative(F, self.w, dw) + self.dual.jacobian_correction(
                 v, ufl.split(dw)[0], wt, sp.dx)

@@ -137,7 +137,7 @@ def choose_linear_solver(W) -> str:
 #: ``"trust-region"`` (SNES ``newtontr``: dogleg steps inside a trust region, no line search)
 LINE_SEARCHES = ("bt", "basic", "l2", "cp", "nleqerr", "trust-region")
 #: values of ``SolverOptions.material_tangent``
-MATERIAL_TANGENTS = ("consistent", "primal-dual")
+MATERIAL_TANGENTS = ("auto", "consistent", "primal-dual")
 
 #: PETSc option keys (without prefix) written by the last solver created under each prefix
 _WRITTEN_OPTIONS: Dict[str, set] = {}
@@ -197,8 +197,9 @@ class SolverOptions:
             penalty), no change where friction sets the count.
         prediction_max_nodes: the step is left uncorrected at an iteration where more nodes
             than this change status (the cost is one linear solve per node).
-        material_tangent: ``"consistent"`` or ``"primal-dual"``: the Norton–Hoff tangent
-            of the primal–dual Newton (:mod:`fxcontact.dual`: the deviatoric stress kept as a
+        material_tangent: ``"auto"`` (default: ``"primal-dual"`` for a Norton–Hoff
+            material with m < 1, else ``"consistent"``), ``"consistent"`` or
+            ``"primal-dual"``: the Norton–Hoff tangent of the primal–dual Newton (:mod:`fxcontact.dual`: the deviatoric stress kept as a
             dual variable at the quadrature points; same residual, same solution). Read by
             :class:`~fxcontact.simulation.Simulation` (a problem of your own adds
             :meth:`fxcontact.dual.DualStress.jacobian_correction` to its Jacobian and the
@@ -218,7 +219,7 @@ class SolverOptions:
     continuation_rtol: float = 1e-3
     active_set_prediction: object = "auto"
     prediction_max_nodes: int = 200
-    material_tangent: str = "consistent"
+    material_tangent: str = "auto"
     prefix: str = "fxc_"
     petsc_options: Dict[str, object] = field(default_factory=dict)
 

@@ -22,7 +22,8 @@ DT = 0.025
 def _sim(regularization=1e-6, **opts):
     from fxcontact.solver import SolverOptions
     sim, _, contact = drawing.drawing_simulation(MPI.COMM_WORLD, solver_options=SolverOptions(
-        max_it=100, line_search="bt", line_search_fallback=None, **opts),
+        max_it=100, line_search="bt", line_search_fallback=None,
+        **{"material_tangent": "consistent", **opts}),
         regularization=regularization, **CASE)
     return sim, contact
 
