@@ -54,12 +54,16 @@
 # gap Hessian: exact die or Nagata). Friction is optional: ``--mbar`` (Tresca m̄) and/or
 # ``--mu`` (Coulomb μ limited by Tresca m̄, default m̄ = 1 then).
 #
-# **Newton.** Trust region (``--line_search trust-region``, the default here; fallback bt):
-# with m = 0.016 the backtracking line search creeps with 1–10 % steps while grazing nodes
-# settle (THEORY §3.6). Same drawing stress to the digits printed, fewer iterations: main demo
-# 10.1 instead of 13.3 per increment, ``--quick`` 13.0 instead of 21.3 (``--line_search bt``
-# gives the table's figures below). ``--penalty_continuation f`` is the other option
-# (SolverOptions): 17.3 at f = 0.1, 24.7 at f = 0.03 on ``--quick`` — not better here.
+# **Newton.** Backtracking line search (``--line_search bt``, the default) with the library's
+# defaults for m = 0.016: the primal–dual Norton–Hoff tangent (``--material_tangent``,
+# :mod:`fxcontact.dual`; the stress as a dual variable at the quadrature points, whose tangent
+# stays stiff where a step turns the strain rate) and the active-set prediction of the Newton
+# step (``--active_set_prediction``, THEORY §3.6; the grazing contact nodes). Main demo on 2
+# ranks, same drawing stress 504.5 MPa: 6.3 Newton iterations per increment (max 11), 31 s,
+# against 9.6 (max 23), 34 s, with the former default (trust region, consistent tangent) and
+# 7.9 with the trust region and the primal–dual tangent (the trust region cannot take the
+# prediction). ``--quick``: 9.2 against 13.0. ``--penalty_continuation f`` is another option
+# (SolverOptions), not better here.
 #
 # **Measured per increment** (``wire_drawing_diagnostics.csv`` and the result dict): drawing force
 # (reaction on the pulled face along z), the **true maximum penetration** (depth of the lateral
@@ -79,12 +83,13 @@
 #
 # **Results** (implicit scheme, exact die, frictionless; σ_d = F/A₁ against the band [ideal,
 # Avitzur] computed by the demo; reproduced by the commands in brackets with
-# ``--line_search bt``, except the first row):
+# ``--line_search bt --material_tangent consistent``, the former Newton, except the first two
+# rows):
 #
 # | case | dofs | σ_d MPa | / ideal | / Avitzur | osc. | max pen. mm | Newton mean/max |
 # |---|---|---|---|---|---|---|---|
-# | thesis size, h = 0.75 mm, 0.37 s, 2 ranks (the defaults, trust region, 65 min wall on the idle machine; see benchmarks/README.md) | 150948 | 499.8 | 1.098 | 0.889 | ±1.1 % | 6.7e-4 | 14.8 / 80 |
-# | thesis bar, h = 1.9 mm, 0.1 s, 2 ranks (``--size 0.4 --t_end 0.1``, the main demo, 1 min 23 s wall; with the trust region: 10.1 / 23, 58 s) | 12398 | 504.5 | 1.108 | 0.897 | ±1.3 % | 1.1e-3 | 13.3 / 47 |
+# | thesis size, h = 0.75 mm, 0.37 s, 2 ranks (the former defaults, trust region and consistent tangent, 65 min wall on the idle machine; see benchmarks/README.md) | 150948 | 499.8 | 1.098 | 0.889 | ±1.1 % | 6.7e-4 | 14.8 / 80 |
+# | thesis bar, h = 1.9 mm, 0.1 s, 2 ranks (``--size 0.4 --t_end 0.1``, the main demo, the defaults: 31 s wall; trust region and consistent tangent 9.6 / 23, 34 s; bt and consistent tangent 13.3 / 47) | 12398 | 504.5 | 1.108 | 0.897 | ±1.3 % | 1.1e-3 | 6.3 / 11 |
 # | thesis bar, h = 3 mm, 0.1 s, 2 ranks (``--size 0.25 --t_end 0.1``, 43 s wall) | 3608 | 496.3 | 1.090 | 0.883 | ±7 % | 1.1e-3 | 11.9 / 46 |
 # | R₀ 5 → 3.75, h = 1.5 mm (``--quick``) | 3434 | 508.9 | 1.106 | 0.895 | ±3.3 % | 2.8e-3 | 21.3 / 32 |
 # | R₀ 5 → 4.25, α = 15° (``--quick --R1 4.25 --alpha 15``) | 3771 | 363.9 | 1.388 | 0.853 | ±6.6 % | 4.2e-3 | 19.1 / 37 |
@@ -132,8 +137,8 @@ DEFAULTS = dict(R0=10.0, R1=7.5, length=38.0, sector=120.0, K=445.0, m=0.016, sp
                 alpha=10.0, land=2.0, fillet=2.0, relief_angle=20.0, relief_length=1.0,
                 nose_ratio=0.96, h=0.75, facet=0.5, size=1.0, dt=2.5e-3, t_end=0.37,
                 die="exact", die_mesh="gmsh", scheme="implicit", penalty="gap", beta=100.0, penalty_dt=None,
-                mu=0.0, mbar=0.0, max_it=60, line_search="trust-region", penalty_continuation=None,
-                active_set_prediction="auto", material_tangent="consistent",
+                mu=0.0, mbar=0.0, max_it=60, line_search="bt", penalty_continuation=None,
+                active_set_prediction="auto", material_tangent="auto",
                 linear_solver="auto",
                 window=3.0, steady_tol=0.02, settle=None, stop_at_steady=False,
                 output_dir="results/wire_drawing", pictures=True, vtk_every=0,
@@ -645,8 +650,8 @@ def main(argv=None):
     ap.add_argument("--penalty", choices=("gap", "velocity"))
     ap.add_argument("--max_it", type=int)
     ap.add_argument("--line_search", choices=fx.LINE_SEARCHES,
-                    help="globalisation of Newton (default trust-region: fewer iterations than bt "
-                    "at m = 0.016, see benchmarks/README.md)")
+                    help="globalisation of Newton (default bt, with the active-set prediction "
+                    "and the primal-dual tangent; see benchmarks/README.md)")
     ap.add_argument("--linear_solver", choices=sorted(LINEAR_SOLVERS) + ["auto"],
                     help="linear solver preset (default auto: by the problem's size, see "
                     "fxcontact.solver.choose_linear_solver)")
@@ -654,9 +659,9 @@ def main(argv=None):
                     help="correct each Newton step for the contact status changes it "
                     "predicts (fxcontact.prediction; default auto: with a direct linear "
                     "solver; line searches only, not the trust region)")
-    ap.add_argument("--material_tangent", choices=("consistent", "primal-dual"),
-                    help="Norton-Hoff tangent of Newton: consistent, or primal-dual (the "
-                    "stress as a dual variable at the quadrature points, fxcontact.dual)")
+    ap.add_argument("--material_tangent", choices=fx.MATERIAL_TANGENTS,
+                    help="Norton-Hoff tangent of Newton (default auto: primal-dual for m < 1, "
+                    "the stress as a dual variable at the quadrature points, fxcontact.dual)")
     ap.add_argument("--penalty_continuation", type=float,
                     help="factor f in (0, 1): each Newton solve first with the penalty x f "
                     "(see fxcontact.SolverOptions); beta x f about 10-30 helps at m = 0.016")

@@ -130,6 +130,9 @@ _API = {
     "SolveInfo": ("solver", "outcome of a Newton solve"),
     "LINE_SEARCHES": ("solver", "globalisations of Newton: PETSc line searches and "
                       "'trust-region'"),
+    "MATERIAL_TANGENTS": ("solver", "Norton-Hoff tangents of Newton: 'auto', 'consistent', "
+                          "'primal-dual'"),
+    "DualStress": ("dual", "dual stress of the primal-dual Norton-Hoff Newton (§3.6)"),
     "NonlinearProblem": ("petsc", "UFL residual/Jacobian plus nodal terms, MPI-safe"),
     "ContactProblem": ("petsc", "dolfinx NonlinearProblem plus nodal contact: your own "
                        "NewtonSolver or SNES"),
