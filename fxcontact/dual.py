@@ -16,6 +16,14 @@ set from :meth:`~fxcontact.materials.NortonHoff.dual_update_ufl` with
 ``dolfinx.fem.Expression.eval``: dolfinx 0.5 cannot interpolate into quadrature spaces), gives
 the Jacobian's correction form, and is called by the Newton solver at the start of each solve
 (``begin``: the primal stress of the initial guess) and at each accepted iterate (``accept``).
+A Jacobian assembled outside a Newton solve uses the last dual stress (before the first solve
+the dual stress is zero, and the tangent is the secant one, 2K z^(m−1) P_dev).
+
+If a Newton attempt with it fails, :class:`~fxcontact.simulation.Simulation` retries the same
+time step with the consistent tangent (``DualStress.active = False``) before its line-search
+fallback and the cut-back: the primal–dual direction is not always a descent direction of the
+residual norm that the line search backtracks on (measured: the first increment of the ring
+rolling with axial cones).
 """
 
 from __future__ import annotations
@@ -73,6 +81,10 @@ class DualStress:
         self._bs = self.Q.dofmap.index_map_bs
         #: number of dual updates since construction
         self.updates = 0
+        #: False: the dual stress follows the primal one (``accept`` sets it to the primal
+        #: stress of the iterate), so the Jacobian is the consistent one (to round-off); the
+        #: simulation's retry after a failed primal-dual attempt
+        self.active = True
 
     def jacobian_correction(self, v, dv, wt, dx):
         """The UFL bilinear form to add to the consistent Jacobian (``v`` the velocity of the
@@ -98,6 +110,9 @@ class DualStress:
     def accept(self, x: PETSc.Vec):
         """A Newton iterate ``x`` was accepted: update the dual stress along the step."""
         self._load(self._w_new, x)
-        self._set(self._update)
+        if self.active:
+            self._set(self._update)
+            self.updates += 1
+        else:
+            self._set(self._primal)
         self._w_old.x.array[:] = self._w_new.x.array
-        self.updates += 1

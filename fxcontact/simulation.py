@@ -673,20 +673,37 @@ class Simulation:
                 failed_its += info.iterations
                 msgs.append(info.message)
                 info = self._try_increment(trial)
-            fb = self.solver_options.line_search_fallback
-            if not info.converged and fb and fb != self.solver_options.line_search \
+            dual_off = False
+            if not info.converged and self.dual is not None and self.dual.active \
                     and not self.problem.error:
-                # second attempt at the same dt with the fallback line search
-                log.info("t = %.6g: Newton failed with the %s line search (%s); retrying dt = "
-                         "%.3g with the %s line search", self.t, self.solver_options.line_search,
-                         info.message, trial, fb)
+                # second attempt at the same dt with the consistent tangent (the primal-dual
+                # direction is not always a descent direction of the residual norm), and the
+                # line-search fallback below with it too
+                log.info("t = %.6g: Newton failed with the primal-dual tangent (%s); retrying "
+                         "dt = %.3g with the consistent tangent", self.t, info.message, trial)
                 failed_its += info.iterations
                 msgs.append(info.message)
-                self.solver.set_line_search(fb)
-                try:
+                self.dual.active, dual_off = False, True
+            try:
+                if dual_off:
                     info = self._try_increment(trial)
-                finally:
-                    self.solver.set_line_search(self.solver_options.line_search)
+                fb = self.solver_options.line_search_fallback
+                if not info.converged and fb and fb != self.solver_options.line_search \
+                        and not self.problem.error:
+                    # another attempt at the same dt with the fallback line search
+                    log.info("t = %.6g: Newton failed with the %s line search (%s); retrying "
+                             "dt = %.3g with the %s line search", self.t,
+                             self.solver_options.line_search, info.message, trial, fb)
+                    failed_its += info.iterations
+                    msgs.append(info.message)
+                    self.solver.set_line_search(fb)
+                    try:
+                        info = self._try_increment(trial)
+                    finally:
+                        self.solver.set_line_search(self.solver_options.line_search)
+            finally:
+                if dual_off:
+                    self.dual.active = True
             if info.converged and self._accept_geometry(trial, info):
                 row = self._commit(trial, info)
                 row["cutbacks"] = k

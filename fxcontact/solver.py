@@ -630,7 +630,7 @@ class NewtonSolver:
                 self._states = []
             else:
                 self._norms.append(fnorm)
-                for h in self.problem.iterate_hooks:
+                for h in getattr(self.problem, "iterate_hooks", ()):
                     h.accept(snes.getSolution())
             # every contributor must report a stable state at this (accepted) iterate
             # (called at every iteration, including 0, so each contributor takes its snapshot)
@@ -757,7 +757,7 @@ class NewtonSolver:
                 c.begin_solve()
         w = prob.w
         x = w.vector.copy()
-        for h in prob.iterate_hooks:
+        for h in getattr(prob, "iterate_hooks", ()):
             h.begin(x)
         self._cycle_message = ""
         self._last_it = -1

@@ -259,15 +259,17 @@ class _UnsettledAboveDt:
         return self.dt <= self.limit
 
 
-def _pressed_cube(max_it, contributor, fallback=None):
+def _pressed_cube(max_it, contributor, fallback=None, material_tangent="consistent"):
     """A Norton–Hoff unit cube pressed on its top face, Newton capped at ``max_it``
     iterations, with ``contributor`` deciding when a state is settled (no fallback line
-    search unless asked: every failed attempt is then a cut-back)."""
+    search unless asked, and the consistent tangent, so without the primal–dual tangent's
+    retry: every failed attempt is then a cut-back)."""
     comm = MPI.COMM_WORLD
     L = (1.0, 1.0, 1.0)
     msh = box_mesh(comm, L, (2, 2, 2))
     sim = Simulation(MixedSpace(msh), NortonHoff(K=10.0, m=0.3), progress=False,
-                     solver_options=SolverOptions(max_it=max_it, line_search_fallback=fallback))
+                     solver_options=SolverOptions(max_it=max_it, line_search_fallback=fallback,
+                                                  material_tangent=material_tangent))
     f = _faces(msh, L)
     for key, comp in (("x0", 0), ("y0", 1), ("z0", 2)):
         sim.add_velocity_bc(f[key], 0.0, comp)
@@ -313,6 +315,20 @@ def test_fallback_line_search_before_cutback(fallback):
     assert row["cutbacks"] == (1 if fallback is None else 0)
     assert abs(row["dt"] - (0.05 if fallback is None else 0.1)) < 1e-15
     assert row["newton_iterations_all"] == row["newton_iterations"] + 4
+
+
+def test_primal_dual_failure_is_retried_with_the_consistent_tangent():
+    """A failed attempt with the primal–dual tangent is retried at the same dt with the
+    consistent one (before the line-search fallback and the cut-back); the dual stress is back
+    on for the next increment, and the failed iterations are counted."""
+    sim = _pressed_cube(4, _UnsettledFirstAttempt(), material_tangent="primal-dual")
+    row = sim.step(0.1, max_cutbacks=2).row
+    assert row["cutbacks"] == 0 and abs(row["dt"] - 0.1) < 1e-15
+    assert row["newton_iterations_all"] == row["newton_iterations"] + 4
+    assert sim.dual is not None and sim.dual.active
+    updates = sim.dual.updates
+    sim.step(0.1)
+    assert sim.dual.updates > updates
 
 
 class _ShrinkingLimit(_UnsettledAboveDt):
