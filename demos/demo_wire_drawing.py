@@ -88,7 +88,7 @@
 #
 # | case | dofs | σ_d MPa | / ideal | / Avitzur | osc. | max pen. mm | Newton mean/max |
 # |---|---|---|---|---|---|---|---|
-# | thesis size, h = 0.75 mm, 0.37 s, 2 ranks (the former defaults, trust region and consistent tangent, 65 min wall on the idle machine; see benchmarks/README.md) | 150948 | 499.8 | 1.098 | 0.889 | ±1.1 % | 6.7e-4 | 14.8 / 80 |
+# | thesis size, h = 0.75 mm, 0.37 s, 2 ranks (the defaults: 25 min 26 s wall on the idle machine; the former defaults, trust region and consistent tangent: 14.8 / 80, 65 min; see benchmarks/README.md) | 150948 | 499.8 | 1.098 | 0.889 | ±1.1 % | 6.7e-4 | 6.9 / 16 |
 # | thesis bar, h = 1.9 mm, 0.1 s, 2 ranks (``--size 0.4 --t_end 0.1``, the main demo, the defaults: 31 s wall; trust region and consistent tangent 9.6 / 23, 34 s; bt and consistent tangent 13.3 / 47) | 12398 | 504.5 | 1.108 | 0.897 | ±1.3 % | 1.1e-3 | 6.3 / 11 |
 # | thesis bar, h = 3 mm, 0.1 s, 2 ranks (``--size 0.25 --t_end 0.1``, 43 s wall) | 3608 | 496.3 | 1.090 | 0.883 | ±7 % | 1.1e-3 | 11.9 / 46 |
 # | R₀ 5 → 3.75, h = 1.5 mm (``--quick``) | 3434 | 508.9 | 1.106 | 0.895 | ±3.3 % | 2.8e-3 | 21.3 / 32 |
@@ -104,7 +104,7 @@
 # the die's profile points. See ``benchmarks/README.md`` for the scheme/die comparison with
 # the thesis's tables and what it shows.
 #
-# Run: ``python demos/demo_wire_drawing.py`` (thesis size: 65 min on 2 ranks), ``--size 0.4``
+# Run: ``python demos/demo_wire_drawing.py`` (thesis size: 25 min on 2 ranks), ``--size 0.4``
 # (h = 1.9 mm), ``--quick`` (the reduced size of the tests), ``--die``, ``--scheme``,
 # ``--alpha``, ``--R0``, ``--R1`` … (``--help``); on 2 ranks with ``mpirun -n 2``. Outputs in
 # ``results/wire_drawing``. The main demo (``bash scripts/setup.sh --demo``) runs
