@@ -66,7 +66,9 @@
 #   frictionless idle mandrel: torque 2e-8 N mm, its ω set to the bore's rolling speed; centre
 #   at most 0.77 mm off the mill line (circumferential spacing 6.3 mm); guide rolls ~10 % of the
 #   roll force; max penetration 0.21 mm (β = 1000: penalty compliance), max strain 0.36, max
-#   strain rate 3.1 1/s; 30 Newton iterations per increment on average. The ring's rotation
+#   strain rate 3.1 1/s; 30 Newton iterations per increment on average (these figures with the
+#   consistent Norton–Hoff tangent; with the primal–dual one, the default since, ``--quick``
+#   takes 17.7 instead of 23.8, the same main-roll force). The ring's rotation
 #   speed oscillates by ±1–2 % from one increment to the next (the bite holds 2–4 nodes).
 # * case 2, ``--case 2 --n_theta 100 --n_r 3 --n_z 1 --increments_per_rev 30 --revolutions
 #   0.34``: 11 increments, 0.33 revolution (the idle mandrel with Coulomb friction costs 6–9
