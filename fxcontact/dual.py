@@ -97,19 +97,19 @@ class DualStress:
         arr = self.s.x.array.reshape(-1, self._bs)
         arr[self._blocks] = vals.reshape(-1, self._bs)
 
-    def _load(self, fn, x: PETSc.Vec):
-        x.copy(fn.vector)
-        fn.x.scatter_forward()
+    def _load(self, x: PETSc.Vec):
+        x.copy(self._w_new.vector)
+        self._w_new.x.scatter_forward()
 
     def begin(self, x: PETSc.Vec):
         """Start of a Newton solve from ``x``: the dual stress is the primal one."""
-        self._load(self._w_new, x)
+        self._load(x)
         self._set(self._primal)
         self._w_old.x.array[:] = self._w_new.x.array
 
     def accept(self, x: PETSc.Vec):
         """A Newton iterate ``x`` was accepted: update the dual stress along the step."""
-        self._load(self._w_new, x)
+        self._load(x)
         if self.active:
             self._set(self._update)
             self.updates += 1

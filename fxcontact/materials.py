@@ -32,6 +32,13 @@ def _dev_np(e):
     return e - np.trace(e, axis1=-2, axis2=-1)[..., None, None] / d * np.eye(d)
 
 
+def _pdev_np(d):
+    """The deviatoric projector on symmetric d×d tensors, I_sym − I⊗I/d (d×d×d×d)."""
+    eye = np.eye(d)
+    Isym = 0.5 * (np.einsum("ik,jl->ijkl", eye, eye) + np.einsum("il,jk->ijkl", eye, eye))
+    return Isym - np.einsum("ij,kl->ijkl", eye, eye) / d
+
+
 class Material:
     """Base class: marker for the materials fxcontact knows how to assemble."""
 
@@ -180,10 +187,7 @@ class NortonHoff(Material):
         e = _dev_np(eps)
         z = self._z(eps)
         sp = self.stress(eps)
-        d = eps.shape[-1]
-        eye = np.eye(d)
-        P = np.eye(d * d).reshape(d, d, d, d)
-        P = 0.5 * (P + np.einsum("ijkl->ijlk", P)) - np.einsum("ij,kl->ijkl", eye, eye) / d
+        P = _pdev_np(eps.shape[-1])
         corr = 2.0 * (1.0 - self.m) / z**2 * (
             np.einsum("ij,kl->ijkl", sp, e) - 0.5 * np.einsum("ij,kl->ijkl", s_dual, e)
             - 0.5 * np.einsum("ij,kl->ijkl", e, s_dual))
@@ -196,9 +200,7 @@ class NortonHoff(Material):
         d = eps.shape[-1]
         e = _dev_np(eps)
         z = self._z(eps)
-        eye = np.eye(d)
-        Isym = 0.5 * (np.einsum("ik,jl->ijkl", eye, eye) + np.einsum("il,jk->ijkl", eye, eye))
-        Pdev = Isym - np.einsum("ij,kl->ijkl", eye, eye) / d
+        Pdev = _pdev_np(d)
         return 2.0 * self.K * z ** (self.m - 1.0) * (
             Pdev + 2.0 * (self.m - 1.0) / z**2 * np.einsum("ij,kl->ijkl", e, e))
 

@@ -199,8 +199,9 @@ class SolverOptions:
             than this change status (the cost is one linear solve per node).
         material_tangent: ``"auto"`` (default: ``"primal-dual"`` for a Norton–Hoff
             material with m < 1, else ``"consistent"``), ``"consistent"`` or
-            ``"primal-dual"``: the Norton–Hoff tangent of the primal–dual Newton (:mod:`fxcontact.dual`: the deviatoric stress kept as a
-            dual variable at the quadrature points; same residual, same solution). Read by
+            ``"primal-dual"``: the Norton–Hoff tangent of the primal–dual Newton
+            (:mod:`fxcontact.dual`: the deviatoric stress kept as a dual variable at the
+            quadrature points; same residual, same solution). Read by
             :class:`~fxcontact.simulation.Simulation` (a problem of your own adds
             :meth:`fxcontact.dual.DualStress.jacobian_correction` to its Jacobian and the
             :class:`~fxcontact.dual.DualStress` to ``NonlinearProblem.iterate_hooks``).
