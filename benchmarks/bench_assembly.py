@@ -196,7 +196,47 @@ def kernel_figures(size: float, best: int):
         print(f"| {name} | `{flags}` | {tj * 1e3:.1f} ({tj / ncell * 1e6:.1f}) | {share} | "
               f"{tf * 1e3:.1f} ({tf / ncell * 1e6:.2f}) |")
     print(f"element tensors of the two flag sets bitwise equal: {same}")
+    primal_dual_figures(mat, space, w, F, ncell, best)
     return same
+
+
+def primal_dual_figures(mat, space, w, F, ncell: int, best: int):
+    """The primal–dual Jacobian (fxcontact.dual, the default for m < 1) two ways, fxcontact's
+    flags, at a random dual stress: UFL's derivative plus the correction form, and the tangent
+    written out (DualStress.tangent_form + the pressure terms: what Simulation assembles); the
+    consistent Jacobian for reference. Time per cell and the largest relative difference."""
+    from fxcontact.dual import DualStress
+    v, p = ufl.split(w)
+    wt, q = ufl.TestFunctions(space.W)
+    dw = ufl.TrialFunction(space.W)
+    dv, dp = ufl.split(dw)
+    ds = DualStress(mat, space.W, space.quadrature_degree)
+    ds.s.x.array[:] = np.random.default_rng(2).normal(size=ds.s.x.array.size)
+    forms = {"consistent (ufl.derivative)": ufl.derivative(F, w, dw),
+             "primal-dual: derivative + correction": ufl.derivative(F, w, dw)
+             + ds.jacobian_correction(v, dv, wt, space.dx),
+             "primal-dual: tangent written out (default)": ds.tangent_form(v, dv, wt, space.dx)
+             + mat.incompressibility_ufl(dv, dp, wt, q, space.dx)}
+    print("\n| Jacobian | ms (µs/cell) |\n|---|---|")
+    mats = {}
+    for name, J in forms.items():
+        af = compat.form(J, jit_params=compat.jit_params())
+        A = dolfinx.fem.petsc.create_matrix(af)
+        tj = np.inf
+        for _ in range(best):
+            t0 = time.perf_counter()
+            A.zeroEntries()
+            dolfinx.fem.petsc.assemble_matrix(A, af)
+            A.assemble()
+            tj = min(tj, time.perf_counter() - t0)
+        mats[name] = A
+        print(f"| {name} | {tj * 1e3:.1f} ({tj / ncell * 1e6:.1f}) |")
+    a, b = (mats[k] for k in list(forms)[1:])
+    d = a.copy()
+    d.axpy(-1.0, b)
+    print(f"primal-dual Jacobians, the two ways: ‖ΔA‖/‖A‖ = {d.norm() / a.norm():.1e}")
+    for A in list(mats.values()) + [d]:
+        A.destroy()
 
 
 class _Recorder:

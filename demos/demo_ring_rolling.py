@@ -181,6 +181,10 @@ DEFAULTS = dict(case=2, R1=150.0, R2=40.0, R=100.0, r=60.0, H=40.0, Rg=40.0, gui
 DEFAULTS["idle_method"] = "auto"
 #: the guide rolls with the mandrel's friction, idle too (one IdleRotation for all idle tools)
 DEFAULTS["idle_guides"] = False
+#: Newton's relative residual tolerance (SolverOptions.rtol; ‖R‖/‖R₀‖, R₀ that of the
+#: increment's predictor: from rest it is large, so a tighter one may be needed to compare
+#: runs to 1e-8)
+DEFAULTS["newton_rtol"] = 1e-9
 
 #: the reduced size of the tests: coarse ring, a quarter of a revolution
 QUICK = dict(n_theta=100, n_r=3, n_z=1, increments_per_rev=50, revolutions=0.2,
@@ -268,7 +272,8 @@ def run(**parameters) -> dict:
     sp = fx.MixedSpace(msh)
     update = RingAxisUpdate((0.0, 0.0, 0.0)) if P["update"] == "cylindrical" else None
     files = bool(P["vtk_every"] or P["checkpoint_every"] or P["resume"])
-    sim = fx.Simulation(sp, mat, solver_options=fx.SolverOptions(max_it=int(P["max_it"])),
+    sim = fx.Simulation(sp, mat, solver_options=fx.SolverOptions(max_it=int(P["max_it"]),
+                                                                 rtol=float(P["newton_rtol"])),
                         kinematics=update,
                         output_dir=out if files else None, name=name,
                         output_every=max(1, int(P["vtk_every"] or 10 ** 9)), progress=False,

@@ -132,6 +132,11 @@ def choose_linear_solver(W) -> str:
     return "condensed-amg"
 
 
+#: initial trust radius of ``line_search="trust-region"`` for a solve that starts from x = 0
+#: (PETSc's radius is relative to ‖x‖ otherwise): large, so that the first step is the full
+#: Newton step (:meth:`NewtonSolver._trust_region_from_rest`)
+TRUST_RADIUS_FROM_REST = 1e10
+
 #: PETSc SNES line searches accepted by :class:`SolverOptions`
 #: globalisations of the Newton step: PETSc's line searches (SNES ``newtonls``) and
 #: ``"trust-region"`` (SNES ``newtontr``: dogleg steps inside a trust region, no line search)
@@ -705,6 +710,36 @@ class NewtonSolver:
         self.reset()
         return True
 
+    def _trust_region_from_rest(self, x: PETSc.Vec) -> bool:
+        """Before a trust-region solve from x = 0 (a body at rest driven by its tools only,
+        whose start-up guess is zero): PETSc's initial radius is δ₀‖x‖, or δ₀ = 0.2 in the
+        units of x when ‖x‖ = 0, so the steps would be cut to 0.2 and the radius doubled at
+        each iteration until it reached the solution's size (16 iterations of the bar rolling's
+        first increment). Then the radius starts at :data:`TRUST_RADIUS_FROM_REST` (the first
+        step is the full Newton step; a rejected step shrinks it by δ₁ = 0.3). A
+        ``snes_tr_delta0`` of the user's is kept. Returns whether the radius was set
+        (collective)."""
+        if self.snes.getType() != PETSc.SNES.Type.NEWTONTR or x.norm() != 0.0:
+            return False
+        key = self.options.prefix + "snes_tr_delta0"
+        if PETSc.Options().hasName(key):
+            return False
+        self._set_trust_radius(TRUST_RADIUS_FROM_REST)
+        return True
+
+    def _set_trust_radius(self, delta0):
+        opts = PETSc.Options()
+        key = self.options.prefix + "snes_tr_delta0"
+        if delta0 is None:
+            opts.delValue(key)
+            opts[key] = 0.2          # PETSc's default, read back by setFromOptions
+            self.snes.setFromOptions()
+            opts.delValue(key)
+        else:
+            opts[key] = delta0
+            self.snes.setFromOptions()
+            opts.delValue(key)
+
     def set_line_search(self, kind: str):
         """Switch the SNES line search (e.g. for a fallback attempt); ``kind`` as in
         :data:`LINE_SEARCHES`."""
@@ -771,6 +806,7 @@ class NewtonSolver:
         cond0 = cpc.times["condense"] if cpc is not None else 0.0
         if cpc is not None:
             cpc.error = None
+        from_rest = self._trust_region_from_rest(x)
         try:
             self.snes.solve(None, x)
             self._end_linear()   # a failed linear solve stops the SNES before the line search
@@ -782,6 +818,9 @@ class NewtonSolver:
             reason, its = -100, self.snes.getIterationNumber()
             msg = prob.error or (f"PETSc error inside the Newton solve ({e}; see the PETSc "
                                  f"traceback on stderr)")
+        finally:
+            if from_rest:
+                self._set_trust_radius(None)
         wall = time.perf_counter() - t0
         if prob.error and not msg:
             msg = prob.error

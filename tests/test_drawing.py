@@ -35,13 +35,9 @@ def pulled_bar(rotation_deg=0.0, n_inc=2):
     space = fx.MixedSpace(msh)
     # Newton to rtol 1e-12: the comparisons below (1e-8 of the pull force) must not depend on
     # where the two Newton paths stop inside the default tolerance (rtol 1e-9 leaves the plane
-    # forces within ~1e-4 N, 1e-8 of the pull, of the exact solution of the discrete problem);
-    # and with the consistent tangent: the primal-dual one's last iterates (stopped by the step
-    # test) left the plane forces 5e-5-9e-5 N apart in one 2-rank run out of three
+    # forces within ~1e-4 N, 1e-8 of the pull, of the exact solution of the discrete problem)
     sim = fx.Simulation(space, fx.NortonHoff(K=445.0, m=0.15, regularization=1e-3),
-                        solver_options=fx.SolverOptions(rtol=1e-12,
-                                                        material_tangent="consistent"),
-                        progress=False)
+                        solver_options=fx.SolverOptions(rtol=1e-12), progress=False)
     f = {k: sim.facets(ft, v) for k, v in DRAWING_BAR_TAGS.items()}
     normals = {k: rot @ n for k, n in sector_plane_normals(90.0).items()}
     sim.add_symmetry_plane(f["symmetry_0"], normals["symmetry_0"], name="sym0")
@@ -78,14 +74,23 @@ def test_default_penalty_with_static_die(quarter):
 def test_inclined_planes_with_contact_equal_coordinate_planes(quarter):
     """The same quarter rotated by 30° about the axis (two inclined planes, exact projection)
     gives the pulling force, the contact and the plane forces (rotated) of the quarter with
-    coordinate planes (velocity conditions), to 1e-8."""
+    coordinate planes (velocity conditions), to 1e-8.
+
+    The plane forces are compared where the bar deforms (in contact with the die). In the
+    first increment the bar is translated rigidly (no contact node) and they are zero up to
+    the solver's round-off times the rigid bar's regularised viscosity K (√3 ε̇₀)^(m−1):
+    measured 1e-10 to 9e-5 N from one 2-rank run to the next, with either Norton–Hoff tangent,
+    against 1e-8 × the pull = 8e-5 N. The pull is compared in every increment."""
     ref, _, _ = quarter
     sim, _, rot = pulled_bar(rotation_deg=30.0)
     assert sim._symmetry.inclined == ["sym0", "sym1"]
     F = max(abs(r["pull_z"]) for r in ref.history)
+    assert sum(r["contact_nodes"] > 0 for r in ref.history) >= 1
     for a, b in zip(sim.history, ref.history):
         assert abs(a["pull_z"] - b["pull_z"]) <= 1e-8 * F
         assert a["contact_nodes"] == b["contact_nodes"]
+        if b["contact_nodes"] == 0:
+            continue
         for name in ("sym0", "sym1"):
             fa = np.array([a[f"{name}_{c}"] for c in "xyz"])
             fb = rot @ np.array([b[f"{name}_{c}"] for c in "xyz"])

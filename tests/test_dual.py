@@ -134,9 +134,11 @@ def test_dual_stress_expressions_match_the_numpy_twin():
 
 
 def test_primal_dual_jacobian_equals_the_consistent_one_at_the_primal_stress():
-    """Assembled on a unit cube with a nonlinear velocity field: the Jacobian with the
-    correction form is the consistent one when the dual stress is the primal stress, and
-    differs once the dual stress is another one."""
+    """Assembled on a unit cube with a nonlinear velocity field: the primal–dual Jacobian as the
+    Simulation builds it (DualStress.tangent_form + the pressure terms) is the consistent one
+    (ufl.derivative of the residual) when the dual stress is the primal stress, and for another
+    dual stress equals ufl.derivative + DualStress.jacobian_correction (an independent
+    composition: UFL's derivative of the stress plus the rank-one difference)."""
     import dolfinx
     import ufl
 
@@ -149,27 +151,36 @@ def test_primal_dual_jacobian_equals_the_consistent_one_at_the_primal_stress():
     f = dolfinx.fem.Function(V)
     f.interpolate(lambda x: np.vstack([x[0] ** 2 + x[1], x[1] * x[2], np.sin(x[2] + x[0])]))
     w.x.array[np.asarray(dofs)] = f.x.array
+    w.x.array[np.asarray(sp.W.sub(1).collapse()[1])] = 0.3
     w.x.scatter_forward()
     v, p = ufl.split(w)
     wt, q = ufl.TestFunctions(sp.W)
     F = mat.residual(v, p, wt, q, sp.dx, 1.0)
     dw = ufl.TrialFunction(sp.W)
+    dv, dp = ufl.split(dw)
     ds = DualStress(mat, sp.W, sp.quadrature_degree)
     J0 = compat.form(ufl.derivative(F, w, dw))
-    J1 = compat.form(ufl.derivative(F, w, dw) + ds.jacobian_correction(v, ufl.split(dw)[0], wt,
-                                                                        sp.dx))
+    J1 = compat.form(ds.tangent_form(v, dv, wt, sp.dx)
+                     + mat.incompressibility_ufl(dv, dp, wt, q, sp.dx))
+    Jc = compat.form(ufl.derivative(F, w, dw) + ds.jacobian_correction(v, dv, wt, sp.dx))
+
+    def assemble(form):
+        A = dolfinx.fem.petsc.assemble_matrix(form)
+        A.assemble()
+        return A
+
     ds.begin(w.vector)
-    A0 = dolfinx.fem.petsc.assemble_matrix(J0)
-    A0.assemble()
-    A1 = dolfinx.fem.petsc.assemble_matrix(J1)
-    A1.assemble()
-    A1.axpy(-1.0, A0)
-    assert A1.norm() <= 1e-12 * A0.norm()
+    A0 = assemble(J0)
+    for form in (J1, Jc):
+        A = assemble(form)
+        A.axpy(-1.0, A0)
+        assert A.norm() <= 1e-12 * A0.norm()
     ds.s.x.array[:] *= 0.5
-    A2 = dolfinx.fem.petsc.assemble_matrix(J1)
-    A2.assemble()
-    A2.axpy(-1.0, A0)
-    assert A2.norm() > 1e-3 * A0.norm()
+    A1, Ac = assemble(J1), assemble(Jc)
+    A1.axpy(-1.0, Ac)
+    assert A1.norm() <= 1e-12 * Ac.norm()
+    Ac.axpy(-1.0, A0)
+    assert Ac.norm() > 1e-3 * A0.norm()
 
 
 def _drawing(material_tangent, n_inc=3, line_search="bt"):
@@ -217,3 +228,40 @@ def test_auto_material_tangent():
     sp = _unit_cube_space()
     with pytest.raises(ValueError, match="Norton-Hoff"):
         DualStress(LinearElastic(E=1.0, nu=0.3), sp.W, sp.quadrature_degree)
+
+
+def test_written_out_jacobian_only_for_the_plain_norton_hoff_residual():
+    """Simulation writes the primal–dual Jacobian out only when the material's residual is
+    NortonHoff's own: a subclass that redefines the stress gets ufl.derivative + the
+    correction (its tangent is not the one written out); one that only changes the exponent
+    (``exponent_ufl``, the bar-rolling demo's start-up) keeps the written-out form, which
+    uses it."""
+    import ufl
+
+    from fxcontact.materials import NortonHoff
+    from fxcontact.simulation import _standard_norton_hoff
+
+    class OwnStress(NortonHoff):
+        def stress_ufl(self, eps):
+            return 2.0 * super().stress_ufl(eps)
+
+    class OwnExponent(NortonHoff):
+        def exponent_ufl(self):
+            return 0.5 * self.m
+
+    assert _standard_norton_hoff(_material())
+    assert not _standard_norton_hoff(OwnStress(K=100.0, m=0.1))
+    assert _standard_norton_hoff(OwnExponent(K=100.0, m=0.1))
+    # the written-out tangent follows exponent_ufl: at the primal stress it is the derivative
+    # of OwnExponent's stress
+    mat = OwnExponent(K=100.0, m=0.1)
+    eps = ufl.as_matrix(np.array([[0.3, 0.1, 0.0], [0.1, -0.2, 0.05], [0.0, 0.05, -0.1]]))
+    E = ufl.variable(eps)
+    de = ufl.as_matrix(np.array([[0.0, 1.0, 0.0], [1.0, 0.5, 0.0], [0.0, 0.0, -0.5]]))
+    ew = ufl.as_matrix(np.array([[1.0, 0.0, 0.2], [0.0, -1.0, 0.0], [0.2, 0.0, 0.0]]))
+    ref = ufl.inner(ufl.diff(mat.stress_ufl(E), E), ufl.outer(ew, de))
+    val = mat.dual_tangent_ufl(eps, mat.stress_ufl(eps), de, ew)
+    from ufl.algorithms import expand_derivatives
+    a = float(expand_derivatives(ref)(()))   # constant expressions: evaluated in Python
+    b = float(val(()))
+    assert abs(a - b) <= 1e-12 * abs(a)

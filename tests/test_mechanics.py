@@ -512,3 +512,36 @@ def test_trust_region_retest_of_the_same_iterate_is_not_a_cycle():
         c.fp = ((it % 2,),)
         reasons.append(conv(it, 10.0 + it % 2))
     assert reasons.index(R.DIVERGED_DTOL) == 5
+
+
+def test_trust_region_from_rest_starts_with_the_full_newton_step():
+    """A trust-region solve from x = 0 (an elastic cube loaded by a body force only, fixed at
+    its base: a linear problem, so the full Newton step is the solution) converges in one
+    iteration: PETSc's radius would be δ₀‖x‖ = 0, i.e. an absolute 0.2, and the steps would be
+    cut to it (TRUST_RADIUS_FROM_REST). A radius set by the user (``snes_tr_delta0``) is kept:
+    with 0.2 the same solve takes many iterations, to the same solution."""
+    from petsc4py import PETSc
+    comm = MPI.COMM_WORLD
+    L = (1.0, 1.0, 1.0)
+    out = {}
+    for delta0 in (None, 0.2):
+        msh = box_mesh(comm, L, (2, 2, 2))
+        g = dolfinx.fem.Constant(msh, np.array([0.0, 0.0, -50.0]))
+        opts = {} if delta0 is None else {"snes_tr_delta0": delta0}
+        sim = Simulation(MixedSpace(msh), LinearElastic(E=1000.0, nu=0.3), progress=False,
+                         extra_residual=lambda v, p, w, q: -ufl.inner(g, w) * ufl.dx,
+                         solver_options=SolverOptions(line_search="trust-region", max_it=60,
+                                                      line_search_fallback=None,
+                                                      petsc_options=opts))
+        f = _faces(msh, L)
+        for comp in range(3):
+            sim.add_velocity_bc(f["z0"], 0.0, comp)
+        res = sim.step(1.0, max_cutbacks=0)
+        vz = comm.allreduce(float(np.min(sim.w.x.array)), op=MPI.MIN)
+        out[delta0] = (res.row["newton_iterations"], vz)
+        if delta0 is None:   # the from-rest radius is not left in the options database
+            assert not PETSc.Options().hasName("fxc_snes_tr_delta0")
+        sim.solver.destroy()
+    assert out[None][0] == 1
+    assert out[0.2][0] > 3
+    assert out[0.2][1] == pytest.approx(out[None][1], rel=1e-8)

@@ -80,11 +80,16 @@ def test_volume_and_mesh(run):
         assert q["mean_diameter"] == pytest.approx(q["mean_diameter_volume"], rel=5e-3)
 
 
-def test_one_and_two_ranks_agree(run):
-    """The first increment on all ranks (the module's run) and on COMM_SELF agree to 1e-8."""
-    res = demo.run(**{**CONES, "revolutions": 1.0 / NI, "comm": MPI.COMM_SELF,
-                      "output_dir": None})
-    a, b = run["history"][0], res["history"][0]
+def test_one_and_two_ranks_agree():
+    """The first increment on all ranks and on COMM_SELF agree to 1e-8. Both with Newton's
+    rtol 1e-12: the increment starts from rest (‖R₀‖ = 3.9e7), so the default 1e-9 stops at
+    ‖R‖ ≈ 4e-2, which leaves the forces that much (3e-8 of the main roll's 1.26e6 N) apart
+    when the two runs take different paths (measured: the primal–dual attempt cycles and is
+    retried with the consistent tangent, 37–41 iterations in all, by round-off). At 1e-12
+    they agree to 1e-13."""
+    a, b = (demo.run(**{**CONES, "revolutions": 1.0 / NI, "comm": comm, "output_dir": None,
+                        "newton_rtol": 1e-12})["history"][0]
+            for comm in (MPI.COMM_WORLD, MPI.COMM_SELF))
     for k in ("cone_force", "nodes_cone", "cone_penetration", "cone_omega", "main_force_x",
               "mandrel_force_x", "height", "height_max"):
         assert abs(a[k] - b[k]) <= 1e-8 * max(abs(b[k]), 1.0), (k, a[k], b[k])
