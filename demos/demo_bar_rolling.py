@@ -137,7 +137,13 @@
 # Norton–Hoff tangent; the library's default since is the primal–dual one
 # (``SolverOptions.material_tangent``, :mod:`fxcontact.dual`): on ``--quick`` 14.8 Newton
 # iterations per increment (max 64) instead of 17.5 (max 116), radial force 617.9 against
-# 616.5 kN (±6.8 % oscillation). With bt instead of the trust region it takes 21.4.
+# 616.5 kN (±6.8 % oscillation). With bt instead of the trust region it takes 21.4. Since the
+# start-up exponent ``m_start`` enters the primal–dual tangent and dual update
+# (``NortonHoff.exponent_ufl``) and the trust region starts from rest with the full Newton step
+# (``fxcontact.solver.TRUST_RADIUS_FROM_REST``; it used to be cut to 0.2 mm/s and doubled per
+# iteration): ``--quick`` 14.4 per increment (max 104), 85 increments in 48 s (1 rank, idle),
+# radial force 616.85 kN (±6.7 %), torque 21.36 kN m, fill 99.13 %; the first increment of
+# the test size takes 14 iterations instead of 25–29 (``tests/test_bar_rolling.py``).
 # **Newton's trust region** (``line_search="trust-region"``, fallback bt; the default): on
 # ``--quick`` 19.2 iterations per increment instead of 25.7, 11 cut-backs instead of 25, 151 s
 # instead of 221 s, the steady force, torque and exit area within 0.3 % of bt's (far within the ±

@@ -59,7 +59,8 @@
 # :mod:`fxcontact.dual`; the stress as a dual variable at the quadrature points, whose tangent
 # stays stiff where a step turns the strain rate) and the active-set prediction of the Newton
 # step (``--active_set_prediction``, THEORY §3.6; the grazing contact nodes). Main demo on 2
-# ranks, same drawing stress 504.5 MPa: 6.3 Newton iterations per increment (max 11), 31 s,
+# ranks, same drawing stress 504.5 MPa: 6.3 Newton iterations per increment (max 11), 31 s
+# (21 s since the primal–dual Jacobian is written out, benchmarks/README.md),
 # against 9.6 (max 23), 34 s, with the former default (trust region, consistent tangent) and
 # 7.9 with the trust region and the primal–dual tangent (the trust region cannot take the
 # prediction). ``--quick``: 9.2 against 13.0. ``--penalty_continuation f`` is another option
@@ -89,7 +90,7 @@
 # | case | dofs | σ_d MPa | / ideal | / Avitzur | osc. | max pen. mm | Newton mean/max |
 # |---|---|---|---|---|---|---|---|
 # | thesis size, h = 0.75 mm, 0.37 s, 2 ranks (the defaults: 25 min 26 s wall on the idle machine; the former defaults, trust region and consistent tangent: 14.8 / 80, 65 min; see benchmarks/README.md) | 150948 | 499.8 | 1.098 | 0.889 | ±1.1 % | 6.7e-4 | 6.9 / 16 |
-# | thesis bar, h = 1.9 mm, 0.1 s, 2 ranks (``--size 0.4 --t_end 0.1``, the main demo, the defaults: 31 s wall; trust region and consistent tangent 9.6 / 23, 34 s; bt and consistent tangent 13.3 / 47) | 12398 | 504.5 | 1.108 | 0.897 | ±1.3 % | 1.1e-3 | 6.3 / 11 |
+# | thesis bar, h = 1.9 mm, 0.1 s, 2 ranks (``--size 0.4 --t_end 0.1``, the main demo, the defaults: 31 s wall, 21 s with the primal–dual Jacobian written out; trust region and consistent tangent 9.6 / 23, 34 s; bt and consistent tangent 13.3 / 47) | 12398 | 504.5 | 1.108 | 0.897 | ±1.3 % | 1.1e-3 | 6.3 / 11 |
 # | thesis bar, h = 3 mm, 0.1 s, 2 ranks (``--size 0.25 --t_end 0.1``, 43 s wall) | 3608 | 496.3 | 1.090 | 0.883 | ±7 % | 1.1e-3 | 11.9 / 46 |
 # | R₀ 5 → 3.75, h = 1.5 mm (``--quick``) | 3434 | 508.9 | 1.106 | 0.895 | ±3.3 % | 2.8e-3 | 21.3 / 32 |
 # | R₀ 5 → 4.25, α = 15° (``--quick --R1 4.25 --alpha 15``) | 3771 | 363.9 | 1.388 | 0.853 | ±6.6 % | 4.2e-3 | 19.1 / 37 |
