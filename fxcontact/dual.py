@@ -14,8 +14,9 @@ convergence the dual stress equals the primal one and the tangent is the consist
 :class:`DualStress` keeps the dual stress (a quadrature function of the integrals' degree,
 set from :meth:`~fxcontact.materials.NortonHoff.dual_update_ufl` with
 ``dolfinx.fem.Expression.eval``: dolfinx 0.5 cannot interpolate into quadrature spaces), gives
-the primal–dual tangent form (or its correction to the consistent Jacobian), and is called by the Newton solver at the start of each solve
-(``begin``: the primal stress of the initial guess) and at each accepted iterate (``accept``).
+the primal–dual tangent form (or its correction to the consistent Jacobian), and is called by
+the Newton solver at the start of each solve (``begin``: the primal stress of the initial
+guess) and at each accepted iterate (``accept``).
 A Jacobian assembled outside a Newton solve uses the last dual stress (before the first solve
 the dual stress is zero, and the tangent is the secant one, 2K z^(m−1) P_dev).
 
@@ -44,7 +45,8 @@ class DualStress:
 
     Args:
         material: a material with ``stress_ufl``, ``dual_tangent_ufl``,
-            ``dual_tangent_correction_ufl`` and ``dual_update_ufl`` (:class:`~fxcontact.materials.NortonHoff`).
+            ``dual_tangent_correction_ufl`` and ``dual_update_ufl``
+            (:class:`~fxcontact.materials.NortonHoff`).
         W: the mixed function space (velocity first).
         quadrature_degree: degree of the integrals the dual stress enters (``dx``'s).
     """

@@ -132,9 +132,9 @@ class NortonHoff(Material):
         rank-one term by the dual stress s*, symmetrised here: 2(1−m)/z² · ½(s*⊗e + e⊗s*).
         With s* equal to the primal stress the two coincide."""
         e, de, ew = _dev(eps), _dev(deps), _dev(eps_w)
-        sp = self.stress_ufl(eps)
-        return (self._rank_one_factor(eps) * ufl.inner(ew, sp) * ufl.inner(e, de)
-                - self._dual_rank_one_ufl(e, s_dual, de, ew, self._rank_one_factor(eps)))
+        c = self._rank_one_factor(eps)
+        return (c * ufl.inner(ew, self.stress_ufl(eps)) * ufl.inner(e, de)
+                - self._dual_rank_one_ufl(e, s_dual, de, ew, c))
 
     def dual_tangent_ufl(self, eps, s_dual, deps, eps_w):
         """The whole primal–dual tangent ε̇_w : T(s*) : δε̇ as a UFL integrand,

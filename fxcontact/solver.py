@@ -136,6 +136,8 @@ def choose_linear_solver(W) -> str:
 #: (PETSc's radius is relative to ‖x‖ otherwise): large, so that the first step is the full
 #: Newton step (:meth:`NewtonSolver._trust_region_from_rest`)
 TRUST_RADIUS_FROM_REST = 1e10
+#: PETSc's default δ₀ of ``newtontr``, restored after a solve from rest
+_PETSC_TR_DELTA0 = 0.2
 
 #: PETSc SNES line searches accepted by :class:`SolverOptions`
 #: globalisations of the Newton step: PETSc's line searches (SNES ``newtonls``) and
@@ -727,18 +729,14 @@ class NewtonSolver:
         self._set_trust_radius(TRUST_RADIUS_FROM_REST)
         return True
 
-    def _set_trust_radius(self, delta0):
+    def _set_trust_radius(self, delta0: float):
+        """Set the trust region's δ₀ of this SNES (through its options: petsc4py 3.18 has no
+        setter), leaving no option behind."""
         opts = PETSc.Options()
         key = self.options.prefix + "snes_tr_delta0"
-        if delta0 is None:
-            opts.delValue(key)
-            opts[key] = 0.2          # PETSc's default, read back by setFromOptions
-            self.snes.setFromOptions()
-            opts.delValue(key)
-        else:
-            opts[key] = delta0
-            self.snes.setFromOptions()
-            opts.delValue(key)
+        opts[key] = delta0
+        self.snes.setFromOptions()
+        opts.delValue(key)
 
     def set_line_search(self, kind: str):
         """Switch the SNES line search (e.g. for a fallback attempt); ``kind`` as in
@@ -820,7 +818,7 @@ class NewtonSolver:
                                  f"traceback on stderr)")
         finally:
             if from_rest:
-                self._set_trust_radius(None)
+                self._set_trust_radius(_PETSC_TR_DELTA0)
         wall = time.perf_counter() - t0
         if prob.error and not msg:
             msg = prob.error
