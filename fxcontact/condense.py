@@ -43,6 +43,7 @@ from petsc4py import PETSc
 import dolfinx.fem.petsc
 
 from fxcontact import compat
+from fxcontact.petsc import same_nonzero_pattern
 
 __all__ = ["CondensationLayout", "CondensedPC", "rigid_body_modes"]
 
@@ -240,6 +241,9 @@ class CondensedPC:
         #: SNES sets the outer KSP's rtol before every Newton step), or None
         self.follow_rtol_of = None
         self._mats = {}
+        #: whether S = A_ll and T = A_lb A_bb⁻¹ A_bl have the same nonzero pattern (checked
+        #: at the first set-up: both are reused with their pattern afterwards)
+        self._same_pattern: Optional[bool] = None
         self._Sp = None
         self._wvec = None
         #: wall times: forming S, the inner set-up, and the whole set-up / application calls
@@ -342,7 +346,14 @@ class CondensedPC:
         T = Alb.matMatMult(D, Abl, result=self._mats.get("T"))
         self._mats["T"] = T
         S = self._sub(P, "S", lay.is_l, lay.is_l)
-        S.axpy(-1.0, T, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        if self._same_pattern is None:
+            self._same_pattern = same_nonzero_pattern(S, T)
+        # the same pattern (the usual case: the cell-wise sparsity of a mixed space couples
+        # all the vertex dofs of a cell, as T does) makes the update a plain axpy on the
+        # values; PETSc's subset-pattern update goes row by row, ~30x slower
+        S.axpy(-1.0, T, structure=(PETSc.Mat.Structure.SAME_NONZERO_PATTERN
+                                   if self._same_pattern else
+                                   PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN))
         self.times["condense"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         first = self.ksp is None
@@ -492,6 +503,7 @@ class CondensedPC:
         for M in self._mats.values():
             M.destroy()
         self._mats = {}
+        self._same_pattern = None
         for M in (self._G, self._Gp):
             if M is not None:
                 M.destroy()

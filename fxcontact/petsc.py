@@ -351,6 +351,15 @@ class NonlinearProblem:
         return A
 
 
+def same_nonzero_pattern(A: PETSc.Mat, B: PETSc.Mat) -> bool:
+    """True if the distributed AIJ matrices A and B (same layout) store the same entries
+    (row pointers and column indices of every rank's rows; collective)."""
+    ai, aj, _ = A.getValuesCSR()
+    bi, bj, _ = B.getValuesCSR()
+    same = bool(np.array_equal(ai, bi) and np.array_equal(aj, bj))
+    return bool(A.getComm().tompi4py().allreduce(same, op=MPI.LAND))
+
+
 def owned_sum(comm: MPI.Comm, value) -> float:
     return comm.allreduce(value, op=MPI.SUM)
 
