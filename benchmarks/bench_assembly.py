@@ -192,6 +192,7 @@ def kernel_figures(size: float, best: int):
               f"{tf * 1e3:.1f} ({tf / ncell * 1e6:.2f}) |")
     print(f"element tensors of the two flag sets bitwise equal: {same}")
     primal_dual_figures(mat, space, w, F, ncell, best)
+    quadrature_figures(msh, mat, ncell, best)
     return same
 
 
@@ -238,6 +239,50 @@ def primal_dual_figures(mat, space, w, F, ncell: int, best: int):
     print(f"primal-dual Jacobians, the two ways: ‖ΔA‖/‖A‖ = {d.norm() / a.norm():.1e}")
     for A in list(mats.values()) + [d]:
         A.destroy()
+
+
+def quadrature_figures(msh, mat, ncell: int, best: int, degrees=(6, 5, 4)):
+    """The default Jacobian (primal–dual, written out) and the residual per cell at each MINI
+    quadrature degree (fxcontact's flags, random velocity and dual stress); the degrees are
+    timed in turn, ``best`` rounds, the fastest of each kept."""
+    import basix
+    from fxcontact.dual import DualStress
+    forms = {}
+    for deg in degrees:
+        space = fx.MixedSpace(msh, quadrature_degree=deg)
+        w = dolfinx.fem.Function(space.W)
+        w.x.array[:] = np.random.default_rng(1).normal(size=w.x.array.size)
+        v, p = ufl.split(w)
+        wt, q = ufl.TestFunctions(space.W)
+        dv, dp = ufl.split(ufl.TrialFunction(space.W))
+        ds = DualStress(mat, space.W, deg)
+        ds.s.x.array[:] = np.random.default_rng(2).normal(size=ds.s.x.array.size)
+        J = ds.tangent_form(v, dv, wt, space.dx) + mat.incompressibility_ufl(dv, dp, wt, q,
+                                                                             space.dx)
+        F = mat.residual(v, p, wt, q, space.dx, 1.0)
+        af = compat.form(J, jit_params=compat.jit_params())
+        Lf = compat.form(F, jit_params=compat.jit_params())
+        forms[deg] = (af, Lf, dolfinx.fem.petsc.create_matrix(af),
+                      dolfinx.fem.petsc.create_vector(Lf), (w, ds))
+    tj = {deg: np.inf for deg in degrees}
+    tf = dict(tj)
+    for _ in range(best):
+        for deg, (af, Lf, A, b, _keep) in forms.items():
+            tj[deg] = min(tj[deg], _best_matrix_time(A, af, 1))
+            t0 = time.perf_counter()
+            with b.localForm() as bl:
+                bl.set(0.0)
+            dolfinx.fem.petsc.assemble_vector(b, Lf)
+            tf[deg] = min(tf[deg], time.perf_counter() - t0)
+    print("\n| MINI quadrature degree | points per tetrahedron | Jacobian ms (µs/cell) | "
+          "residual ms (µs/cell) |\n|---|---|---|---|")
+    for deg in degrees:
+        nq = len(basix.make_quadrature(basix.CellType.tetrahedron, deg)[1])
+        print(f"| {deg} | {nq} | {tj[deg] * 1e3:.1f} ({tj[deg] / ncell * 1e6:.1f}) | "
+              f"{tf[deg] * 1e3:.1f} ({tf[deg] / ncell * 1e6:.2f}) |")
+    for af, Lf, A, b, _keep in forms.values():
+        A.destroy()
+        b.destroy()
 
 
 class _Recorder:

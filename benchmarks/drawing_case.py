@@ -188,9 +188,10 @@ def drawing_simulation(comm=MPI.COMM_WORLD, R0: float = 5.0, reduction: float = 
                        h_die: float = 0.6, upstream: float = 4.0, nose: float = 3.0,
                        K: float = 445.0, m: float = 0.016, regularization: float = 1e-6,
                        speed: float = 10.0, scheme: str = "implicit", beta: float = 1e3,
-                       sticky_gap: float = 0.0, solver_options=None):
+                       sticky_gap: float = 0.0, solver_options=None, quadrature_degree=None):
     """The drawing :class:`~fxcontact.simulation.Simulation` (not yet run), its die and its
-    contact contributor. Units: mm, s, MPa; ``speed`` is the pulling speed of the front face."""
+    contact contributor. Units: mm, s, MPa; ``speed`` is the pulling speed of the front face;
+    ``quadrature_degree`` of the MINI space (None: the library's default)."""
     from fxcontact.contact.boundary import ContactBoundary
     from fxcontact.contact.nodal import NodalContact
     from fxcontact.materials import NortonHoff
@@ -200,7 +201,7 @@ def drawing_simulation(comm=MPI.COMM_WORLD, R0: float = 5.0, reduction: float = 
     Rf = R0 * math.sqrt(1.0 - reduction)
     die = DrawingDie(Rf, math.radians(half_angle_deg), z_bearing=0.0, fillet=fillet)
     msh, _, ft = drawing_bar(comm, R0, die, upstream, nose, h, h_die)
-    space = MixedSpace(msh)
+    space = MixedSpace(msh, quadrature_degree=quadrature_degree)
     sim = Simulation(space, NortonHoff(K=K, m=m, regularization=regularization),
                      solver_options=solver_options, progress=False)
     f = {k: sim.facets(ft, v) for k, v in DRAWING_TAGS.items()}

@@ -210,7 +210,7 @@ def test_bad_dt_and_missing_tag():
     with pytest.raises(ValueError, match="element"):
         MixedSpace(msh, element="P3")
     with pytest.raises(ValueError, match="quadrature"):
-        MixedSpace(msh, quadrature_degree=4)
+        MixedSpace(msh, quadrature_degree=3)
 
 
 def test_material_derivatives_fd():
