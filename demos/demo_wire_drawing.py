@@ -60,7 +60,8 @@
 # stays stiff where a step turns the strain rate) and the active-set prediction of the Newton
 # step (``--active_set_prediction``, THEORY §3.6; the grazing contact nodes). Main demo on 2
 # ranks, same drawing stress 504.5 MPa: 6.3 Newton iterations per increment (max 11), 31 s
-# (21 s since the primal–dual Jacobian is written out, benchmarks/README.md),
+# (21 s since the primal–dual Jacobian is written out, 20 s and 6.4 iterations with the MINI
+# quadrature of degree 5, benchmarks/README.md),
 # against 9.6 (max 23), 34 s, with the former default (trust region, consistent tangent) and
 # 7.9 with the trust region and the primal–dual tangent (the trust region cannot take the
 # prediction). ``--quick``: 9.2 against 13.0. ``--penalty_continuation f`` is another option
