@@ -28,6 +28,14 @@ the preconditioner provides
   linear form in the pressure test function supplied by the problem (``schur_weight``, e.g.
   ``(1/η(v)) q dx``; the plain mass matrix without it). The sign is that of ``S_pp``'s diagonal
   (the Schur complement of the saddle-point system has the sign of the stabilisation block).
+
+With a direct inner solve (``lu``) and the option ``<prefix>factor_symmetric`` (the
+``condensed-mumps`` preset sets it), ``S`` is factorised as L D Lᵀ (``cholesky``: MUMPS's
+symmetric indefinite factorisation, about half the work and memory of LU) whenever it is
+symmetric, which a random probe tests at every set-up (``‖S x − Sᵀ x‖ ≤ SYMMETRY_RTOL ‖S x‖``):
+the primal–dual and consistent Norton–Hoff tangents, elasticity, frictionless contact and
+explicit friction give symmetric matrices; implicit Coulomb friction does not, and the set-up
+then factorises with LU. The switch costs one new analysis of the matrix.
 """
 
 from __future__ import annotations
@@ -209,6 +217,30 @@ def rigid_body_modes(comm, x: np.ndarray) -> PETSc.NullSpace:
     return PETSc.NullSpace().create(vectors=vecs, comm=comm)
 
 
+#: relative asymmetry ‖S x − Sᵀ x‖ / ‖S x‖ of the condensed matrix (random x) below which it
+#: is factorised as L D Lᵀ (``<prefix>factor_symmetric``); the round-off of a symmetric
+#: tangent is ~1e-16, a non-symmetric term (implicit friction) is orders of magnitude above
+SYMMETRY_RTOL = 1e-10
+
+
+def asymmetry(S: PETSc.Mat) -> float:
+    """‖S x − Sᵀ x‖ / ‖S x‖ for a random x (PETSc's default generator; collective)."""
+    x, y = S.createVecs()
+    z = y.duplicate()
+    rnd = PETSc.Random().create(S.getComm())
+    rnd.setFromOptions()
+    x.setRandom(rnd)
+    rnd.destroy()
+    S.mult(x, y)
+    S.multTranspose(x, z)
+    ny = y.norm()
+    z.axpy(-1.0, y)
+    out = z.norm() / ny if ny > 0 else 0.0
+    for v in (x, y, z):
+        v.destroy()
+    return out
+
+
 class CondensedPC:
     """petsc4py python-type PC: exact block elimination of the cell-interior dofs.
 
@@ -252,6 +284,10 @@ class CondensedPC:
         #: message of the last failed inner solve (None: none since the last reset)
         self.error: Optional[str] = None
         self.setups = 0
+        #: set-ups per factorisation kind ("lu", "cholesky") with ``factor_symmetric``, and
+        #: the asymmetry measured at the last one
+        self.factorisations = {}
+        self.last_asymmetry = None
         self.inner_iterations = 0
         self.inner_solves = 0
 
@@ -368,6 +404,7 @@ class CondensedPC:
             self.ksp.setOperators(S, S)
             if self.ksp.getPC().getType() == PETSc.PC.Type.FIELDSPLIT:
                 self._setup_fieldsplit(S, first=False)
+        self._choose_factorisation(S)
         if self.ksp.getPC().getType() == PETSc.PC.Type.FIELDSPLIT:
             Sa = self._augmented(S)
             if Sa is not None:
@@ -380,6 +417,27 @@ class CondensedPC:
         self._yl = self._yl or S.createVecRight()
 
     _xb = _tb = _rl = _yl = None
+
+    def _choose_factorisation(self, S):
+        """With ``<prefix>factor_symmetric``: L D Lᵀ when S is symmetric, LU otherwise (only
+        for a direct inner solve, ``lu`` or ``cholesky``)."""
+        pc = self.ksp.getPC()
+        kind = pc.getType()
+        if kind not in (PETSc.PC.Type.LU, PETSc.PC.Type.CHOLESKY):
+            return
+        if not PETSc.Options().getBool(self.prefix + "factor_symmetric", False):
+            return
+        self.last_asymmetry = asymmetry(S)
+        want = (PETSc.PC.Type.CHOLESKY if self.last_asymmetry <= SYMMETRY_RTOL
+                else PETSc.PC.Type.LU)
+        if want != kind:
+            solver = pc.getFactorSolverType()
+            pc.setType(want)
+            pc.setFactorSolverType(solver)
+            log.debug("condensed matrix %s (asymmetry %.1e): %s factorisation",
+                      "symmetric" if want == PETSc.PC.Type.CHOLESKY else "not symmetric",
+                      self.last_asymmetry, want)
+        self.factorisations[want] = self.factorisations.get(want, 0) + 1
 
     def _setup_fieldsplit(self, S, first: bool):
         lay = self.lay

@@ -64,7 +64,9 @@ LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
     "condensed-mumps": {"ksp_type": "preonly", "pc_type": "python",
                         "condensed_ksp_type": "preonly", "condensed_pc_type": "lu",
                         "condensed_pc_factor_mat_solver_type": "mumps",
-                        "condensed_mat_mumps_icntl_14": 200, "condensed_mat_mumps_icntl_24": 1},
+                        "condensed_mat_mumps_icntl_14": 200, "condensed_mat_mumps_icntl_24": 1,
+                        # L D Lᵀ when the condensed matrix is symmetric (fxcontact.condense)
+                        "condensed_factor_symmetric": 1},
     # condensed P1/P1 system solved iteratively: FGMRES, Schur field split (full
     # factorisation), GAMG on the velocity block (block size gdim, rigid-body near-null space,
     # unsmoothed aggregation, one Chebyshev/Jacobi sweep per level),
