@@ -360,6 +360,42 @@ def same_nonzero_pattern(A: PETSc.Mat, B: PETSc.Mat) -> bool:
     return bool(A.getComm().tompi4py().allreduce(same, op=MPI.LAND))
 
 
+def mumps_null_pivots(ksp: PETSc.KSP) -> Optional[int]:
+    """Number of null pivots MUMPS found in the last factorisation of ``ksp``'s preconditioner
+    (INFOG(28), with null-pivot detection ICNTL(24) = 1, the presets' setting), or None when
+    the preconditioner holds no MUMPS factorisation. Looks through the python PCs of fxcontact
+    (the condensed system's inner KSP, the bordered system's inner PC). Local call (INFOG is
+    the same on every rank)."""
+    try:
+        pc = ksp.getPC()
+    except PETSc.Error:
+        return None
+    return _pc_null_pivots(pc, depth=0)
+
+
+def _pc_null_pivots(pc: PETSc.PC, depth: int) -> Optional[int]:
+    if depth > 4:
+        return None
+    kind = pc.getType()
+    if kind in ("lu", "cholesky"):
+        if pc.getFactorSolverType() != "mumps":
+            return None
+        try:
+            F = pc.getFactorMatrix()
+            return int(F.getMumpsInfog(28))
+        except PETSc.Error:   # not factorised yet
+            return None
+    if kind == "python":
+        ctx = pc.getPythonContext()
+        inner = getattr(ctx, "ksp", None)
+        if isinstance(inner, PETSc.KSP):
+            return _pc_null_pivots(inner.getPC(), depth + 1)
+        inner = getattr(ctx, "inner", None)
+        if isinstance(inner, PETSc.PC):
+            return _pc_null_pivots(inner, depth + 1)
+    return None
+
+
 def owned_sum(comm: MPI.Comm, value) -> float:
     return comm.allreduce(value, op=MPI.SUM)
 

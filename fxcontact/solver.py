@@ -39,7 +39,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fxcontact.petsc import NonlinearProblem
+from fxcontact.petsc import NonlinearProblem, mumps_null_pivots
 
 __all__ = ["NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS", "choose_linear_solver",
            "BorderedPC", "MATERIAL_TANGENTS"]
@@ -111,6 +111,15 @@ LINEAR_SOLVERS["condensed-amg-robust"] = {
     "condensed_fieldsplit_u_ksp_max_it": 20,
     "condensed_fieldsplit_u_ksp_rtol": 1e-2,
 }
+
+#: What a singular Newton matrix at a converged solution means (:attr:`SolveInfo.null_pivots`)
+NULL_PIVOT_HINT = (
+    "a motion is held by nothing - a body free to translate or rotate (no velocity condition or "
+    "symmetry plane on that component, held only by a contact that is not made, or by "
+    "frictionless contact only) or an unknown that no equation reaches. MUMPS picks one "
+    "solution of the singular system, so the velocities along that motion are arbitrary "
+    "(forces and stresses may still be right). Add the missing velocity condition or symmetry "
+    "plane; friction or a contact made in the first increment also removes it")
 
 #: Automatic choice (``linear_solver="auto"``, the default), from the figures of
 #: ``benchmarks/README.md`` (section "Condensed solvers"): spaces without cell-interior dofs
@@ -331,6 +340,10 @@ class SolveInfo:
     #: number of residual and Jacobian evaluations (SNES callbacks) of the solve: one
     #: residual at the start plus one per line-search trial, one Jacobian per iteration
     evaluations: Dict[str, int] = field(default_factory=dict)
+    #: null pivots of the MUMPS factorisation of each Newton iteration's matrix (INFOG(28);
+    #: None with a solver that is not MUMPS): a positive count means a singular Newton matrix,
+    #: a motion that nothing holds (see :data:`NULL_PIVOT_HINT`)
+    null_pivots: List[Optional[int]] = field(default_factory=list)
 
 
 class BorderedPC:
@@ -470,6 +483,8 @@ class NewtonSolver:
         self.callback_calls = {"residual": 0, "jacobian": 0, "test": 0}
         #: wall time of the linear solves since the solver was built (see :meth:`solve`)
         self.linear_time = 0.0
+        #: converged solves whose last Newton matrix was singular (MUMPS null pivots)
+        self.singular_solves = 0
         self._linear_start: Optional[float] = None
         #: the active-set prediction of the Newton steps (None when off); its ``stats``
         self.prediction = None
@@ -638,8 +653,11 @@ class NewtonSolver:
                 self._f0 = fnorm
                 self._norms = [fnorm]
                 self._states = []
+                self._pivots = []
             else:
                 self._norms.append(fnorm)
+                if snes is not None:   # the factorisation that gave the step to this iterate
+                    self._pivots.append(mumps_null_pivots(snes.getKSP()))
                 for h in getattr(self.problem, "iterate_hooks", ()):
                     h.accept(snes.getSolution())
             # every contributor must report a stable state at this (accepted) iterate
@@ -862,8 +880,22 @@ class NewtonSolver:
         if not converged and not msg:
             msg = f"SNES diverged: {_reason_name(reason)} after {its} iterations"
         evals = {k: self.callback_calls[k] - calls0[k] for k in ("residual", "jacobian")}
+        pivots = list(getattr(self, "_pivots", []))
+        if converged and pivots and (pivots[-1] or 0) > 0:
+            self._warn_singular(pivots[-1])
         return SolveInfo(converged, its, reason, list(self._norms), msg, times, lin_its,
-                         evaluations=evals)
+                         evaluations=evals, null_pivots=pivots)
+
+    def _warn_singular(self, n: int):
+        """A solve converged with a singular Newton matrix at its last iteration: warn (in
+        full the first time, in one line after that)."""
+        self.singular_solves += 1
+        if self.singular_solves == 1:
+            log.warning("the Newton matrix is singular at the converged solution (MUMPS found "
+                        "%d null pivot(s)): %s", n, NULL_PIVOT_HINT)
+        else:
+            log.info("singular Newton matrix again (%d null pivot(s); %d solves so far)", n,
+                     self.singular_solves)
 
     def destroy(self):
         if self._condensed_pc is not None:

@@ -1,0 +1,73 @@
+"""A singular Newton matrix (a motion that nothing holds) is reported: MUMPS's null pivots
+(INFOG(28)) per Newton iteration in ``SolveInfo.null_pivots``, a warning when a solve converges
+with a singular matrix; none for a well-held body; the null-pivot count looked up through the
+condensed solver's inner KSP; 1 and 2 ranks."""
+
+import logging
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.nodal import NodalContact
+from fxcontact.materials import LinearElastic
+from fxcontact.meshing import BLOCK_TAGS, block
+from fxcontact.simulation import Simulation
+from fxcontact.solver import NULL_PIVOT_HINT, SolverOptions
+from fxcontact.spaces import MixedSpace
+from fxcontact.tools.analytic import Plane
+
+
+def _pressed_block(top, linear_solver):
+    """Elastic unit cube on a frictionless plane (z = 0), its top face moved by ``top`` (a
+    scalar: the z component only, so x, y and the rotation about z are free; a 3-vector:
+    all components held)."""
+    msh, _, ft = block(MPI.COMM_WORLD, (0, 0, 0), (1, 1, 1), 0.34)
+    sp = MixedSpace(msh)
+    sim = Simulation(sp, LinearElastic(1000.0, 0.3), progress=False,
+                     solver_options=SolverOptions(linear_solver=linear_solver))
+    f = sim.facets(ft, BLOCK_TAGS["zmax"])
+    if np.ndim(top) == 0:
+        sim.add_velocity_bc(f, top, 2)
+    else:
+        sim.add_velocity_bc(f, np.asarray(top, dtype=float))
+    sim.add_contributor(NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["zmin"]),
+                                     Plane((0, 0, 0), (0, 0, 1), name="anvil")))
+    return sim
+
+
+@pytest.mark.parametrize("linear_solver", ["mumps", "condensed-mumps"])
+def test_free_body_is_reported(linear_solver, caplog):
+    """x, y translations and the rotation about z are free: null pivots at every Newton
+    iteration (MUMPS's detection is a threshold test: it finds the three on one rank, two on
+    two ranks), and a warning naming the cause once the solve has converged."""
+    sim = _pressed_block(-0.01, linear_solver)
+    with caplog.at_level(logging.WARNING, logger="fxcontact.solver"):
+        info = sim.step(1.0, max_cutbacks=0).info
+    assert info.converged
+    assert len(info.null_pivots) == info.iterations
+    assert all(1 <= n <= 3 for n in info.null_pivots), info.null_pivots
+    if MPI.COMM_WORLD.size == 1:
+        assert info.null_pivots[-1] == 3
+    warnings = [r for r in caplog.records if r.levelno == logging.WARNING
+                and "singular" in r.getMessage()]
+    assert len(warnings) == 1 and NULL_PIVOT_HINT in warnings[0].getMessage()
+    assert sim.solver.singular_solves == 1
+
+
+@pytest.mark.parametrize("linear_solver", ["mumps", "condensed-mumps"])
+def test_held_body_has_no_null_pivot(linear_solver, caplog):
+    sim = _pressed_block([0.0, 0.0, -0.01], linear_solver)
+    with caplog.at_level(logging.WARNING, logger="fxcontact.solver"):
+        info = sim.step(1.0, max_cutbacks=0).info
+    assert info.converged and info.null_pivots and all(n == 0 for n in info.null_pivots)
+    assert not [r for r in caplog.records if "singular" in r.getMessage()]
+    assert sim.solver.singular_solves == 0
+
+
+def test_no_count_without_mumps():
+    """An iterative solver has no factorisation to ask: the counts are None, no warning."""
+    sim = _pressed_block([0.0, 0.0, -0.01], "condensed-amg")
+    info = sim.step(1.0, max_cutbacks=0).info
+    assert info.null_pivots and all(n is None for n in info.null_pivots)
