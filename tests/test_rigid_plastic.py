@@ -95,6 +95,37 @@ def test_drawing_m0016_converges_without_cutback_within_classical_bounds():
     assert np.mean(its) <= 14 and max(its[1:]) <= 12
 
 
+@pytest.fixture(scope="module")
+def default_run():
+    """The test drawing with the library's defaults (β = 1e3, ε̇₀ = 1e-6 1/s, bt, active-set
+    prediction, primal–dual tangent, MINI quadrature degree 5) and max_it = 30, no cut-back
+    allowed: (simulation, Newton iterations per increment) or the IncrementError."""
+    from fxcontact.simulation import IncrementError
+
+    try:
+        return _run(max_it=30, max_cutbacks=0, material_tangent="auto")
+    except IncrementError as e:
+        return e
+
+
+def test_drawing_m0016_default_settings_converge_without_cutback(default_run):
+    """With the defaults every increment converges at max_it = 30 without a cut-back (the
+    first from the Newtonian start-up guess), the drawing force lies between the ideal-work
+    and Avitzur bounds, and the mean Newton count is reported.
+    Measured (1 and 2 ranks): 9, 6, 10 (mean 8.3)."""
+    if isinstance(default_run, Exception):
+        pytest.fail(f"increment failed: {default_run}")
+    sim, its = default_run
+    F = 4.0 * sim.history[-1]["front_z"]
+    lower, upper = _drawing_bounds()
+    if MPI.COMM_WORLD.rank == 0:
+        print(f"default settings: Newton iterations {its} (mean {np.mean(its):.1f}), force "
+              f"{F:.0f} N, bounds [{lower:.0f}, {upper:.0f}] N")
+    assert all(r["cutbacks"] == 0 for r in sim.history)
+    assert lower < F < upper
+    assert max(its) <= 15
+
+
 @pytest.mark.xfail(strict=True, reason=(
     "goal of the issue not reached: mean <= 6 Newton iterations per increment at m = 0.016 "
     "with the default penalty (beta = 1e3), regularisation (1e-6 1/s) and max_it = 30, over "
@@ -102,18 +133,18 @@ def test_drawing_m0016_converges_without_cutback_within_classical_bounds():
     "prediction and primal-dual Norton-Hoff tangent, bt, MINI quadrature degree 5): 9, 6, "
     "10 (mean 8.3; 10, 6, 11 at degree 6; the first increment starts from the Newtonian "
     "guess, the third has bt-shortened steps, lambda ~ 0.2, with a settled contact set; with "
-    "line_search='basic' 9, 6, 7). Before "
-    "(consistent tangent): 60, 31, 40 plain; 36, 12, 12 with the prediction alone; trust "
-    "region 35, 28, 25; beta = 10 and a regularisation of 1e-2 x the mean strain rate: "
-    "12, 8, 11. At 7k dofs (bench_newton_rigid_plastic.py, five increments) the defaults give "
-    "7.4 per increment, 6.5 from the second"))
-def test_drawing_m0016_default_penalty_mean_six_newton_iterations():
-    from fxcontact.simulation import IncrementError
-
-    try:
-        _, its = _run(max_it=30, max_cutbacks=0, material_tangent="auto")
-    except IncrementError as e:
-        pytest.fail(f"increment failed: {e}")
+    "line_search='basic' 9, 6, 7). Other predictors (extrapolated 2 v_n - v_n-1, convected "
+    "at x + v dt, projected onto the die) and the consistent tangent near convergence do not "
+    "help (bench_predictors.py: 7.8, 11.2, 8.0, 7.6 per increment over five increments "
+    "against 7.4). Before (consistent tangent): 60, 31, 40 plain; 36, 12, 12 with the "
+    "prediction alone; trust region 35, 28, 25; beta = 10 and a regularisation of 1e-2 x the "
+    "mean strain rate: 12, 8, 11. At 7k dofs (bench_newton_rigid_plastic.py, five "
+    "increments) the defaults give 7.4 per increment, 6.5 from the second; the thesis-size "
+    "wire drawing 6.9"))
+def test_drawing_m0016_default_penalty_mean_six_newton_iterations(default_run):
+    if isinstance(default_run, Exception):
+        pytest.fail(f"increment failed: {default_run}")
+    _, its = default_run
     assert np.mean(its) <= 6
 
 
