@@ -815,6 +815,7 @@ class NewtonSolver:
             h.begin(x)
         self._cycle_message = ""
         self._last_it = -1
+        self._pivots = []
         calls0 = dict(self.callback_calls)
         lin0 = self.linear_time
         self._linear_start = None
@@ -880,7 +881,7 @@ class NewtonSolver:
         if not converged and not msg:
             msg = f"SNES diverged: {_reason_name(reason)} after {its} iterations"
         evals = {k: self.callback_calls[k] - calls0[k] for k in ("residual", "jacobian")}
-        pivots = list(getattr(self, "_pivots", []))
+        pivots = list(self._pivots)
         if converged and pivots and (pivots[-1] or 0) > 0:
             self._warn_singular(pivots[-1])
         return SolveInfo(converged, its, reason, list(self._norms), msg, times, lin_its,
