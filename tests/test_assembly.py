@@ -145,9 +145,12 @@ def test_time_split_adds_up(solver):
     """The parts add up to the Newton solve's wall time (nothing counted twice, nothing lost),
     and the linear part agrees with an independent clock of the linear solver: the PETSc
     KSPSolve + PCSetUp events (MUMPS) or the condensed PC's own set-up + apply clock (whose
-    inner Krylov solve the events missed). Serially "other" (the callbacks' Python glue) stays
-    under 5 % of the total; on 2 ranks it also holds the waits in the collectives of the
-    callbacks (e.g. the contact's active-set check), which are reported separately here."""
+    inner Krylov solve the events missed). "other" holds the convergence test, whose callback
+    time is measured apart (with m < 1 it updates the primal–dual stress at every iterate:
+    10–15 % of these small solves, measured); serially the rest of "other" (the callbacks' Python
+    glue, the SNES's vector updates) stays under 5 % of the total; on 2 ranks it also holds the
+    waits in the collectives of the callbacks (e.g. the contact's active-set check), which are
+    reported separately here."""
     PETSc.Log.begin()
     events = [PETSc.Log.Event("KSPSolve"), PETSc.Log.Event("PCSetUp")]
     solver, _, glob = solver.partition("+")
@@ -162,6 +165,7 @@ def test_time_split_adds_up(solver):
         pc = sim.solver._condensed_pc if built else None
         pc0 = (pc.times["setup"] + pc.times["apply"]) if pc is not None else 0.0
         cb0 = sum(sim.solver.callback_times.values()) if built else 0.0
+        test0 = sim.solver.callback_times["test"] if built else 0.0
         ev0 = sum(e.getPerfInfo()["time"] for e in events)
         info = sim.step(0.1, max_cutbacks=0).info
         assert info.converged
@@ -171,13 +175,14 @@ def test_time_split_adds_up(solver):
         else:
             clock = sum(e.getPerfInfo()["time"] for e in events) - ev0
         callbacks = sum(sim.solver.callback_times.values()) - cb0
+        test = sim.solver.callback_times["test"] - test0
         if k > 0:  # the first increment holds the start-up solve (its own SolveInfo)
-            cases.append((info, clock, callbacks))
+            cases.append((info, clock, callbacks, test))
     serial = MPI.COMM_WORLD.size == 1
     # slack of a few scheduler time slices: the machine may be shared, and a process preempted
     # for 10 ms shows that time wherever it was (the solves here take 0.1-0.5 s)
     jitter = 0.02
-    for info, clock, callbacks in cases:
+    for info, clock, callbacks, test in cases:
         t = info.times
         total = t["total"]
         parts = t["assembly"] + t["contact"] + t["linear_solve"]
@@ -185,8 +190,9 @@ def test_time_split_adds_up(solver):
         assert abs(parts + t["other"] - total) <= 1e-9 * total
         glue = callbacks - t["assembly"] - t["contact"]     # Python of the callbacks
         assert glue >= -1e-9
+        assert test <= t["other"] + 1e-9, (t, test)          # the test is part of "other"
         if serial:
-            assert t["other"] <= 0.05 * total + jitter, t
+            assert t["other"] - test <= 0.05 * total + jitter, (t, test)
         else:   # the rest of "other": the SNES's vector updates and norms (collectives)
             assert t["other"] - glue <= 0.10 * total + jitter, (t, glue)
         # the linear part = the linear solver's own clock (KSPSetOperators aside)

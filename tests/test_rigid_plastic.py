@@ -55,6 +55,18 @@ def _run(max_it, max_cutbacks, line_search="bt", line_search_fallback="basic",
     return sim, its
 
 
+def _check_no_cutback_within_bounds(sim, its, label):
+    """No increment was cut back and the last drawing force lies between the ideal-work and
+    Avitzur bounds; the Newton counts are printed."""
+    F = 4.0 * sim.history[-1]["front_z"]
+    lower, upper = _drawing_bounds()
+    if MPI.COMM_WORLD.rank == 0:
+        print(f"{label}: Newton iterations {its} (mean {np.mean(its):.1f}), force {F:.0f} N, "
+              f"bounds [{lower:.0f}, {upper:.0f}] N")
+    assert all(r["cutbacks"] == 0 for r in sim.history)
+    assert lower < F < upper
+
+
 def test_die_gap_gradient_and_projection():
     """The die's normal is the gradient of its gap (central differences) and the closest point
     lies on the surface, for points around the cone, the fillet and the bearing."""
@@ -85,13 +97,7 @@ def test_drawing_m0016_converges_without_cutback_within_classical_bounds():
     rate = drawing.mean_strain_rate(R0, REDUCTION, ALPHA, SPEED * (1.0 - REDUCTION))
     sim, its = _run(max_it=30, max_cutbacks=0, beta=10.0, regularization=1e-2 * rate,
                     quadrature_degree=6)
-    F = 4.0 * sim.history[-1]["front_z"]
-    lower, upper = _drawing_bounds()
-    if MPI.COMM_WORLD.rank == 0:
-        print(f"Newton iterations {its} (mean {np.mean(its):.1f}), force {F:.0f} N, "
-              f"bounds [{lower:.0f}, {upper:.0f}] N")
-    assert all(r["cutbacks"] == 0 for r in sim.history)
-    assert lower < F < upper
+    _check_no_cutback_within_bounds(sim, its, "beta = 10")
     assert np.mean(its) <= 14 and max(its[1:]) <= 12
 
 
@@ -116,13 +122,7 @@ def test_drawing_m0016_default_settings_converge_without_cutback(default_run):
     if isinstance(default_run, Exception):
         pytest.fail(f"increment failed: {default_run}")
     sim, its = default_run
-    F = 4.0 * sim.history[-1]["front_z"]
-    lower, upper = _drawing_bounds()
-    if MPI.COMM_WORLD.rank == 0:
-        print(f"default settings: Newton iterations {its} (mean {np.mean(its):.1f}), force "
-              f"{F:.0f} N, bounds [{lower:.0f}, {upper:.0f}] N")
-    assert all(r["cutbacks"] == 0 for r in sim.history)
-    assert lower < F < upper
+    _check_no_cutback_within_bounds(sim, its, "default settings")
     assert max(its) <= 15
 
 
