@@ -653,7 +653,6 @@ class NewtonSolver:
                 self._f0 = fnorm
                 self._norms = [fnorm]
                 self._states = []
-                self._pivots = []
             else:
                 self._norms.append(fnorm)
                 if snes is not None:   # the factorisation that gave the step to this iterate
