@@ -30,7 +30,7 @@ from fxcontact import compat
 from fxcontact.petsc import NonlinearProblem
 from fxcontact.solver import NewtonSolver, SolverOptions
 from fxcontact.spaces import velocity_bc
-from helpers import box_mesh, vertex_velocities_by_position
+from helpers import assert_newton_counts_match, box_mesh, vertex_velocities_by_position
 from test_condense import MATERIALS, pressed_block
 
 
@@ -104,7 +104,7 @@ def test_skip_zero_lifting_same_newton():
     assert ref.converged and new.converged and ref.iterations >= 3
     # both paths were taken: the lifting at the start, skipped once the iterate holds the BCs
     assert lifts["done"] >= 1 and lifts["skipped"] >= ref.iterations - 1, lifts
-    assert new.iterations == ref.iterations
+    assert_newton_counts_match(new.iterations, ref.iterations, bitwise=MPI.COMM_WORLD.size == 1)
     r0, r1 = np.array(ref.residual_norms), np.array(new.residual_norms)
     # serially the runs are bitwise equal; parallel MUMPS is not bitwise reproducible from run
     # to run, so on 2 ranks: round-off of the initial residual
@@ -132,7 +132,8 @@ def test_skip_zero_lifting_same_increments():
     new, i_new = _pressed(True, prefix="tasm_b_")
     assert new.problem.liftings["skipped"] > 0
     for a, b in zip(i_ref, i_new):
-        assert a.converged and b.converged and a.iterations == b.iterations
+        assert a.converged and b.converged
+        assert_newton_counts_match(a.iterations, b.iterations)
         r0, r1 = np.array(a.residual_norms), np.array(b.residual_norms)
         assert np.all(np.abs(r1 - r0) <= 1e-10 * r0[0]), (r0, r1)
     vel = [vertex_velocities_by_position(s) for s in (ref, new)]
@@ -143,14 +144,13 @@ def test_skip_zero_lifting_same_increments():
                                     "mumps+trust-region"])
 def test_time_split_adds_up(solver):
     """The parts add up to the Newton solve's wall time (nothing counted twice, nothing lost),
-    and the linear part agrees with an independent clock of the linear solver: the PETSc
-    KSPSolve + PCSetUp events (MUMPS) or the condensed PC's own set-up + apply clock (whose
-    inner Krylov solve the events missed). "other" holds the convergence test, whose callback
-    time is measured apart (with m < 1 it updates the primal–dual stress at every iterate:
-    10–15 % of these small solves, measured); serially the rest of "other" (the callbacks' Python
-    glue, the SNES's vector updates) stays under 5 % of the total; on 2 ranks it also holds the
-    waits in the collectives of the callbacks (e.g. the contact's active-set check), which are
-    reported separately here."""
+    and the clocks nest as they should: the linear solver's own clock (the PETSc KSPSolve +
+    PCSetUp events with MUMPS, the condensed PC's set-up + apply clock otherwise, whose inner
+    Krylov solve the events missed) lies within the linear part, the convergence test's
+    callback clock within "other", the callbacks' clocks within their parts. Only these
+    identities and inclusions are checked: how large each share is depends on the machine and
+    its load, so the shares are benchmark figures (``benchmarks/bench_assembly.py`` prints the
+    split), not test assertions."""
     PETSc.Log.begin()
     events = [PETSc.Log.Event("KSPSolve"), PETSc.Log.Event("PCSetUp")]
     solver, _, glob = solver.partition("+")
@@ -178,10 +178,6 @@ def test_time_split_adds_up(solver):
         test = sim.solver.callback_times["test"] - test0
         if k > 0:  # the first increment holds the start-up solve (its own SolveInfo)
             cases.append((info, clock, callbacks, test))
-    serial = MPI.COMM_WORLD.size == 1
-    # slack of a few scheduler time slices: the machine may be shared, and a process preempted
-    # for 10 ms shows that time wherever it was (the solves here take 0.1-0.5 s)
-    jitter = 0.02
     for info, clock, callbacks, test in cases:
         t = info.times
         total = t["total"]
@@ -191,13 +187,9 @@ def test_time_split_adds_up(solver):
         glue = callbacks - t["assembly"] - t["contact"]     # Python of the callbacks
         assert glue >= -1e-9
         assert test <= t["other"] + 1e-9, (t, test)          # the test is part of "other"
-        if serial:
-            assert t["other"] - test <= 0.05 * total + jitter, (t, test)
-        else:   # the rest of "other": the SNES's vector updates and norms (collectives)
-            assert t["other"] - glue <= 0.10 * total + jitter, (t, glue)
-        # the linear part = the linear solver's own clock (KSPSetOperators aside)
-        assert clock <= t["linear_solve"] * (1.0 + 1e-9), (clock, t)
-        assert t["linear_solve"] - clock <= 0.02 * total + jitter, (clock, t)
+        # the linear solver's own clock lies within the linear part (KSPSetOperators aside)
+        # (two clocks, PETSc's and Python's: 1 µs for their granularity)
+        assert clock <= t["linear_solve"] * (1.0 + 1e-9) + 1e-6, (clock, t)
         # the assembly sub-parts add up
         assert abs(t["assembly_residual"] + t["assembly_jacobian"] - t["assembly"]) \
             <= 1e-9 + 1e-9 * t["assembly"]

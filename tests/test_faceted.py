@@ -2,7 +2,6 @@
 
 import logging
 import math
-import time
 
 import numpy as np
 import pytest
@@ -445,8 +444,8 @@ def test_empty_and_single_point(sphere80):
 
 
 def test_large_tool_runs():
-    """10^5 triangles, 10^4 points near the surface (nothing timed, only kept short)."""
-    t0 = time.perf_counter()
+    """10^5 triangles, 10^4 points near the surface (nothing timed: the projection throughput
+    is a benchmark figure, ``benchmarks/bench_projection_faceted.py``)."""
     V, T = tm.structured_cylinder(5.0, 40.0, 250, 200)
     assert T.shape[0] == 100_000
     tool = FacetedTool(V, T)
@@ -458,7 +457,6 @@ def test_large_tool_runs():
     pr = tool.project(X)
     assert pr.flag.sum() == 0
     np.testing.assert_allclose(pr.gap, r - 5, atol=1e-6)
-    assert time.perf_counter() - t0 < 60
 
 
 # ------------------------------------------------------------------------------------------

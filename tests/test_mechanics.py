@@ -12,7 +12,7 @@ from fxcontact.simulation import Simulation
 from fxcontact.solver import SolverOptions
 from fxcontact.spaces import MixedSpace, facets_with_tags
 
-from helpers import box_mesh, gather_by_position
+from helpers import assert_newton_counts_match, box_mesh, gather_by_position
 
 
 def _faces(msh, L):
@@ -112,7 +112,7 @@ def test_compression_parallel_matches_serial():
             assert abs(o_w[k] - o_s[k]) <= 1e-8 * abs(o_s[k])
     for rw, rs in zip(sims["world"][0].history, sims["self"][0].history):
         assert abs(rw["volume"] - rs["volume"]) <= 1e-8 * rs["volume"]
-        assert rw["newton_iterations"] == rs["newton_iterations"]
+        assert_newton_counts_match(rw["newton_iterations"], rs["newton_iterations"])
 
 
 def test_fieldsplit_matches_mumps_and_options_do_not_leak():
@@ -471,7 +471,8 @@ def test_cutback_after_linear_solver_failure_succeeds(mode):
     assert sim.solver.resets == 1
     ref = _pressed_cube(10, _UnsettledAboveDt(1.0))
     ref.step(0.05)
-    assert res.row["newton_iterations"] == ref.history[-1]["newton_iterations"]
+    assert_newton_counts_match(res.row["newton_iterations"], ref.history[-1]["newton_iterations"],
+                               bitwise=MPI.COMM_WORLD.size == 1)
     assert np.allclose(sim.w.x.array, ref.w.x.array, rtol=0, atol=1e-10)
 
 

@@ -40,16 +40,17 @@ def _pressed_block(top, linear_solver):
 @pytest.mark.parametrize("linear_solver", ["mumps", "condensed-mumps"])
 def test_free_body_is_reported(linear_solver, caplog):
     """x, y translations and the rotation about z are free: null pivots at every Newton
-    iteration (MUMPS's detection is a threshold test: it finds the three on one rank, two on
-    two ranks), and a warning naming the cause once the solve has converged."""
+    iteration, and a warning naming the cause once the solve has converged. The count is not
+    checked exactly: MUMPS's detection is a threshold test on round-off, and it finds one to
+    three of the three free motions depending on the rank count and the BLAS build (three
+    serially with one OpenBLAS build, two with another); at least one and never more than the
+    three free motions."""
     sim = _pressed_block(-0.01, linear_solver)
     with caplog.at_level(logging.WARNING, logger="fxcontact.solver"):
         info = sim.step(1.0, max_cutbacks=0).info
     assert info.converged
     assert len(info.null_pivots) == info.iterations
     assert all(1 <= n <= 3 for n in info.null_pivots), info.null_pivots
-    if MPI.COMM_WORLD.size == 1:
-        assert info.null_pivots[-1] == 3
     warnings = [r for r in caplog.records if r.levelno == logging.WARNING
                 and "singular" in r.getMessage()]
     assert len(warnings) == 1 and NULL_PIVOT_HINT in warnings[0].getMessage()
