@@ -6,6 +6,12 @@ from mpi4py import MPI
 import dolfinx
 
 
+# A guard against hangs for the runs the tests start in a subprocess (a crash or a hang must not
+# take the test session with it): far above what a run takes on a loaded machine, so only a hang
+# reaches it. Never a measure of speed.
+HANG_TIMEOUT = 1200.0
+
+
 def box_mesh(comm, L=(1.0, 1.0, 1.0), n=(4, 4, 4), perturb=0.0, seed=0):
     msh = dolfinx.mesh.create_box(comm, [[0.0, 0.0, 0.0], list(L)], list(n),
                                   dolfinx.mesh.CellType.tetrahedron)

@@ -25,7 +25,7 @@ from fxcontact.checkpoint import CheckpointError, latest_checkpoint, list_checkp
 from fxcontact.io import read_pvd
 
 from checkpoint_driver import build
-from helpers import gather_by_position, shared_tmpdir
+from helpers import HANG_TIMEOUT, gather_by_position, shared_tmpdir
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DRIVER = os.path.join(HERE, "checkpoint_driver.py")
@@ -52,7 +52,7 @@ def _cmd(nranks, *args):
 
 def _run(nranks, *args):
     r = subprocess.run(_cmd(nranks, *args), env=_env(), capture_output=True, text=True,
-                       timeout=300)
+                       timeout=HANG_TIMEOUT)
     assert r.returncode == 0, r.stderr[-3000:]
 
 
@@ -66,7 +66,7 @@ def _run_and_kill(nranks, out):
     try:
         while not os.path.exists(os.path.join(out, "paused")):
             assert p.poll() is None, p.stderr.read().decode()[-3000:]
-            assert time.time() - t0 < 300, "the run did not reach increment 5"
+            assert time.time() - t0 < HANG_TIMEOUT, "the run did not reach increment 5"
             time.sleep(0.2)
     finally:
         os.killpg(p.pid, signal.SIGKILL)
@@ -118,7 +118,7 @@ def serial_runs():
     if MPI.COMM_WORLD.rank == 0:
         _run(1, os.path.join(d, "full"), "full")
         r = subprocess.run(_cmd(1, os.path.join(d, "killed"), "full", "--die-writing", "3"),
-                           env=_env(), capture_output=True, text=True, timeout=300)
+                           env=_env(), capture_output=True, text=True, timeout=HANG_TIMEOUT)
         assert r.returncode == -signal.SIGKILL, r.stderr[-3000:]
     MPI.COMM_WORLD.barrier()
     yield d
