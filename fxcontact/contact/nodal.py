@@ -57,6 +57,7 @@ from fxcontact.contact.friction import (LAW_COULOMB, LAW_NONE, LAW_NORTON, LAW_T
 from fxcontact.contact.penalty import penalty_kernel, penalty_kernel_numpy
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic, NortonHoff
+from fxcontact.collective import together
 from fxcontact.petsc import ContributorError, NodalTerms
 from fxcontact.tools.base import Tool, unit_vector
 
@@ -196,66 +197,74 @@ class NodalContact:
                  friction_mode: Optional[str] = None, slip_velocity: Optional[float] = None,
                  friction_tangent: str = "auto", name: str = "contact", backend: str = "numba",
                  formulation: str = "velocity", modulus: Optional[float] = None):
-        if formulation not in FORMULATIONS:
-            raise ValueError(f"unknown formulation {formulation!r}; choose one of {FORMULATIONS}")
-        self.formulation = formulation
-        if formulation == "velocity" and modulus is not None:
-            raise ValueError("modulus is for the displacement formulation (k = beta E*/h_e); "
-                             "the velocity form takes beta with the material of the Simulation")
-        if scheme not in SCHEMES:
-            raise ValueError(f"unknown contact scheme {scheme!r}; choose one of {SCHEMES}")
-        tools = [tools] if isinstance(tools, Tool) else list(tools)
-        if not tools or not all(isinstance(t, Tool) for t in tools):
-            raise ValueError("tools must be a Tool or a non-empty sequence of Tools")
-        if scheme == "implicit-exact" and not all(t.has_hessian for t in tools):
-            raise ValueError("implicit-exact needs tools that provide the gap Hessian")
-        if gap_stiffness is not None:
-            if penalty is not None or beta is not None:
-                raise ValueError("give only one of penalty, beta and gap_stiffness")
-            if not (math.isfinite(gap_stiffness) and gap_stiffness > 0):
-                raise ValueError(f"gap_stiffness must be finite and > 0, got {gap_stiffness!r}")
-        elif penalty is None and beta is None:
-            beta = DEFAULT_BETA
-        self.gap_stiffness = gap_stiffness
-        if penalty is not None and not (math.isfinite(penalty) and penalty > 0):
-            raise ValueError(f"penalty must be finite and > 0, got {penalty!r}")
-        if beta is not None and not (math.isfinite(beta) and beta > 0):
-            raise ValueError(f"beta must be finite and > 0, got {beta!r}")
-        if not (math.isfinite(sticky_gap) and sticky_gap >= 0):
-            raise ValueError("sticky_gap must be >= 0")
-        if backend not in ("numba", "numpy"):
-            raise ValueError("backend must be 'numba' or 'numpy'")
-        self.boundary = boundary
-        self.tools: List[Tool] = tools
-        self.scheme = scheme
-        self.name = name
-        self.gdim = boundary.gdim
-        self._penalty, self.beta = penalty, beta
-        self.strain_rate = strain_rate
-        self.sticky_gap = float(sticky_gap)
-        #: factor on ρ of the current evaluations (< 1 in the softened first stage of a
-        #: Newton solve with penalty continuation, SolverOptions.penalty_continuation)
-        self.penalty_scale = 1.0
-        self.kernel = penalty_kernel if backend == "numba" else penalty_kernel_numpy
-        self.friction_kernel = friction_kernel if backend == "numba" else friction_kernel_numpy
-        self.friction = self._friction_per_tool(friction, tools)
-        self.has_friction = any(law.code != LAW_NONE for law in self.friction)
-        if friction_mode is None:
-            friction_mode = "implicit" if scheme in ("implicit", "implicit-exact") else "explicit"
-        if friction_mode not in FRICTION_MODES:
-            raise ValueError(f"unknown friction_mode {friction_mode!r}; choose one of "
-                             f"{FRICTION_MODES}")
-        self.friction_mode = friction_mode
-        if slip_velocity is not None and not (math.isfinite(slip_velocity) and slip_velocity > 0):
-            raise ValueError(f"slip_velocity (v0) must be finite and > 0, got {slip_velocity!r}")
-        if friction_tangent not in ("auto", "consistent", "secant"):
-            raise ValueError(f"friction_tangent must be 'auto', 'consistent' or 'secant', got "
-                             f"{friction_tangent!r}")
-        self.friction_tangent = friction_tangent
-        self._fr_state_prev = None
-        self._fr_settled = False
-        self._slip_velocity_user = None if slip_velocity is None else float(slip_velocity)
-        self.slip_velocity = self._slip_velocity_user
+        # checked on every rank together, raised on every rank (fxcontact.collective)
+        with together(getattr(boundary, "comm", MPI.COMM_WORLD), "NodalContact()", name=name,
+                      scheme=scheme, formulation=formulation, element_size=element_size,
+                      modulus=modulus):
+            if formulation not in FORMULATIONS:
+                raise ValueError(f"unknown formulation {formulation!r}; choose one of "
+                                 f"{FORMULATIONS}")
+            self.formulation = formulation
+            if formulation == "velocity" and modulus is not None:
+                raise ValueError("modulus is for the displacement formulation (k = beta E*/h_e); "
+                                 "the velocity form takes beta with the material of the Simulation")
+            if scheme not in SCHEMES:
+                raise ValueError(f"unknown contact scheme {scheme!r}; choose one of {SCHEMES}")
+            tools = [tools] if isinstance(tools, Tool) else list(tools)
+            if not tools or not all(isinstance(t, Tool) for t in tools):
+                raise ValueError("tools must be a Tool or a non-empty sequence of Tools")
+            if scheme == "implicit-exact" and not all(t.has_hessian for t in tools):
+                raise ValueError("implicit-exact needs tools that provide the gap Hessian")
+            if gap_stiffness is not None:
+                if penalty is not None or beta is not None:
+                    raise ValueError("give only one of penalty, beta and gap_stiffness")
+                if not (math.isfinite(gap_stiffness) and gap_stiffness > 0):
+                    raise ValueError(f"gap_stiffness must be finite and > 0, got {gap_stiffness!r}")
+            elif penalty is None and beta is None:
+                beta = DEFAULT_BETA
+            self.gap_stiffness = gap_stiffness
+            if penalty is not None and not (math.isfinite(penalty) and penalty > 0):
+                raise ValueError(f"penalty must be finite and > 0, got {penalty!r}")
+            if beta is not None and not (math.isfinite(beta) and beta > 0):
+                raise ValueError(f"beta must be finite and > 0, got {beta!r}")
+            if not (math.isfinite(sticky_gap) and sticky_gap >= 0):
+                raise ValueError("sticky_gap must be >= 0")
+            if backend not in ("numba", "numpy"):
+                raise ValueError("backend must be 'numba' or 'numpy'")
+            self.boundary = boundary
+            self.tools: List[Tool] = tools
+            self.scheme = scheme
+            self.name = name
+            self.gdim = boundary.gdim
+            self._penalty, self.beta = penalty, beta
+            self.strain_rate = strain_rate
+            self.sticky_gap = float(sticky_gap)
+            #: factor on ρ of the current evaluations (< 1 in the softened first stage of a
+            #: Newton solve with penalty continuation, SolverOptions.penalty_continuation)
+            self.penalty_scale = 1.0
+            self.kernel = penalty_kernel if backend == "numba" else penalty_kernel_numpy
+            self.friction_kernel = friction_kernel if backend == "numba" else friction_kernel_numpy
+            self.friction = self._friction_per_tool(friction, tools)
+            self.has_friction = any(law.code != LAW_NONE for law in self.friction)
+            if friction_mode is None:
+                friction_mode = ("implicit" if scheme in ("implicit", "implicit-exact")
+                                 else "explicit")
+            if friction_mode not in FRICTION_MODES:
+                raise ValueError(f"unknown friction_mode {friction_mode!r}; choose one of "
+                                 f"{FRICTION_MODES}")
+            self.friction_mode = friction_mode
+            if slip_velocity is not None and not (math.isfinite(slip_velocity)
+                                                  and slip_velocity > 0):
+                raise ValueError(f"slip_velocity (v0) must be finite and > 0, got "
+                                 f"{slip_velocity!r}")
+            if friction_tangent not in ("auto", "consistent", "secant"):
+                raise ValueError(f"friction_tangent must be 'auto', 'consistent' or 'secant', got "
+                                 f"{friction_tangent!r}")
+            self.friction_tangent = friction_tangent
+            self._fr_state_prev = None
+            self._fr_settled = False
+            self._slip_velocity_user = None if slip_velocity is None else float(slip_velocity)
+            self.slip_velocity = self._slip_velocity_user
         comm = boundary.comm
         if element_size is None:
             a = boundary.areas
