@@ -24,7 +24,7 @@ import numpy as np
 
 __all__ = ["check_together", "together", "digest"]
 
-#: values longer than this are compared by a hash and shown shortened in the messages
+#: values longer than this are shown shortened (around their first difference) in messages
 _SHOWN = 120
 
 
@@ -75,7 +75,8 @@ def check_together(comm, where: str, error: Optional[BaseException] = None, shar
     """
     err = None if error is None else (type(error).__module__, type(error).__qualname__,
                                       str(error))
-    items = {k: _shown(v) for k, v in agree.items()}
+    items = {k: v if isinstance(v, (bool, int, float, type(None))) else str(v)
+             for k, v in agree.items()}
     got = comm.allgather((where, err, items, share))
     wheres = [g[0] for g in got]
     if len(set(wheres)) > 1:
@@ -101,7 +102,8 @@ def check_together(comm, where: str, error: Optional[BaseException] = None, shar
             by = {}
             for r, v in enumerate(vals):
                 by.setdefault(v, []).append(r)
-            shown = "; ".join(f"{_ranks(rs)}: {v}" for v, rs in by.items())
+            at = _first_difference([str(v) for v in by])
+            shown = "; ".join(f"{_ranks(rs)}: {_excerpt(v, at)}" for v, rs in by.items())
             raise ValueError(f"{where}: {key} differs between ranks ({shown}). The set-up must "
                              f"be the same on every rank")
     return [g[3] for g in got]
@@ -120,14 +122,19 @@ def together(comm, where: str, **agree):
     check_together(comm, where, error, **agree)
 
 
-def _shown(value):
-    """A value as compared and shown: short ones as they are, long ones by a hash."""
-    if isinstance(value, (bool, int, float, type(None))):
-        return value
+def _first_difference(texts) -> int:
+    """The first position where the texts differ."""
+    n = min(len(t) for t in texts)
+    return next((i for i in range(n) if len({t[i] for t in texts}) > 1), n)
+
+
+def _excerpt(value, at: int) -> str:
+    """A value as shown in a message: whole if short, else around the position ``at``."""
     text = str(value)
     if len(text) <= _SHOWN:
         return text
-    return f"{text[:60]}... (hash {hashlib.sha1(text.encode()).hexdigest()[:10]})"
+    lo = max(at - 40, 0)
+    return ("..." if lo else "") + text[lo:lo + 90] + ("..." if lo + 90 < len(text) else "")
 
 
 def _is_function(obj) -> bool:
@@ -136,10 +143,12 @@ def _is_function(obj) -> bool:
 
 def digest(obj, depth: int = 3) -> str:
     """A description of ``obj`` that is the same on every rank for the same parameters:
-    numbers, strings, arrays (by a hash), sequences, dicts and the public attributes of objects
+    numbers (floats to 12 digits), strings, arrays (by a hash), sequences, dicts and the public attributes of objects
     (nested up to ``depth``); callables and private attributes (caches, rank-local data) are
     left out."""
-    if obj is None or isinstance(obj, (bool, int, float, str, np.integer, np.floating)):
+    if isinstance(obj, (float, np.floating)):
+        return f"{float(obj):.12g}"   # not the last bits: sums reduced in another order
+    if obj is None or isinstance(obj, (bool, int, str, np.integer)):
         return repr(obj.item() if isinstance(obj, np.generic) else obj)
     if isinstance(obj, np.ndarray):
         a = np.ascontiguousarray(obj)

@@ -137,7 +137,7 @@ def _describe(obj) -> str:
         elif isinstance(v, Tool) or (isinstance(v, (list, tuple)) and v
                                      and all(isinstance(t, Tool) for t in v)):
             out[k] = v
-    return type(obj).__name__ + digest(out)
+    return type(obj).__name__ + digest(out, depth=6)
 
 
 def _time_value(value, t):
@@ -1152,7 +1152,10 @@ class Simulation:
         steps after the checkpoint, from a run that was killed, are dropped). Works on any
         number of ranks. Raises :class:`~fxcontact.checkpoint.CheckpointError` (a ValueError)
         for a missing checkpoint, another format or package version, another mesh, another
-        set-up or other controllers (:meth:`add_controller`).
+        set-up or other controllers (:meth:`add_controller`), and for a corrupted checkpoint (a
+        truncated or altered file, e.g. a disk that failed): ``resume()`` does not fall back to
+        an older checkpoint by itself; the message names the newest intact one, to resume
+        from with ``resume(path=...)``.
         """
         from fxcontact import __version__
         from fxcontact import checkpoint as ck
@@ -1168,6 +1171,8 @@ class Simulation:
         elif not os.path.isfile(os.path.join(path, "manifest.json")) and \
                 ck.latest_checkpoint(path) is not None:
             path = ck.latest_checkpoint(path)
+        # a truncated or altered file: refused, naming the newest intact checkpoint
+        ck.check_intact(self.comm, path, self.name)
         man = ck.read_manifest(path)
         if man.get("format") != ck.FORMAT_VERSION or man.get("fxcontact") != __version__:
             raise CheckpointError(

@@ -196,7 +196,7 @@ def test_bad_input(ctx, case, make, exc, words):
 
 
 def test_catalogue_is_large_and_listed_in_the_readme():
-    ids = [c[0] for c in CASES] + RUN_TIME_CASES
+    ids = [c[0] for c in CASES] + RUN_TIME_CASES + [c[0] for c in SUBPROCESS_CASES]
     assert len(ids) >= 30 and len(set(ids)) == len(ids)
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     missing = [i for i in ids if f"`{i}`" not in readme]
@@ -371,3 +371,79 @@ def test_friction_needs_shear_limit(cube, out):
     with pytest.raises(ValueError, match=r"shear flow stress k .*give shear_limit="):
         s.run(0.2, 0.1)
     _outputs_intact(out, 0, [0.0])
+
+
+# ------------------------------------------- set-ups that used to crash or hang (subprocess)
+DRIVER = Path(__file__).resolve().parent / "bad_setup_driver.py"
+
+#: (case id, ranks, error class, key words of the message on every rank (regex)): facets of
+#: another mesh used to crash the assembly (SIGSEGV); a set-up that differs between ranks used
+#: to leave one rank raising and the other waiting forever
+SUBPROCESS_CASES = [
+    ("contact-facet-tags-of-another-mesh", (1, 2), "ValueError",
+     r"ContactBoundary\(facet_tags\): .*facet tags of another mesh\?"),
+    ("facets-tags-of-another-mesh", (1, 2), "ValueError",
+     r"Simulation.facets\(facet_tags\): .*facet tags of another mesh\?"),
+    ("bc-facets-of-another-mesh", (1, 2), "ValueError",
+     r"add_velocity_bc\(facets\): facet index \d+ .*out of range.*facet tags of another mesh\?"),
+    ("reaction-facets-of-another-mesh", (1, 2), "ValueError",
+     r"add_reaction\(facets\): facet index \d+ .*out of range"),
+    ("symmetry-plane-interior-facets", (1, 2), "ValueError",
+     r"add_symmetry_plane\(facets\): .*not on the boundary"),
+    ("contributor-added-on-one-rank", (2,), "ValueError",
+     r"set-up differs between ranks: rank 0 in add_contributor\(\); rank 1 in Simulation.run"),
+    ("contact-created-on-one-rank", (2,), "ValueError",
+     r"set-up differs between ranks: rank 0 in ContactBoundary\(\); rank 1 in Simulation.run"),
+    ("tool-none-on-one-rank", (2,), "ValueError",
+     r"tools must be a Tool.*raised on rank 1 only: the set-up differs between ranks"),
+    ("tool-parameters-differ", (2,), "ValueError",
+     r"add_contributor\(\): contributor differs between ranks \(rank 0: .*velocity=\[0, 0, "
+     r"-0.1\].*rank 1: .*velocity=\[0, 0, -0.2\]"),
+    ("dt-differs", (2,), "ValueError", r"Simulation.run\(\): dt differs between ranks "
+                                       r"\(rank 0: 0.1; rank 1: 0.05\)"),
+    ("bc-added-on-one-rank", (2,), "ValueError",
+     r"set-up differs between ranks: rank 0 in facets_with_tags\(\); rank 1 in Simulation.run"),
+]
+
+
+def _run_driver(case, nranks, timeout=240):
+    """Run the driver under ``mpirun -n nranks`` in its own process group; kill the group and
+    fail if it hangs."""
+    import signal
+    import subprocess
+    import sys
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+               OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OPENBLAS_NUM_THREADS="1")
+    import tempfile
+    out = tempfile.mkdtemp(prefix="fxc_bad_setup_")
+    cmd = [sys.executable, str(DRIVER), case, out]
+    if nranks > 1:
+        cmd = ["mpirun", "-n", str(nranks), "--oversubscribe"] + cmd
+    p = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, start_new_session=True)
+    try:
+        _, err = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.communicate()
+        pytest.fail(f"{case} on {nranks} rank(s) hangs (killed after {timeout} s)")
+    assert p.returncode == 0, f"{case} on {nranks} rank(s): exit code {p.returncode}\n" \
+                              f"{err[-3000:]}"
+    files = sorted(Path(out).glob("rank*.txt"))
+    results = [f.read_text() for f in files]
+    shutil.rmtree(out, ignore_errors=True)
+    return results
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("case,ranks,exc,words", SUBPROCESS_CASES,
+                         ids=[c[0] for c in SUBPROCESS_CASES])
+def test_bad_setup_neither_crashes_nor_hangs(case, ranks, exc, words):
+    """Each rank raises the same error class with the words naming the argument and the fix
+    (run from the serial session: the driver is its own 1- and 2-rank MPI job)."""
+    for n in ranks:
+        results = _run_driver(case, n)
+        assert len(results) == n, (case, n, results)
+        for r in results:
+            assert r.startswith(f"{exc}: ") and re.search(words, r), (case, n, r)

@@ -210,7 +210,8 @@ class NodalContact:
                                  "the velocity form takes beta with the material of the Simulation")
             if scheme not in SCHEMES:
                 raise ValueError(f"unknown contact scheme {scheme!r}; choose one of {SCHEMES}")
-            tools = [tools] if isinstance(tools, Tool) else list(tools)
+            tools = [tools] if isinstance(tools, Tool) else (
+                list(tools) if isinstance(tools, (list, tuple)) else [tools])
             if not tools or not all(isinstance(t, Tool) for t in tools):
                 raise ValueError("tools must be a Tool or a non-empty sequence of Tools")
             if scheme == "implicit-exact" and not all(t.has_hessian for t in tools):
