@@ -156,6 +156,14 @@ def _time_value(value, t):
     return value
 
 
+def _attempts(msgs) -> str:
+    """The reasons of the failed attempts at one dt (fall-backs, then the last), each once."""
+    msgs = list(dict.fromkeys(msgs))
+    if len(msgs) == 1:
+        return msgs[0]
+    return f"{len(msgs)} attempts: " + " | ".join(msgs)
+
+
 def _plain_state(value):
     """A controller's state as plain JSON values (numpy arrays and scalars to lists/numbers)."""
     if isinstance(value, dict):
@@ -770,6 +778,7 @@ class Simulation:
                 msg += f"; dt would fall below the smallest allowed {min_dt:.3g}"
                 break
             t0 = time.perf_counter()
+            first = len(msgs)   # the attempts at this dt, for the cut-back warning
             info = self._try_increment(trial)
             if not info.converged and "condensed linear solve failed" in info.message \
                     and self.solver.fall_back_to_direct():
@@ -826,7 +835,7 @@ class Simulation:
             msgs.append(msg)
             failed_its += info.iterations
             log.warning("t = %.6g: Newton failed with dt = %.3g (%s); retrying with dt/2",
-                        self.t, trial, msg)
+                        self.t, trial, _attempts(msgs[first:]))
             trial *= 0.5
         earlier = [m for m in dict.fromkeys(msgs[:-1]) if m != msgs[-1]] if msgs else []
         if earlier:

@@ -334,3 +334,27 @@ def test_nagata_fallbacks_reported_per_increment():
         assert c.diagnostics()["contact_fallbacks_all"] == c.diagnostics()["contact_fallbacks"]
     assert diags[0]["contact_fallbacks"] > 0.5 * n
     assert diags[30]["contact_fallbacks"] == 0
+
+
+@pytest.mark.parametrize("pattern", [[0, 1], [0, 1, 1]])
+def test_cycle_hint_counts_tool_switches_over_the_cycle(pattern):
+    """A node that switches between the two tools of one contact (a container and a die that
+    meet) in a 2- or 3-cycle of Newton iterates is reported as switching between the tools,
+    counted over the whole cycle (the last step of the 3-cycle A, B, B changes nothing: the
+    message said "0 node(s) enter and leave contact")."""
+    container = Plane((0, 0, 0.05), (0, 0, -1), name="container")
+    die = Plane((0.05, 0, 0), (-1, 0, 0), name="die")
+    c = NodalContact(_FakeBoundary(1), [container, die], penalty=1.0,
+                     max_initial_penetration=10.0)
+    c.begin_increment(_FakeSim(CartesianUpdate(), np.zeros(3)), 0.0, 0.1, np.zeros((1, 3)))
+    c.begin_solve()
+    vs = [np.array([0.6, 0.0, 1.0]), np.array([1.0, 0.0, 0.6])]
+    tools = []
+    for k in range(2 * len(pattern) + 1):
+        c.evaluate(vs[pattern[k % len(pattern)]], False)
+        c.stable()
+        tools.append(int(c._tool[0]))
+    assert np.all(c._h > 0) and len(set(tools)) == 2     # in contact, with both tools in turn
+    hint = c.cycle_hint(len(pattern))
+    assert "1 node(s) switch between the tools 'container' and 'die'" in hint
+    assert "enter and leave" not in hint and "reduce dt" in hint
