@@ -358,3 +358,21 @@ def test_cycle_hint_counts_tool_switches_over_the_cycle(pattern):
     hint = c.cycle_hint(len(pattern))
     assert "1 node(s) switch between the tools 'container' and 'die'" in hint
     assert "enter and leave" not in hint and "reduce dt" in hint
+
+
+def test_tiny_dt_converges_at_the_round_off_floor():
+    """The README's upsetting with dt = 1e-6: the contact gap of a node at x is known to
+    ε|x| only, so the contact forces to ρS ε|x|/dt, above the relative tolerance of the
+    residual of an increment that starts from a good predictor; Newton stopped there as a
+    "cycle" with "0 node(s) enter and leave contact: reduce dt". It converges at that floor."""
+    msh, _, ft = cylinder_billet(MPI.COMM_WORLD, radius=10.0, height=15.0, h=4.0)
+    space = MixedSpace(msh)
+    sim = Simulation(space, NortonHoff(K=50.0, m=0.15), progress=False)
+    for key, comp in (("symmetry_x", 0), ("symmetry_y", 1), ("bottom", 2)):
+        sim.add_velocity_bc(sim.facets(ft, BILLET_TAGS[key]), 0.0, component=comp)
+    die = Plane(point=(0, 0, 15.0), normal=(0, 0, -1), velocity=(0, 0, -5.0), name="die")
+    contact = NodalContact(ContactBoundary(space, ft, BILLET_TAGS["top"]), die)
+    sim.add_contributor(contact)
+    history = sim.run(t_end=3e-6, dt=1e-6, max_cutbacks=0)
+    assert len(history) == 3 and all(r["cutbacks"] == 0 for r in history)
+    assert history[-1]["contact_nodes"] > 0 and history[-1]["die_force_z"] > 0
