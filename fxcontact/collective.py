@@ -143,9 +143,9 @@ def _is_function(obj) -> bool:
 
 def digest(obj, depth: int = 3) -> str:
     """A description of ``obj`` that is the same on every rank for the same parameters:
-    numbers (floats to 12 digits), strings, arrays (by a hash), sequences, dicts and the public attributes of objects
-    (nested up to ``depth``); callables and private attributes (caches, rank-local data) are
-    left out."""
+    numbers (floats to 12 digits), strings, arrays (by a hash), sequences, dicts and the
+    public attributes of objects (nested up to ``depth``); callables and private attributes
+    (caches, rank-local data) are left out."""
     if isinstance(obj, (float, np.floating)):
         return f"{float(obj):.12g}"   # not the last bits: sums reduced in another order
     if obj is None or isinstance(obj, (bool, int, str, np.integer)):
