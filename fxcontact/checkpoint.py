@@ -32,6 +32,8 @@ import logging
 import os
 import re
 import shutil
+import zipfile
+import zlib
 from dataclasses import dataclass
 from typing import Dict, List, Optional
 
@@ -274,7 +276,12 @@ def read_manifest(path: str) -> dict:
         with open(fn) as fh:
             return json.load(fh)
     except (OSError, ValueError) as e:
-        raise CheckpointError(f"cannot read the checkpoint manifest {fn}: {e}") from None
+        raise CheckpointError(f"checkpoint {path} is corrupted: cannot read its manifest "
+                              f"{fn}: {e}") from None
+
+
+#: what reading a damaged checkpoint file raises (a truncated or altered zip/npy/json)
+_DAMAGED = (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error)
 
 
 def read_arrays(path: str, nranks: int) -> Dict[str, np.ndarray]:
@@ -285,13 +292,53 @@ def read_arrays(path: str, nranks: int) -> Dict[str, np.ndarray]:
         if not os.path.isfile(fn):
             raise CheckpointError(f"checkpoint {path} is incomplete: {os.path.basename(fn)} "
                                   f"is missing (written by {nranks} ranks)")
-        try:
+        try:   # every array is read in full: zipfile checks its CRC-32
             with np.load(fn) as z:
                 for k in z.files:
                     parts.setdefault(k, []).append(z[k])
-        except (OSError, ValueError) as e:
-            raise CheckpointError(f"cannot read {fn}: {e}") from None
+        except _DAMAGED as e:
+            raise CheckpointError(f"checkpoint {path} is corrupted ({os.path.basename(fn)}: "
+                                  f"{type(e).__name__}: {e})") from None
     return {k: np.concatenate(v) for k, v in parts.items()}
+
+
+def damage(path: str) -> Optional[str]:
+    """Why the checkpoint ``path`` cannot be read (a missing, truncated or altered file), or
+    None if its manifest and every array of its rank files read back intact (the arrays are
+    read in full, so that zipfile checks their CRC-32)."""
+    try:
+        man = read_manifest(path)
+        read_arrays(path, int(man["nranks"]))
+    except CheckpointError as e:
+        return str(e)
+    except (KeyError, TypeError, ValueError) as e:
+        return f"checkpoint {path} has a damaged manifest ({type(e).__name__}: {e})"
+    return None
+
+
+def check_intact(comm: MPI.Comm, path: str, name: Optional[str] = None):
+    """Raise a CheckpointError on every rank if the checkpoint ``path`` is damaged (checked by
+    rank 0): the message names the damage and the newest intact older checkpoint of the run
+    ``name`` in the same directory, to resume from (``resume(path=...)``). Collective."""
+    msg = None
+    if comm.rank == 0:
+        why = damage(path)
+        if why is not None:
+            older = [p for p in list_checkpoints(os.path.dirname(os.path.abspath(path)), name)
+                     if _increment(p) < _increment(path)]
+            intact = next((p for p in reversed(older) if damage(p) is None), None)
+            msg = (f"{why}; " + (f"the newest intact checkpoint is {intact}: resume(path="
+                                 f"{intact!r}) continues from there" if intact else
+                                 "there is no intact older checkpoint: restart the run from "
+                                 "t = 0"))
+    msg = comm.bcast(msg, root=0)
+    if msg:
+        raise CheckpointError(msg)
+
+
+def _increment(path: str) -> int:
+    m = _DIR_RE.match(os.path.basename(os.path.normpath(path)))
+    return int(m.group("inc")) if m else -1
 
 
 def prune(comm: MPI.Comm, directory: str, name: str, keep: int):

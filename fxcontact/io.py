@@ -36,9 +36,7 @@ class SeriesWriter:
 
     def __init__(self, comm: MPI.Comm, directory: str, name: str,
                  resume_time: Optional[float] = None):
-        if comm.rank == 0:
-            os.makedirs(directory, exist_ok=True)
-        comm.barrier()
+        make_directory(comm, directory)
         self.comm = comm
         self.directory = directory
         self.path = os.path.join(directory, f"{name}.pvd")
@@ -78,6 +76,20 @@ class SeriesWriter:
                 if os.path.abspath(seg) != os.path.abspath(self.path) and os.path.exists(seg):
                     os.remove(seg)
                 write_pvd(self.path, self._entries)
+
+
+def make_directory(comm: MPI.Comm, directory: str):
+    """Create ``directory`` on rank 0; an OSError (a file in the way, no permission) is raised
+    on every rank (collective)."""
+    err = None
+    if comm.rank == 0:
+        try:
+            os.makedirs(directory, exist_ok=True)
+        except OSError as e:
+            err = f"cannot create the output directory {directory!r}: {e}"
+    err = comm.bcast(err, root=0)
+    if err:
+        raise OSError(err)
 
 
 def read_pvd(path: str) -> List[tuple]:

@@ -30,11 +30,13 @@ import dolfinx.fem
 import dolfinx.fem.petsc
 
 from fxcontact import compat, console
+from fxcontact.collective import check_together, digest, together
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic, Material, NortonHoff
 from fxcontact.petsc import NonlinearProblem
 from fxcontact.solver import NewtonSolver, SolveInfo, SolverOptions
-from fxcontact.spaces import MixedSpace, facets_with_tags, set_function_value, velocity_bc
+from fxcontact.spaces import (MixedSpace, checked_facets, facets_with_tags, set_function_value,
+                              velocity_bc)
 
 __all__ = ["Simulation", "IncrementError", "MeshInversionError", "OutputError", "IncrementResult",
            "VOLUME_CORRECTIONS", "wall_split", "format_wall_split"]
@@ -107,6 +109,35 @@ class _BC:
     g: object
     value: object
     gdim: Optional[int]
+    #: how the messages name it: number, component, facets
+    label: str = "velocity boundary condition"
+
+
+def _bc_label(sim, k: int, facets, component) -> str:
+    """``velocity boundary condition #k (component c, on n facets)`` (collective)."""
+    fdim = sim.mesh.topology.dim - 1
+    owned = sim.mesh.topology.index_map(fdim).size_local
+    n = sim.comm.allreduce(int(np.sum(np.asarray(facets) < owned)), op=MPI.SUM)
+    comp = "all components" if component is None else f"component {component}"
+    return f"velocity boundary condition #{k} ({comp}, on {n} facets)"
+
+
+def _describe(obj) -> str:
+    """A contributor or controller as compared between ranks: its type, its scalar
+    parameters and its tools (:func:`fxcontact.collective.digest`), not its rank-local data."""
+    from fxcontact.tools import Tool
+    if not hasattr(obj, "__dict__"):
+        return type(obj).__name__
+    out = {}
+    for k, v in sorted(vars(obj).items()):
+        if k.startswith("_"):
+            continue
+        if v is None or isinstance(v, (bool, int, float, str, np.integer, np.floating)):
+            out[k] = v
+        elif isinstance(v, Tool) or (isinstance(v, (list, tuple)) and v
+                                     and all(isinstance(t, Tool) for t in v)):
+            out[k] = v
+    return type(obj).__name__ + digest(out, depth=6)
 
 
 def _time_value(value, t):
@@ -125,6 +156,14 @@ def _time_value(value, t):
     return value
 
 
+def _attempts(msgs) -> str:
+    """The reasons of the failed attempts at one dt (fall-backs, then the last), each once."""
+    msgs = list(dict.fromkeys(msgs))
+    if len(msgs) == 1:
+        return msgs[0]
+    return f"{len(msgs)} attempts: " + " | ".join(msgs)
+
+
 def _plain_state(value):
     """A controller's state as plain JSON values (numpy arrays and scalars to lists/numbers)."""
     if isinstance(value, dict):
@@ -139,6 +178,23 @@ def _plain_state(value):
         return value
     raise ValueError(f"a controller's checkpoint_state() must hold plain numbers, strings, "
                      f"lists, dicts or numpy arrays, got {type(value).__name__}")
+
+
+def _output_dir_problem(path) -> Optional[str]:
+    """Why ``path`` cannot be the output directory (a file is in the way, not writable), or
+    None (None also for ``path=None``: no outputs)."""
+    if path is None:
+        return None
+    p = os.path.abspath(str(path))
+    if os.path.exists(p) and not os.path.isdir(p):
+        return "is a file, not a directory"
+    while not os.path.exists(p):
+        p = os.path.dirname(p)
+    if not os.path.isdir(p):
+        return f"cannot be created: {p!r} is a file"
+    if not os.access(p, os.W_OK | os.X_OK):
+        return f"cannot be written: no write permission in {p!r}"
+    return None
 
 
 def _shear_viscosity_ufl(material, v, dt):
@@ -219,20 +275,28 @@ class Simulation:
                  name: str = "result", output_every: int = 1, progress: bool = True,
                  checkpoint_every: int = 0, checkpoint_keep: int = 2,
                  check_inversion: bool = True, volume_correction: str = "global"):
-        if not isinstance(material, Material):
-            raise ValueError(f"material must be a fxcontact material, got {material!r}")
-        if output_every < 1:
-            raise ValueError("output_every must be >= 1")
-        if not (isinstance(checkpoint_every, (int, np.integer)) and checkpoint_every >= 0):
-            raise ValueError(f"checkpoint_every must be an integer >= 0, got {checkpoint_every!r}")
-        if checkpoint_every and output_dir is None:
-            raise ValueError("checkpoint_every needs an output_dir (checkpoints are written to "
-                             "output_dir/checkpoints)")
-        if not (isinstance(checkpoint_keep, (int, np.integer)) and checkpoint_keep >= 1):
-            raise ValueError(f"checkpoint_keep must be an integer >= 1, got {checkpoint_keep!r}")
-        if volume_correction not in VOLUME_CORRECTIONS:
-            raise ValueError(f"unknown volume_correction {volume_correction!r}; choose one of "
-                             f"{VOLUME_CORRECTIONS}")
+        # the same checks on every rank, raised on every rank (fxcontact.collective)
+        with together(getattr(getattr(space, "mesh", None), "comm", MPI.COMM_WORLD),
+                      "Simulation()", name=name, output_dir=output_dir):
+            if not isinstance(material, Material):
+                raise ValueError(f"material must be a fxcontact material, got {material!r}")
+            if output_every < 1:
+                raise ValueError("output_every must be >= 1")
+            if not (isinstance(checkpoint_every, (int, np.integer)) and checkpoint_every >= 0):
+                raise ValueError(f"checkpoint_every must be an integer >= 0, got "
+                                 f"{checkpoint_every!r}")
+            if checkpoint_every and output_dir is None:
+                raise ValueError("checkpoint_every needs an output_dir (checkpoints are written to "
+                                 "output_dir/checkpoints)")
+            if not (isinstance(checkpoint_keep, (int, np.integer)) and checkpoint_keep >= 1):
+                raise ValueError(f"checkpoint_keep must be an integer >= 1, got "
+                                 f"{checkpoint_keep!r}")
+            if volume_correction not in VOLUME_CORRECTIONS:
+                raise ValueError(f"unknown volume_correction {volume_correction!r}; choose one of "
+                                 f"{VOLUME_CORRECTIONS}")
+            problem = _output_dir_problem(output_dir)
+            if problem:
+                raise ValueError(f"output_dir {output_dir!r} {problem}: give a directory path")
         self.space = space
         self.mesh = space.mesh
         self.comm = space.mesh.comm
@@ -289,7 +353,10 @@ class Simulation:
         return out
 
     def facets(self, facet_tags, tags) -> np.ndarray:
-        return facets_with_tags(self.mesh, facet_tags, tags)
+        """Local indices of the facets carrying any of ``tags`` in this mesh's ``facet_tags``
+        (ValueError on every rank for an empty tag list, a missing tag or the facet tags of
+        another mesh)."""
+        return facets_with_tags(self.mesh, facet_tags, tags, "Simulation.facets(facet_tags)")
 
     def add_velocity_bc(self, facets: np.ndarray, value, component: Optional[int] = None):
         """Prescribe the velocity (or one component) on facets.
@@ -300,15 +367,17 @@ class Simulation:
         """
         self._check_not_built()
         v0 = _time_value(value, 0.0)
-        bc, g = velocity_bc(self.space, facets, v0, component)
-        self._bcs.append(_BC(bc, g, value, self.space.gdim if component is None else None))
+        bc, g = velocity_bc(self.space, facets, v0, component, what="add_velocity_bc")
+        self._bcs.append(_BC(bc, g, value, self.space.gdim if component is None else None,
+                             _bc_label(self, len(self._bcs), facets, component)))
         return bc
 
     def add_reaction(self, name: str, facets: np.ndarray):
         """Record, each increment, the force exerted on the body through the Dirichlet dofs of
         ``facets`` (history columns ``{name}_x``, ``{name}_y``, ``{name}_z``), computed on the
         configuration of the increment (before the geometry update)."""
-        self._reactions[name] = np.asarray(facets, dtype=np.int32)
+        self._reactions[name] = checked_facets(self.mesh, facets, "add_reaction(facets)",
+                                               name=name)
 
     def add_symmetry_plane(self, facets: np.ndarray, normal, name: str = "symmetry"):
         """Symmetry plane through ``facets``: the normal velocity ``v·n`` vanishes there.
@@ -325,6 +394,8 @@ class Simulation:
         """
         self._check_not_built()
         from fxcontact.symmetry import SymmetryPlanes, _unit_normal
+        facets = checked_facets(self.mesh, facets, "add_symmetry_plane(facets)", exterior=True,
+                                name=name, normal=digest(np.asarray(normal, dtype=float)))
         n = _unit_normal(normal, self.space.gdim)
         axis = np.flatnonzero(np.abs(n) > 1e-12)
         if self._symmetry is None:
@@ -342,6 +413,7 @@ class Simulation:
         """Register a nodal contributor (``evaluate``, ``stable``; optional ``begin_increment``,
         ``end_increment``, ``diagnostics``, ``output_fields``)."""
         self._check_not_built()
+        check_together(self.comm, "add_contributor()", None, contributor=_describe(contributor))
         self.contributors.append(contributor)
         return contributor
 
@@ -358,12 +430,41 @@ class Simulation:
         (e.g. :class:`~fxcontact.mill.RingAxisUpdate`) may have the same two methods. A
         checkpoint is resumed only with the same controllers (number, types, order)."""
         self._check_not_built()
-        if hasattr(controller, "solve") and any(hasattr(c, "solve") for c in self.controllers):
-            raise ValueError("only one controller may take over the Newton solve (solve()); "
-                             "several idle tools go to one IdleRotation(contact, [tool1, "
-                             "tool2, ...])")
+        with together(self.comm, "add_controller()", controller=_describe(controller)):
+            if hasattr(controller, "solve") and any(hasattr(c, "solve")
+                                                    for c in self.controllers):
+                raise ValueError("only one controller may take over the Newton solve (solve()); "
+                                 "several idle tools go to one IdleRotation(contact, [tool1, "
+                                 "tool2, ...])")
         self.controllers.append(controller)
         return controller
+
+    def _check_setup_together(self):
+        """Before the first increment: what must be the same on every rank (material, solver
+        options, kinematics, the number and kind of the velocity conditions, reactions,
+        symmetry planes, contributors with their names, parameters and tools, controllers),
+        compared on every rank together. A set-up that differs between ranks (a contributor
+        added on one rank only, a tool with other parameters) then raises a ValueError on every
+        rank saying what differs and where, instead of a hang in the first collective operation
+        that one rank never reaches."""
+        items = {"material": digest(self.material),
+                 "solver_options": digest(self.solver_options),
+                 "kinematics": _describe(self.kinematics),
+                 "the number of velocity conditions (add_velocity_bc)": len(self._bcs),
+                 "the reactions (add_reaction)": tuple(self._reactions),
+                 "the symmetry planes (add_symmetry_plane)":
+                     tuple(self._symmetry.names) if self._symmetry is not None else (),
+                 "the number of contributors (add_contributor)": len(self.contributors),
+                 "the number of controllers (add_controller)": len(self.controllers)}
+        for k, b in enumerate(self._bcs):
+            items[f"velocity condition #{k}"] = (
+                f"{b.label}, value {'function' if callable(b.value) else digest(b.value)}")
+        for k, c in enumerate(self.contributors):
+            items[f"contributor #{k}"] = _describe(c)
+        for k, c in enumerate(self.controllers):
+            items[f"controller #{k}"] = _describe(c)
+        check_together(self.comm, "the set-up of the first increment (Simulation.run/step)",
+                       None, **items)
 
     def _check_not_built(self):
         if self._built:
@@ -372,6 +473,7 @@ class Simulation:
     def _build(self):
         if self._built:
             return
+        self._check_setup_together()
         sp = self.space
         v, p = ufl.split(self.w)
         wt, q = ufl.TestFunctions(sp.W)
@@ -551,8 +653,8 @@ class Simulation:
 
     # ------------------------------------------------------------------------ stepping
     def _set_bc_values(self, t: float):
-        for b in self._bcs:
-            set_function_value(b.g, _time_value(b.value, t), b.gdim)
+        for b in self._bcs:   # an error (wrong shape) is raised on every rank, naming the BC
+            set_function_value(b.g, _time_value(b.value, t), b.gdim, f"{b.label} at t = {t:.6g}")
         # a user function that returns NaN/inf would poison Newton: say which and when
         bad = [k for k, b in enumerate(self._bcs) if not np.all(np.isfinite(b.g.x.array))]
         bad = sorted(set(k for ks in self.comm.allgather(bad) for k in ks))
@@ -659,10 +761,12 @@ class Simulation:
     def step(self, dt: float, max_cutbacks: int = 5, min_dt: float = 0.0) -> IncrementResult:
         """Advance by one increment of (at most) ``dt``, halving it on Newton failure (at most
         ``max_cutbacks`` times, and never below ``min_dt``)."""
-        if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
-        if max_cutbacks < 0:
-            raise ValueError("max_cutbacks must be >= 0")
+        with together(self.comm, "Simulation.step()", dt=dt, max_cutbacks=max_cutbacks,
+                      min_dt=min_dt, t=self.t):
+            if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
+                raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+            if max_cutbacks < 0:
+                raise ValueError("max_cutbacks must be >= 0")
         self._build()
         trial = float(dt)
         msg = ""
@@ -674,6 +778,7 @@ class Simulation:
                 msg += f"; dt would fall below the smallest allowed {min_dt:.3g}"
                 break
             t0 = time.perf_counter()
+            first = len(msgs)   # the attempts at this dt, for the cut-back warning
             info = self._try_increment(trial)
             if not info.converged and "condensed linear solve failed" in info.message \
                     and self.solver.fall_back_to_direct():
@@ -730,7 +835,7 @@ class Simulation:
             msgs.append(msg)
             failed_its += info.iterations
             log.warning("t = %.6g: Newton failed with dt = %.3g (%s); retrying with dt/2",
-                        self.t, trial, msg)
+                        self.t, trial, _attempts(msgs[first:]))
             trial *= 0.5
         earlier = [m for m in dict.fromkeys(msgs[:-1]) if m != msgs[-1]] if msgs else []
         if earlier:
@@ -782,10 +887,12 @@ class Simulation:
         and closed on error, and at the end unless ``close=False`` (to continue with another
         ``run``).
         """
-        if not (math.isfinite(t_end) and t_end > self.t):
-            raise ValueError(f"t_end must be > current time {self.t}, got {t_end!r}")
-        if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+        with together(self.comm, "Simulation.run()", t_end=t_end, dt=dt,
+                      max_cutbacks=max_cutbacks, t=self.t):
+            if not (math.isfinite(t_end) and t_end > self.t):
+                raise ValueError(f"t_end must be > current time {self.t}, got {t_end!r}")
+            if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
+                raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
         self._build()
         bar = None
         if self.progress and console.progress_enabled() and self.comm.rank == 0:
@@ -1054,7 +1161,10 @@ class Simulation:
         steps after the checkpoint, from a run that was killed, are dropped). Works on any
         number of ranks. Raises :class:`~fxcontact.checkpoint.CheckpointError` (a ValueError)
         for a missing checkpoint, another format or package version, another mesh, another
-        set-up or other controllers (:meth:`add_controller`).
+        set-up or other controllers (:meth:`add_controller`), and for a corrupted checkpoint (a
+        truncated or altered file, e.g. a disk that failed): ``resume()`` does not fall back to
+        an older checkpoint by itself; the message names the newest intact one, to resume
+        from with ``resume(path=...)``.
         """
         from fxcontact import __version__
         from fxcontact import checkpoint as ck
@@ -1070,6 +1180,8 @@ class Simulation:
         elif not os.path.isfile(os.path.join(path, "manifest.json")) and \
                 ck.latest_checkpoint(path) is not None:
             path = ck.latest_checkpoint(path)
+        # a truncated or altered file: refused, naming the newest intact checkpoint
+        ck.check_intact(self.comm, path, self.name)
         man = ck.read_manifest(path)
         if man.get("format") != ck.FORMAT_VERSION or man.get("fxcontact") != __version__:
             raise CheckpointError(

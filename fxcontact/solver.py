@@ -30,7 +30,9 @@ triangular solves, no new factorisation), exact when P is.
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional
@@ -665,12 +667,12 @@ class NewtonSolver:
             period = self._cycle_period(contributors, fnorm)
         self._last_it, self._last_stable = it, stable
         log.debug("Newton it %d: |R| = %.3e  |dx| = %.3e  stable=%s", it, fnorm, snorm, stable)
+        if stable and it > 0 and fnorm <= self._residual_floor(contributors):
+            # as small as the round-off of the contact gaps allows (a tiny dt): converged
+            log.debug("Newton it %d: |R| = %.3e at the contributors' round-off floor", it, fnorm)
+            return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
         if period:
-            hints = [c.cycle_hint() for c in contributors if hasattr(c, "cycle_hint")]
-            self._cycle_message = (
-                f"Newton iterates cycle with period {period} (the same contact state and "
-                f"residual {fnorm:.3e} every {period} iterations, twice over): "
-                + ("; ".join(hints) if hints else "reduce dt"))
+            self._cycle_message = self._describe_cycle(contributors, period, fnorm)
             log.debug(self._cycle_message)
             return PETSc.SNES.ConvergedReason.DIVERGED_DTOL
         if stable:
@@ -683,6 +685,30 @@ class NewtonSolver:
         if it >= o.max_it:
             return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
         return PETSc.SNES.ConvergedReason.ITERATING
+
+    @staticmethod
+    def _residual_floor(contributors) -> float:
+        """The round-off level of the residual norm that the contributors report
+        (``residual_floor()``, e.g. the contact's ε|X|/dt gap error): Newton cannot go below."""
+        return math.sqrt(sum(c.residual_floor() ** 2 for c in contributors
+                             if hasattr(c, "residual_floor")))
+
+    def _describe_cycle(self, contributors, period: int, fnorm: float) -> str:
+        """The message of a Newton iteration stopped by the cycle detection: what changes over
+        the cycle (the contributors' ``cycle_hint(period)``), or a residual that stagnates
+        with an unchanged state."""
+        window = self._states[-2 * period:]
+        if all(st[0] == window[-1][0] for st in window):
+            target = max(self.options.atol, self._rtol * self._f0)
+            return (f"Newton stagnates: the residual stays at {fnorm:.3e} (initial "
+                    f"{self._f0:.3e}, converged below {target:.3e}) with the same contact "
+                    f"state at every iteration: the tolerance is below the accuracy the "
+                    f"residual can be computed to (raise atol, or rtol)")
+        hints = [c.cycle_hint(period) if inspect.signature(c.cycle_hint).parameters
+                 else c.cycle_hint() for c in contributors if hasattr(c, "cycle_hint")]
+        return (f"Newton iterates cycle with period {period} (the same contact state and "
+                f"residual {fnorm:.3e} every {period} iterations, twice over): "
+                + ("; ".join(hints) if hints else "reduce dt"))
 
     #: periods looked for by the cycle detection, and the residual match that defines a repeat
     CYCLE_PERIODS = (2, 3, 4)
@@ -830,10 +856,12 @@ class NewtonSolver:
             self._end_linear()   # a failed linear solve stops the SNES before the line search
             reason = self.snes.getConvergedReason()
             its = self.snes.getIterationNumber()
-            msg = ""
+            # in words, before a failed SNES is rebuilt (its KSP tells why a solve failed)
+            msg, fail = "", "" if reason > 0 else self._failure_message(reason, its)
         except Exception as e:  # a contributor error raised through PETSc (collective)
             self._end_linear()
             reason, its = -100, self.snes.getIterationNumber()
+            fail = ""
             msg = prob.error or (f"PETSc error inside the Newton solve ({e}; see the PETSc "
                                  f"traceback on stderr)")
         finally:
@@ -878,13 +906,40 @@ class NewtonSolver:
         times["assembly_residual"] = prob.timers.get("assembly_residual")
         times["assembly_jacobian"] = prob.timers.get("assembly_jacobian")
         if not converged and not msg:
-            msg = f"SNES diverged: {_reason_name(reason)} after {its} iterations"
+            msg = fail or f"SNES diverged: {_reason_name(reason)} after {its} iterations"
         evals = {k: self.callback_calls[k] - calls0[k] for k in ("residual", "jacobian")}
         pivots = list(self._pivots)
         if converged and pivots and (pivots[-1] or 0) > 0:
             self._warn_singular(pivots[-1])
         return SolveInfo(converged, its, reason, list(self._norms), msg, times, lin_its,
                          evaluations=evals, null_pivots=pivots)
+
+    def _failure_message(self, reason: int, its: int) -> str:
+        """Why a Newton solve stopped without converging, in words, with the residual reached
+        and the SNES reason in brackets: the iteration cap, a failed linear solve (and the
+        Krylov solver's reason), a line search without decrease, a NaN residual."""
+        R = PETSc.SNES.ConvergedReason
+        norms = self._norms
+        res = ""
+        if norms:
+            target = max(self.options.atol, self._rtol * norms[0])
+            res = (f", residual {norms[-1]:.3e} (initial {norms[0]:.3e}, converged below "
+                   f"{target:.3e})")
+        if reason == R.DIVERGED_MAX_IT:
+            text = f"Newton iteration cap (max_it={self.options.max_it}) reached{res}"
+        elif reason == R.DIVERGED_LINEAR_SOLVE:
+            ksp = self.snes.getKSP()
+            why = _reason_name(ksp.getConvergedReason(), PETSc.KSP.ConvergedReason)
+            text = (f"the linear solve failed at Newton iteration {its} (Krylov solver: {why}; "
+                    f"a NaN/inf or singular Newton matrix, or too little MUMPS memory){res}")
+        elif reason == R.DIVERGED_LINE_SEARCH:
+            text = (f"the line search found no decrease of the residual at Newton iteration "
+                    f"{its}{res}")
+        elif reason == R.DIVERGED_FNORM_NAN:
+            text = f"the residual is NaN/inf at Newton iteration {its}"
+        else:
+            text = f"Newton stopped at iteration {its}{res}"
+        return f"{text} [SNES {_reason_name(reason)}]"
 
     def _warn_singular(self, n: int):
         """A solve converged with a singular Newton matrix at its last iteration: warn (in
@@ -914,8 +969,8 @@ def _globalization_options(kind: str) -> Dict[str, str]:
     return {"snes_type": "newtonls", "snes_linesearch_type": kind}
 
 
-def _reason_name(reason: int) -> str:
-    for k, v in PETSc.SNES.ConvergedReason.__dict__.items():
+def _reason_name(reason: int, kind=PETSc.SNES.ConvergedReason) -> str:
+    for k, v in kind.__dict__.items():
         if isinstance(v, int) and v == reason and not k.startswith("_"):
             return k
     return str(reason)

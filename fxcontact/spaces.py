@@ -120,16 +120,104 @@ class MixedSpace:
         return self.mesh.geometry.x[self.vertex_geometry, : self.gdim].copy()
 
 
-def facets_with_tags(msh, facet_tags, tags: Union[int, Sequence[int]]) -> np.ndarray:
-    """Local facet indices carrying any of ``tags``; ValueError if a tag is absent everywhere.
+def _tag_list(tags, what: str) -> list:
+    if tags is None:
+        raise ValueError(f"{what}: no tags given: say which tag(s) select the facets")
+    if np.isscalar(tags):
+        return [int(tags)]
+    tags = list(tags)
+    if not tags:
+        raise ValueError(f"{what}: the tag list is empty: give at least one tag")
+    return [int(t) for t in tags]
 
-    The check is collective (a tag may live on one rank only), so it never hangs under MPI.
-    """
+
+def _check_facet_tags(msh, facet_tags, what: str):
+    """Local checks of facet MeshTags: of this mesh, of the facet dimension, indices in range
+    (no collective operation)."""
     if facet_tags is None:
-        raise ValueError("facet tags are required to select boundaries by tag")
-    tags = [int(tags)] if np.isscalar(tags) else [int(t) for t in tags]
+        raise ValueError(f"{what}: facet tags are required to select boundaries by tag")
+    if not (hasattr(facet_tags, "indices") and hasattr(facet_tags, "mesh")):
+        raise ValueError(f"{what} must be the facet MeshTags of the mesh, got "
+                         f"{type(facet_tags).__name__}")
+    fdim = msh.topology.dim - 1
+    if facet_tags.mesh is not getattr(msh, "_mesh", msh):
+        raise ValueError(f"{what}: these MeshTags belong to another mesh (facet tags of another "
+                         f"mesh?): give the facet tags made with this mesh")
+    if facet_tags.dim != fdim:
+        raise ValueError(f"{what}: MeshTags of dimension {facet_tags.dim}, facets have dimension "
+                         f"{fdim} (cell tags given for the facet tags?)")
+    _check_range(msh, facet_tags.indices, what)
+
+
+def _check_range(msh, facets: np.ndarray, what: str):
+    fdim = msh.topology.dim - 1
+    imap = msh.topology.index_map(fdim)
+    n = 0 if imap is None else imap.size_local + imap.num_ghosts
+    bad = facets[(facets < 0) | (facets >= n)]
+    if len(bad):
+        raise ValueError(f"{what}: facet index {int(bad[0])} (and {len(bad) - 1} more) out of "
+                         f"range [0, {n}) on rank {msh.comm.rank}, the facets of this mesh (facet "
+                         f"tags of another mesh?): give facet indices of this mesh, e.g. "
+                         f"sim.facets(facet_tags, tag) with this mesh's facet tags")
+
+
+def checked_facets(msh, facets, what: str, exterior: bool = False,
+                   error: Optional[Exception] = None, **agree) -> np.ndarray:
+    """``facets`` as int32 local facet indices of ``msh``, checked on every rank together
+    (:func:`fxcontact.collective.check_together`): integers, within the local facets
+    (including ghosts), not empty on every rank, and on the exterior boundary if
+    ``exterior``. A bad argument (e.g. facets of another mesh, which would crash the
+    assembly) raises a ValueError naming ``what`` on every rank. ``error``: an error of the
+    caller's own local checks, raised the same way; ``agree``: values of the call that must
+    be the same on every rank. Collective."""
+    from fxcontact.collective import check_together, together
+    err, arr = error, np.zeros(0, dtype=np.int32)
+    try:
+        if hasattr(facets, "indices") and hasattr(facets, "values"):
+            raise ValueError(f"{what}: give facet indices (sim.facets(facet_tags, tag)), not "
+                             f"the MeshTags")
+        a = np.asarray(facets)
+        if a.ndim != 1 or (a.size and a.dtype.kind not in "iu"):
+            raise ValueError(f"{what} must be a 1-D array of integer facet indices, got shape "
+                             f"{a.shape} of {a.dtype}")
+        _check_range(msh, a.astype(np.int64), what)
+        arr = a.astype(np.int32)
+    except (ValueError, TypeError) as e:
+        err = err or e
+    sizes = check_together(msh.comm, what, err, share=len(arr), **agree)
+    if sum(sizes) == 0:
+        raise ValueError(f"{what}: no facets on any rank (an empty selection): check the tags "
+                         f"or the locator")
+    if exterior:
+        tdim = msh.topology.dim
+        msh.topology.create_connectivity(tdim - 1, tdim)
+        with together(msh.comm, what):
+            inner = np.setdiff1d(arr, dolfinx.mesh.exterior_facet_indices(msh.topology))
+            if len(inner):
+                raise ValueError(f"{what}: {len(inner)} facet(s) on rank {msh.comm.rank} are not "
+                                 f"on the boundary of the mesh (interior facets: facet indices "
+                                 f"of another mesh?): give boundary facets of this mesh")
+    return arr
+
+
+def facets_with_tags(msh, facet_tags, tags: Union[int, Sequence[int]],
+                     what: str = "facet_tags") -> np.ndarray:
+    """Local facet indices carrying any of ``tags``; ValueError if a tag is absent everywhere,
+    if the tag list is empty or if ``facet_tags`` are not this mesh's facet tags (``what``
+    names the argument in the message).
+
+    The checks are collective (a tag may live on one rank only), so they never hang under MPI.
+    """
+    from fxcontact.collective import check_together
+    err, tag_list = None, []
+    try:
+        tag_list = _tag_list(tags, what)
+        _check_facet_tags(msh, facet_tags, what)
+    except (ValueError, TypeError) as e:
+        err = e
+    check_together(msh.comm, "facets_with_tags()", err, tags=tuple(tag_list))
     out = []
-    for t in tags:
+    for t in tag_list:
         f = facet_tags.indices[facet_tags.values == t]
         n = msh.comm.allreduce(len(f), op=MPI.SUM)
         if n == 0:
@@ -142,7 +230,7 @@ def facets_with_tags(msh, facet_tags, tags: Union[int, Sequence[int]]) -> np.nda
 
 
 def velocity_bc(space: MixedSpace, facets: np.ndarray, value: Union[float, Callable, Sequence],
-                component: Optional[int] = None):
+                component: Optional[int] = None, what: str = "velocity_bc"):
     """Dirichlet condition on the velocity (one component or the full vector) on facets.
 
     Args:
@@ -151,6 +239,10 @@ def velocity_bc(space: MixedSpace, facets: np.ndarray, value: Union[float, Calla
         value: constant, a function ``f(x) -> (N,)`` (component) / ``(gdim, N)`` (vector)
             interpolated at the dofs, or a vector for the full velocity.
         component: velocity component index, or None for the whole vector.
+        what: the call named in the error messages.
+
+    Bad facets (not integers, out of range: facets of another mesh) and a bad component raise
+    a ValueError on every rank (collective).
 
     Returns:
         ``(bc, g)``: the dolfinx DirichletBC and the Function holding its values (re-interpolate
@@ -158,30 +250,56 @@ def velocity_bc(space: MixedSpace, facets: np.ndarray, value: Union[float, Calla
     """
     msh = space.mesh
     fdim = msh.topology.dim - 1
+    err = None
+    if component is not None and not 0 <= component < space.gdim:
+        err = ValueError(f"{what}: component must be in [0, {space.gdim}), got {component}")
+    facets = checked_facets(msh, facets, f"{what}(facets)", error=err, component=component)
     if component is None:
         Wsub, Vc = space.W.sub(0), space.V
     else:
-        if not 0 <= component < space.gdim:
-            raise ValueError(f"component must be in [0, {space.gdim}), got {component}")
         Wsub = space.W.sub(0).sub(component)
         Vc, _ = compat.collapse(Wsub)
     dofs = compat.locate_dofs_topological((Wsub, Vc), fdim, facets)
     g = dolfinx.fem.Function(Vc)
-    set_function_value(g, value, space.gdim if component is None else None)
+    set_function_value(g, value, space.gdim if component is None else None, f"{what}(value)")
     bc = dolfinx.fem.dirichletbc(g, dofs, Wsub)
     return bc, g
 
 
-def set_function_value(g, value, gdim: Optional[int] = None):
-    """Fill ``g`` with a constant, a constant vector or by interpolating a callable."""
+def set_function_value(g, value, gdim: Optional[int] = None, what: str = "the value"):
+    """Fill ``g`` with a constant, a constant vector or by interpolating a callable.
+
+    A value of the wrong shape, or a function that returns the wrong shape or raises, gives a
+    ValueError on every rank naming ``what`` and the shapes expected and got (collective)."""
+    from fxcontact.collective import check_together
+    err = None
+    try:
+        _fill(g, value, gdim, what)
+    except ValueError as e:
+        err = e
+    except Exception as e:   # the user's function failed
+        err = ValueError(f"{what}: the value function raised {type(e).__name__}: {e}")
+    check_together(g.function_space.mesh.comm, what, err)
+    g.x.scatter_forward()
+
+
+def _fill(g, value, gdim: Optional[int], what: str):
     if callable(value):
-        g.interpolate(value)
+        def checked(x):
+            out = np.asarray(value(x), dtype=np.float64)
+            want = (x.shape[1],) if gdim is None else (gdim, x.shape[1])
+            if out.shape != want:
+                kind = "one value per point" if gdim is None else f"{gdim} components per point"
+                raise ValueError(f"{what}: the value function f(x) returns shape {out.shape} for "
+                                 f"x of shape {x.shape}, expected {want} ({kind})")
+            return out
+        g.interpolate(checked)
     else:
         val = np.asarray(value, dtype=np.float64)
         if val.ndim == 0:
             g.x.array[:] = float(val)
         else:
             if gdim is None or val.shape != (gdim,):
-                raise ValueError(f"vector value must have shape ({gdim},), got {val.shape}")
+                raise ValueError(f"{what}: vector value must have shape ({gdim},), got "
+                                 f"{val.shape}")
             g.x.array[:] = np.tile(val, g.x.array.size // gdim)
-    g.x.scatter_forward()

@@ -84,6 +84,20 @@ def _add_bc_after_start(c):
     s.add_velocity_bc(s.facets(c["ft"], TAGS["z1"]), -0.1, 2)
 
 
+def _output_dir_is_a_file(c):
+    d = shared_tmpdir("fxc_bad_file_")
+    path = os.path.join(d, "results")
+    if COMM.rank == 0:
+        open(path, "w").close()
+    COMM.barrier()
+    try:
+        _sim(c, output_dir=path)
+    finally:
+        COMM.barrier()
+        if COMM.rank == 0:
+            shutil.rmtree(d, ignore_errors=True)
+
+
 def _run_time_backwards(c):
     s = _sim(c)
     s.add_velocity_bc(s.facets(c["ft"], TAGS["z0"]), 0.0, 2)
@@ -134,6 +148,20 @@ CASES = [
         fx.facets_with_tags(c["msh"], c["ft"], 3), (0.0, 1.0)), ValueError,
      r"vector value must have shape \(3,\)"),
     ("bc-added-after-start", _add_bc_after_start, RuntimeError, "already set up"),
+    ("facets-empty-tag-list", lambda c: _sim(c).facets(c["ft"], []), ValueError,
+     r"Simulation.facets\(facet_tags\): the tag list is empty: give at least one tag"),
+    ("contact-empty-tag-list", lambda c: fx.ContactBoundary(c["space"], c["ft"], []),
+     ValueError, r"ContactBoundary\(facet_tags\): the tag list is empty"),
+    ("bc-no-facets", lambda c: _sim(c).add_velocity_bc(np.zeros(0, np.int32), 0.0, 2),
+     ValueError, r"add_velocity_bc\(facets\): no facets on any rank"),
+    ("bc-facets-not-integers", lambda c: _sim(c).add_velocity_bc(np.array([0.5, 1.5]), 0.0, 2),
+     ValueError, r"add_velocity_bc\(facets\) must be a 1-D array of integer facet indices"),
+    ("bc-function-of-wrong-shape", lambda c: _sim(c).add_velocity_bc(
+        fx.facets_with_tags(c["msh"], c["ft"], 3), lambda x: np.zeros((2, x.shape[1]))),
+     ValueError, r"add_velocity_bc\(value\): the value function f\(x\) returns shape "
+                 r"\(2, \d+\) for x of shape \(3, \d+\), expected \(3, \d+\)"),
+    ("simulation-output_dir-is-a-file", _output_dir_is_a_file, ValueError,
+     r"output_dir '.*results' is a file, not a directory: give a directory path"),
     # tools
     ("plane-zero-normal", lambda c: fx.Plane((0, 0, 0), (0, 0, 0)), ValueError, "non-zero"),
     ("sphere-negative-radius", lambda c: fx.Sphere((0, 0, 0), -1.0), ValueError,
@@ -196,7 +224,7 @@ def test_bad_input(ctx, case, make, exc, words):
 
 
 def test_catalogue_is_large_and_listed_in_the_readme():
-    ids = [c[0] for c in CASES] + RUN_TIME_CASES
+    ids = [c[0] for c in CASES] + RUN_TIME_CASES + [c[0] for c in SUBPROCESS_CASES]
     assert len(ids) >= 30 and len(set(ids)) == len(ids)
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     missing = [i for i in ids if f"`{i}`" not in readme]
@@ -204,7 +232,8 @@ def test_catalogue_is_large_and_listed_in_the_readme():
 
 
 # ----------------------------------------------------------------------------- during a run
-RUN_TIME_CASES = ["bc-function-returns-nan", "newton-fails-after-all-cutbacks",
+RUN_TIME_CASES = ["bc-function-returns-nan", "bc-function-returns-wrong-shape",
+                  "checkpoint-corrupted", "newton-fails-after-all-cutbacks",
                   "disk-full-history", "disk-full-vtk", "disk-full-checkpoint",
                   "checkpoint-of-another-mesh",
                   "tool-starts-buried", "friction-needs-shear-limit"]
@@ -248,6 +277,52 @@ def test_bc_function_returns_nan(cube, out):
     with pytest.raises(ValueError, match=r"condition\(s\) #\[3\].*non-finite.*t = 0.2"):
         s.run(0.4, 0.1)
     _outputs_intact(out, 1, [0.0, 0.1])
+
+
+def test_bc_function_returns_wrong_shape(cube, out):
+    """The message names the condition (number, component, facets), the time, the shapes."""
+    s = _pressed(cube, out, top=lambda x, t: np.full(x.shape[1], -0.1) if t < 0.15
+                 else np.full((2, x.shape[1]), -0.1))
+    with pytest.raises(ValueError, match=r"velocity boundary condition #3 \(component 2, on \d+ "
+                                         r"facets\) at t = 0.2: the value function f\(x\) "
+                                         r"returns shape \(2, \d+\) .*expected \(\d+,\)"):
+        s.run(0.4, 0.1)
+    _outputs_intact(out, 1, [0.0, 0.1])
+
+
+def _damage(path, how):
+    """Truncate ``path`` or flip one byte in its middle (rank 0)."""
+    if COMM.rank == 0:
+        data = bytearray(Path(path).read_bytes())
+        if how == "truncate":
+            data = data[: len(data) // 2]
+        else:
+            data[len(data) // 2] ^= 0xFF
+        Path(path).write_bytes(bytes(data))
+    COMM.barrier()
+
+
+def test_checkpoint_corrupted(cube, out):
+    """A truncated or altered checkpoint is refused with a CheckpointError naming the file and
+    the newest intact checkpoint to resume from; resume() does not fall back by itself."""
+    s = _pressed(cube, out, checkpoint_every=1, checkpoint_keep=3)
+    s.run(0.3, 0.1)
+    ckpts = os.path.join(out, "checkpoints")
+    p1, p2, p3 = (os.path.join(ckpts, f"p_{i:06d}") for i in (1, 2, 3))
+    _damage(os.path.join(p3, "rank0.npz"), "truncate")
+    with pytest.raises(CheckpointError, match=rf"checkpoint {re.escape(p3)} is corrupted "
+                                              rf"\(rank0.npz: BadZipFile.*the newest intact "
+                                              rf"checkpoint is {re.escape(p2)}: resume\(path="):
+        _pressed(_cube(), out).resume()
+    _damage(os.path.join(p2, f"rank{COMM.size - 1}.npz"), "flip")
+    with pytest.raises(CheckpointError, match=rf"{re.escape(p2)} is corrupted .*Bad CRC-32.*"
+                                              rf"newest intact checkpoint is {re.escape(p1)}"):
+        _pressed(_cube(), out).resume(p2)
+    _outputs_intact(out, 3, [0.0, 0.1, 0.2, 0.3])
+    s2 = _pressed(_cube(), out)
+    s2.resume(p1)
+    assert s2.increment == 1
+    s2.close()
 
 
 class _RefuseAfter:
@@ -371,3 +446,79 @@ def test_friction_needs_shear_limit(cube, out):
     with pytest.raises(ValueError, match=r"shear flow stress k .*give shear_limit="):
         s.run(0.2, 0.1)
     _outputs_intact(out, 0, [0.0])
+
+
+# ------------------------------------------- set-ups that used to crash or hang (subprocess)
+DRIVER = Path(__file__).resolve().parent / "bad_setup_driver.py"
+
+#: (case id, ranks, error class, key words of the message on every rank (regex)): facets of
+#: another mesh used to crash the assembly (SIGSEGV); a set-up that differs between ranks used
+#: to leave one rank raising and the other waiting forever
+SUBPROCESS_CASES = [
+    ("contact-facet-tags-of-another-mesh", (1, 2), "ValueError",
+     r"ContactBoundary\(facet_tags\): .*facet tags of another mesh\?"),
+    ("facets-tags-of-another-mesh", (1, 2), "ValueError",
+     r"Simulation.facets\(facet_tags\): .*facet tags of another mesh\?"),
+    ("bc-facets-of-another-mesh", (1, 2), "ValueError",
+     r"add_velocity_bc\(facets\): facet index \d+ .*out of range.*facet tags of another mesh\?"),
+    ("reaction-facets-of-another-mesh", (1, 2), "ValueError",
+     r"add_reaction\(facets\): facet index \d+ .*out of range"),
+    ("symmetry-plane-interior-facets", (1, 2), "ValueError",
+     r"add_symmetry_plane\(facets\): .*not on the boundary"),
+    ("contributor-added-on-one-rank", (2,), "ValueError",
+     r"set-up differs between ranks: rank 0 in add_contributor\(\); rank 1 in Simulation.run"),
+    ("contact-created-on-one-rank", (2,), "ValueError",
+     r"set-up differs between ranks: rank 0 in ContactBoundary\(\); rank 1 in Simulation.run"),
+    ("tool-none-on-one-rank", (2,), "ValueError",
+     r"tools must be a Tool.*raised on rank 1 only: the set-up differs between ranks"),
+    ("tool-parameters-differ", (2,), "ValueError",
+     r"add_contributor\(\): contributor differs between ranks \(rank 0: .*velocity=\[0, 0, "
+     r"-0.1\].*rank 1: .*velocity=\[0, 0, -0.2\]"),
+    ("dt-differs", (2,), "ValueError", r"Simulation.run\(\): dt differs between ranks "
+                                       r"\(rank 0: 0.1; rank 1: 0.05\)"),
+    ("bc-added-on-one-rank", (2,), "ValueError",
+     r"set-up differs between ranks: rank 0 in facets_with_tags\(\); rank 1 in Simulation.run"),
+]
+
+
+def _run_driver(case, nranks, timeout=240):
+    """Run the driver under ``mpirun -n nranks`` in its own process group; kill the group and
+    fail if it hangs."""
+    import signal
+    import subprocess
+    import sys
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+               OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OPENBLAS_NUM_THREADS="1")
+    import tempfile
+    out = tempfile.mkdtemp(prefix="fxc_bad_setup_")
+    cmd = [sys.executable, str(DRIVER), case, out]
+    if nranks > 1:
+        cmd = ["mpirun", "-n", str(nranks), "--oversubscribe"] + cmd
+    p = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, start_new_session=True)
+    try:
+        _, err = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.communicate()
+        pytest.fail(f"{case} on {nranks} rank(s) hangs (killed after {timeout} s)")
+    assert p.returncode == 0, f"{case} on {nranks} rank(s): exit code {p.returncode}\n" \
+                              f"{err[-3000:]}"
+    files = sorted(Path(out).glob("rank*.txt"))
+    results = [f.read_text() for f in files]
+    shutil.rmtree(out, ignore_errors=True)
+    return results
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("case,ranks,exc,words", SUBPROCESS_CASES,
+                         ids=[c[0] for c in SUBPROCESS_CASES])
+def test_bad_setup_neither_crashes_nor_hangs(case, ranks, exc, words):
+    """Each rank raises the same error class with the words naming the argument and the fix
+    (run from the serial session: the driver is its own 1- and 2-rank MPI job)."""
+    for n in ranks:
+        results = _run_driver(case, n)
+        assert len(results) == n, (case, n, results)
+        for r in results:
+            assert r.startswith(f"{exc}: ") and re.search(words, r), (case, n, r)

@@ -334,3 +334,45 @@ def test_nagata_fallbacks_reported_per_increment():
         assert c.diagnostics()["contact_fallbacks_all"] == c.diagnostics()["contact_fallbacks"]
     assert diags[0]["contact_fallbacks"] > 0.5 * n
     assert diags[30]["contact_fallbacks"] == 0
+
+
+@pytest.mark.parametrize("pattern", [[0, 1], [0, 1, 1]])
+def test_cycle_hint_counts_tool_switches_over_the_cycle(pattern):
+    """A node that switches between the two tools of one contact (a container and a die that
+    meet) in a 2- or 3-cycle of Newton iterates is reported as switching between the tools,
+    counted over the whole cycle (the last step of the 3-cycle A, B, B changes nothing: the
+    message said "0 node(s) enter and leave contact")."""
+    container = Plane((0, 0, 0.05), (0, 0, -1), name="container")
+    die = Plane((0.05, 0, 0), (-1, 0, 0), name="die")
+    c = NodalContact(_FakeBoundary(1), [container, die], penalty=1.0,
+                     max_initial_penetration=10.0)
+    c.begin_increment(_FakeSim(CartesianUpdate(), np.zeros(3)), 0.0, 0.1, np.zeros((1, 3)))
+    c.begin_solve()
+    vs = [np.array([0.6, 0.0, 1.0]), np.array([1.0, 0.0, 0.6])]
+    tools = []
+    for k in range(2 * len(pattern) + 1):
+        c.evaluate(vs[pattern[k % len(pattern)]], False)
+        c.stable()
+        tools.append(int(c._tool[0]))
+    assert np.all(c._h > 0) and len(set(tools)) == 2     # in contact, with both tools in turn
+    hint = c.cycle_hint(len(pattern))
+    assert "1 node(s) switch between the tools 'container' and 'die'" in hint
+    assert "enter and leave" not in hint and "reduce dt" in hint
+
+
+def test_tiny_dt_converges_at_the_round_off_floor():
+    """The README's upsetting with dt = 1e-6: the contact gap of a node at x is known to
+    ε|x| only, so the contact forces to ρS ε|x|/dt, above the relative tolerance of the
+    residual of an increment that starts from a good predictor; Newton stopped there as a
+    "cycle" with "0 node(s) enter and leave contact: reduce dt". It converges at that floor."""
+    msh, _, ft = cylinder_billet(MPI.COMM_WORLD, radius=10.0, height=15.0, h=4.0)
+    space = MixedSpace(msh)
+    sim = Simulation(space, NortonHoff(K=50.0, m=0.15), progress=False)
+    for key, comp in (("symmetry_x", 0), ("symmetry_y", 1), ("bottom", 2)):
+        sim.add_velocity_bc(sim.facets(ft, BILLET_TAGS[key]), 0.0, component=comp)
+    die = Plane(point=(0, 0, 15.0), normal=(0, 0, -1), velocity=(0, 0, -5.0), name="die")
+    contact = NodalContact(ContactBoundary(space, ft, BILLET_TAGS["top"]), die)
+    sim.add_contributor(contact)
+    history = sim.run(t_end=3e-6, dt=1e-6, max_cutbacks=0)
+    assert len(history) == 3 and all(r["cutbacks"] == 0 for r in history)
+    assert history[-1]["contact_nodes"] > 0 and history[-1]["die_force_z"] > 0

@@ -1,5 +1,7 @@
 """Foundation: Norton–Hoff compression, elastic patch test, MPI agreement, bad input."""
 
+import re
+
 import numpy as np
 import pytest
 import ufl
@@ -456,7 +458,7 @@ class _LinearSolverFailsOnce:
 
 
 @pytest.mark.parametrize("mode", ["nan", "mumps_memory", "nan_residual"])
-def test_cutback_after_linear_solver_failure_succeeds(mode):
+def test_cutback_after_linear_solver_failure_succeeds(mode, caplog):
     """After a linear-solver failure (DIVERGED_LINEAR_SOLVE) the cut-back attempt starts from a
     fresh factorisation and converges, to the same velocity as a run that never failed."""
     from petsc4py import PETSc
@@ -469,11 +471,35 @@ def test_cutback_after_linear_solver_failure_succeeds(mode):
         PETSc.Options().delValue(_LinearSolverFailsOnce.KEY)
     assert res.row["cutbacks"] == 1 and c.attempts == 2
     assert sim.solver.resets == 1
+    # the cut-back warning gives the true reason
+    why = {"nan": r"the linear solve failed at Newton iteration 0 \(Krylov solver: DIVERGED_",
+           "mumps_memory": r"the linear solve failed at Newton iteration 0",
+           "nan_residual": r"the residual is NaN/inf at Newton iteration 0"}[mode]
+    assert any(re.search(why, r.getMessage()) for r in caplog.records
+               if r.levelname == "WARNING"), [r.getMessage() for r in caplog.records]
     ref = _pressed_cube(10, _UnsettledAboveDt(1.0))
     ref.step(0.05)
     assert_newton_counts_match(res.row["newton_iterations"], ref.history[-1]["newton_iterations"],
                                bitwise=MPI.COMM_WORLD.size == 1)
     assert np.allclose(sim.w.x.array, ref.w.x.array, rtol=0, atol=1e-10)
+
+
+def test_iteration_cap_is_named_as_the_reason(caplog):
+    """An attempt that ends on the Newton iteration cap is reported as such in the cut-back
+    warning and in the IncrementError, with every attempt at the same dt (primal-dual tangent,
+    consistent tangent, fallback line search), never as another SNES reason."""
+    from fxcontact.simulation import IncrementError
+
+    sim = _pressed_cube(1, _UnsettledAboveDt(10.0), fallback="basic", material_tangent="auto")
+    f = _faces(sim.mesh, (1.0, 1.0, 1.0))
+    for comp in (0, 1):      # a sticking die: a barrelling, non-uniform flow (nonlinear)
+        sim.add_velocity_bc(f["z1"], 0.0, comp)
+    with pytest.raises(IncrementError, match=r"Newton iteration cap \(max_it=1\) reached, "
+                                             r"residual .* \[SNES DIVERGED_MAX_IT\]"):
+        sim.step(0.1, max_cutbacks=1)
+    warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert warnings and all("Newton iteration cap (max_it=1) reached" in w for w in warnings)
+    assert not any("LINEAR_SOLVE" in w for w in warnings)
 
 
 def test_trust_region_retest_of_the_same_iterate_is_not_a_cycle():
@@ -497,6 +523,8 @@ def test_trust_region_retest_of_the_same_iterate_is_not_a_cycle():
                                _cycle_message="", CYCLE_PERIODS=NewtonSolver.CYCLE_PERIODS,
                                CYCLE_RTOL=NewtonSolver.CYCLE_RTOL)
         fake._cycle_period = lambda cs, f: NewtonSolver._cycle_period(fake, cs, f)
+        fake._describe_cycle = lambda cs, p, f: NewtonSolver._describe_cycle(fake, cs, p, f)
+        fake._residual_floor = NewtonSolver._residual_floor
         return fake, c, (lambda it, f: NewtonSolver._converged(fake, None, it, (1.0, 1.0, f)))
 
     R = PETSc.SNES.ConvergedReason
@@ -513,6 +541,15 @@ def test_trust_region_retest_of_the_same_iterate_is_not_a_cycle():
         c.fp = ((it % 2,),)
         reasons.append(conv(it, 10.0 + it % 2))
     assert reasons.index(R.DIVERGED_DTOL) == 5
+    assert "cycle with period 2" in fake._cycle_message
+    # the same state and residual at every iterate: a residual that stagnates, not a cycle of
+    # the contact state (the message said "0 node(s) enter and leave contact")
+    fake, c, conv = solver()
+    c.fp = ((1,),)
+    reasons = [conv(it, 10.0) for it in range(8)]
+    assert R.DIVERGED_DTOL in reasons
+    assert "Newton stagnates: the residual stays at 1.000e+01" in fake._cycle_message
+    assert "enter and leave" not in fake._cycle_message
 
 
 def test_trust_region_from_rest_starts_with_the_full_newton_step():

@@ -28,6 +28,7 @@ import dolfinx.fem.petsc
 import dolfinx.mesh
 
 from fxcontact import compat
+from fxcontact.collective import together
 from fxcontact.spaces import MixedSpace, facets_with_tags
 
 __all__ = ["ContactBoundary", "p1_trace_check", "vertex_dof_map"]
@@ -113,14 +114,48 @@ class ContactBoundary:
     """
 
     def __init__(self, space, facet_tags=None, tags: Union[int, Sequence[int], None] = None):
+        # checked on every rank together, raised on every rank (fxcontact.collective)
+        with together(getattr(getattr(space, "mesh", None), "comm", MPI.COMM_WORLD),
+                      "ContactBoundary()"):
+            msh, vertex_dofs, vertex_owned = self._space_maps(space)
+            if facet_tags is None and tags is not None:
+                raise ValueError("tags given without facet_tags")
+            if facet_tags is not None and tags is None:
+                raise ValueError("facet_tags given without tags: say which tags are in contact")
+        self.space = space
+        self.mesh = msh
+        self.vertex_dofs = vertex_dofs
+        self.comm = msh.comm
+        tdim = msh.topology.dim
+        fdim = tdim - 1
+        msh.topology.create_connectivity(fdim, tdim)
+        msh.topology.create_connectivity(fdim, 0)
+        if facet_tags is None:
+            facets = dolfinx.mesh.exterior_facet_indices(msh.topology)
+            ds = ufl.ds(domain=msh)
+        else:
+            facets = facets_with_tags(msh, facet_tags, tags, "ContactBoundary(facet_tags)")
+            tags = [int(tags)] if np.isscalar(tags) else [int(t) for t in tags]
+            dsm = ufl.ds(domain=msh, subdomain_data=facet_tags)
+            ds = sum((dsm(t) for t in tags[1:]), dsm(tags[0]))
+        self._lumped_areas(msh, ds, facets, vertex_dofs, vertex_owned)
+        n = self.comm.allreduce(len(self.vertices), op=MPI.SUM)
+        if n == 0:
+            raise ValueError("ContactBoundary(facet_tags, tags): the facets select no boundary "
+                             "vertex (the tags mark interior facets only?): give tags of "
+                             "exterior facets")
+        log.info("contact boundary: %d vertices, area %.4g", n, self.total_area())
+
+    def _space_maps(self, space):
+        """(mesh, vertex→dof map, owned flags) of the space; ValueError if it cannot carry
+        nodal contact (local)."""
         if isinstance(space, MixedSpace):
             if space.element != "mini":
                 raise ValueError(
                     "nodal contact needs a P1 velocity trace (element='mini'): with Taylor-Hood "
                     "the P2 row-sum lumping gives zero area to boundary vertices (THEORY §1.3)")
-            msh = space.mesh
-            vertex_dofs, vertex_owned = space.vertex_dofs, space.vertex_owned
             self._gdim = space.gdim
+            return space.mesh, space.vertex_dofs, space.vertex_owned
         elif isinstance(space, dolfinx.fem.FunctionSpace):
             why = p1_trace_check(space)
             if why is not None:
@@ -131,31 +166,13 @@ class ContactBoundary:
                     dolfinx.mesh.CellType.triangle, dolfinx.mesh.CellType.tetrahedron):
                 raise ValueError("nodal contact needs a simplex mesh (triangles or tetrahedra) "
                                  f"of full dimension, got tdim={tdim}, gdim={gdim}")
-            vertex_dofs, vertex_owned = vertex_dof_map(space, msh)
             self._gdim = gdim
-        else:
-            raise ValueError(f"space must be a fxcontact MixedSpace or a dolfinx FunctionSpace, "
-                             f"got {space!r}")
-        self.space = space
-        self.mesh = msh
-        self.vertex_dofs = vertex_dofs
-        self.comm = msh.comm
-        tdim = msh.topology.dim
-        fdim = tdim - 1
-        msh.topology.create_connectivity(fdim, tdim)
-        msh.topology.create_connectivity(fdim, 0)
-        if facet_tags is None:
-            if tags is not None:
-                raise ValueError("tags given without facet_tags")
-            facets = dolfinx.mesh.exterior_facet_indices(msh.topology)
-            ds = ufl.ds(domain=msh)
-        else:
-            if tags is None:
-                raise ValueError("facet_tags given without tags: say which tags are in contact")
-            facets = facets_with_tags(msh, facet_tags, tags)
-            tags = [int(tags)] if np.isscalar(tags) else [int(t) for t in tags]
-            dsm = ufl.ds(domain=msh, subdomain_data=facet_tags)
-            ds = sum((dsm(t) for t in tags[1:]), dsm(tags[0]))
+            return msh, *vertex_dof_map(space, msh)
+        raise ValueError(f"space must be a fxcontact MixedSpace or a dolfinx FunctionSpace, "
+                         f"got {space!r}")
+
+    def _lumped_areas(self, msh, ds, facets, vertex_dofs, vertex_owned):
+        """The contact vertices and their lumped areas (collective)."""
         # lumped areas: assemble ∫ N_i ds on a scalar P1 space. The contact vertices are the
         # owned vertices with a positive assembled area: this is collective, so a vertex whose
         # boundary facets all live on another rank is still found by its owner.
@@ -175,8 +192,6 @@ class ContactBoundary:
         self.dofs = vertex_dofs[self.vertices]
         self.geometry_nodes = compat.entities_to_geometry(msh, 0, self.vertices).reshape(-1)
         self.update_areas()
-        n = self.comm.allreduce(len(self.vertices), op=MPI.SUM)
-        log.info("contact boundary: %d vertices, area %.4g", n, self.total_area())
 
     @property
     def gdim(self) -> int:

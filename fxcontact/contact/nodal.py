@@ -42,6 +42,7 @@ from __future__ import annotations
 import logging
 import math
 import zlib
+from collections import deque
 from typing import Dict, List, Optional
 
 import numpy as np
@@ -57,6 +58,7 @@ from fxcontact.contact.friction import (LAW_COULOMB, LAW_NONE, LAW_NORTON, LAW_T
 from fxcontact.contact.penalty import penalty_kernel, penalty_kernel_numpy
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic, NortonHoff
+from fxcontact.collective import together
 from fxcontact.petsc import ContributorError, NodalTerms
 from fxcontact.tools.base import Tool, unit_vector
 
@@ -196,66 +198,75 @@ class NodalContact:
                  friction_mode: Optional[str] = None, slip_velocity: Optional[float] = None,
                  friction_tangent: str = "auto", name: str = "contact", backend: str = "numba",
                  formulation: str = "velocity", modulus: Optional[float] = None):
-        if formulation not in FORMULATIONS:
-            raise ValueError(f"unknown formulation {formulation!r}; choose one of {FORMULATIONS}")
-        self.formulation = formulation
-        if formulation == "velocity" and modulus is not None:
-            raise ValueError("modulus is for the displacement formulation (k = beta E*/h_e); "
-                             "the velocity form takes beta with the material of the Simulation")
-        if scheme not in SCHEMES:
-            raise ValueError(f"unknown contact scheme {scheme!r}; choose one of {SCHEMES}")
-        tools = [tools] if isinstance(tools, Tool) else list(tools)
-        if not tools or not all(isinstance(t, Tool) for t in tools):
-            raise ValueError("tools must be a Tool or a non-empty sequence of Tools")
-        if scheme == "implicit-exact" and not all(t.has_hessian for t in tools):
-            raise ValueError("implicit-exact needs tools that provide the gap Hessian")
-        if gap_stiffness is not None:
-            if penalty is not None or beta is not None:
-                raise ValueError("give only one of penalty, beta and gap_stiffness")
-            if not (math.isfinite(gap_stiffness) and gap_stiffness > 0):
-                raise ValueError(f"gap_stiffness must be finite and > 0, got {gap_stiffness!r}")
-        elif penalty is None and beta is None:
-            beta = DEFAULT_BETA
-        self.gap_stiffness = gap_stiffness
-        if penalty is not None and not (math.isfinite(penalty) and penalty > 0):
-            raise ValueError(f"penalty must be finite and > 0, got {penalty!r}")
-        if beta is not None and not (math.isfinite(beta) and beta > 0):
-            raise ValueError(f"beta must be finite and > 0, got {beta!r}")
-        if not (math.isfinite(sticky_gap) and sticky_gap >= 0):
-            raise ValueError("sticky_gap must be >= 0")
-        if backend not in ("numba", "numpy"):
-            raise ValueError("backend must be 'numba' or 'numpy'")
-        self.boundary = boundary
-        self.tools: List[Tool] = tools
-        self.scheme = scheme
-        self.name = name
-        self.gdim = boundary.gdim
-        self._penalty, self.beta = penalty, beta
-        self.strain_rate = strain_rate
-        self.sticky_gap = float(sticky_gap)
-        #: factor on ρ of the current evaluations (< 1 in the softened first stage of a
-        #: Newton solve with penalty continuation, SolverOptions.penalty_continuation)
-        self.penalty_scale = 1.0
-        self.kernel = penalty_kernel if backend == "numba" else penalty_kernel_numpy
-        self.friction_kernel = friction_kernel if backend == "numba" else friction_kernel_numpy
-        self.friction = self._friction_per_tool(friction, tools)
-        self.has_friction = any(law.code != LAW_NONE for law in self.friction)
-        if friction_mode is None:
-            friction_mode = "implicit" if scheme in ("implicit", "implicit-exact") else "explicit"
-        if friction_mode not in FRICTION_MODES:
-            raise ValueError(f"unknown friction_mode {friction_mode!r}; choose one of "
-                             f"{FRICTION_MODES}")
-        self.friction_mode = friction_mode
-        if slip_velocity is not None and not (math.isfinite(slip_velocity) and slip_velocity > 0):
-            raise ValueError(f"slip_velocity (v0) must be finite and > 0, got {slip_velocity!r}")
-        if friction_tangent not in ("auto", "consistent", "secant"):
-            raise ValueError(f"friction_tangent must be 'auto', 'consistent' or 'secant', got "
-                             f"{friction_tangent!r}")
-        self.friction_tangent = friction_tangent
-        self._fr_state_prev = None
-        self._fr_settled = False
-        self._slip_velocity_user = None if slip_velocity is None else float(slip_velocity)
-        self.slip_velocity = self._slip_velocity_user
+        # checked on every rank together, raised on every rank (fxcontact.collective)
+        with together(getattr(boundary, "comm", MPI.COMM_WORLD), "NodalContact()", name=name,
+                      scheme=scheme, formulation=formulation, element_size=element_size,
+                      modulus=modulus):
+            if formulation not in FORMULATIONS:
+                raise ValueError(f"unknown formulation {formulation!r}; choose one of "
+                                 f"{FORMULATIONS}")
+            self.formulation = formulation
+            if formulation == "velocity" and modulus is not None:
+                raise ValueError("modulus is for the displacement formulation (k = beta E*/h_e); "
+                                 "the velocity form takes beta with the material of the Simulation")
+            if scheme not in SCHEMES:
+                raise ValueError(f"unknown contact scheme {scheme!r}; choose one of {SCHEMES}")
+            tools = [tools] if isinstance(tools, Tool) else (
+                list(tools) if isinstance(tools, (list, tuple)) else [tools])
+            if not tools or not all(isinstance(t, Tool) for t in tools):
+                raise ValueError("tools must be a Tool or a non-empty sequence of Tools")
+            if scheme == "implicit-exact" and not all(t.has_hessian for t in tools):
+                raise ValueError("implicit-exact needs tools that provide the gap Hessian")
+            if gap_stiffness is not None:
+                if penalty is not None or beta is not None:
+                    raise ValueError("give only one of penalty, beta and gap_stiffness")
+                if not (math.isfinite(gap_stiffness) and gap_stiffness > 0):
+                    raise ValueError(f"gap_stiffness must be finite and > 0, got {gap_stiffness!r}")
+            elif penalty is None and beta is None:
+                beta = DEFAULT_BETA
+            self.gap_stiffness = gap_stiffness
+            if penalty is not None and not (math.isfinite(penalty) and penalty > 0):
+                raise ValueError(f"penalty must be finite and > 0, got {penalty!r}")
+            if beta is not None and not (math.isfinite(beta) and beta > 0):
+                raise ValueError(f"beta must be finite and > 0, got {beta!r}")
+            if not (math.isfinite(sticky_gap) and sticky_gap >= 0):
+                raise ValueError("sticky_gap must be >= 0")
+            if backend not in ("numba", "numpy"):
+                raise ValueError("backend must be 'numba' or 'numpy'")
+            self.boundary = boundary
+            self.tools: List[Tool] = tools
+            self.scheme = scheme
+            self.name = name
+            self.gdim = boundary.gdim
+            self._penalty, self.beta = penalty, beta
+            self.strain_rate = strain_rate
+            self.sticky_gap = float(sticky_gap)
+            #: factor on ρ of the current evaluations (< 1 in the softened first stage of a
+            #: Newton solve with penalty continuation, SolverOptions.penalty_continuation)
+            self.penalty_scale = 1.0
+            self.kernel = penalty_kernel if backend == "numba" else penalty_kernel_numpy
+            self.friction_kernel = friction_kernel if backend == "numba" else friction_kernel_numpy
+            self.friction = self._friction_per_tool(friction, tools)
+            self.has_friction = any(law.code != LAW_NONE for law in self.friction)
+            if friction_mode is None:
+                friction_mode = ("implicit" if scheme in ("implicit", "implicit-exact")
+                                 else "explicit")
+            if friction_mode not in FRICTION_MODES:
+                raise ValueError(f"unknown friction_mode {friction_mode!r}; choose one of "
+                                 f"{FRICTION_MODES}")
+            self.friction_mode = friction_mode
+            if slip_velocity is not None and not (math.isfinite(slip_velocity)
+                                                  and slip_velocity > 0):
+                raise ValueError(f"slip_velocity (v0) must be finite and > 0, got "
+                                 f"{slip_velocity!r}")
+            if friction_tangent not in ("auto", "consistent", "secant"):
+                raise ValueError(f"friction_tangent must be 'auto', 'consistent' or 'secant', got "
+                                 f"{friction_tangent!r}")
+            self.friction_tangent = friction_tangent
+            self._fr_state_prev = None
+            self._fr_settled = False
+            self._slip_velocity_user = None if slip_velocity is None else float(slip_velocity)
+            self.slip_velocity = self._slip_velocity_user
         comm = boundary.comm
         if element_size is None:
             a = boundary.areas
@@ -292,7 +303,12 @@ class NodalContact:
         self._feature = np.zeros(n, dtype=np.int64)
         self._status_prev = None
         self._settled = False
-        self._changes = (0, 0)
+        #: contact state of the last iterates (in contact, tool, feature, projection
+        #: fall-back per node), to say what changes over a cycle (:meth:`cycle_hint`)
+        self._recent = deque(maxlen=5)   # the longest cycle the solver looks for, 4, + 1
+        self._floor = 0.0
+        self._v_last = np.zeros((n, self.gdim))
+        self._rho_eval = 0.0
         self._fingerprint = ()
         self._ever_active = np.zeros(n, dtype=bool)
         self._fallbacks = 0
@@ -492,6 +508,7 @@ class NodalContact:
         self._ever_active[:] = False
         self._fallbacks_all = 0
         self._status_prev = None
+        self._recent.clear()
         # burial check at the start of the increment (collective)
         pr0, tool0 = self._project_all(self.x_t, t, hessian=False)
         depth = -pr0.gap
@@ -578,6 +595,7 @@ class NodalContact:
 
     def begin_solve(self):
         self._status_prev = None
+        self._recent.clear()
         self._settled = False
         self._fr_state_prev = None
         self._fr_settled = False
@@ -624,6 +642,7 @@ class NodalContact:
             v = np.ascontiguousarray((b.velocities(w) - self._u_t) / self.dt)
         else:
             v = np.ascontiguousarray(b.velocities(w))
+        self._v_last = v
         h, g, Hh, tool_idx, feature, flag = self._constraint(v, jacobian)
         if flag is not None:
             bad = np.flatnonzero((flag == 2) & (h > 0))
@@ -633,6 +652,7 @@ class NodalContact:
                     f"contact node at {np.array2string(self.x_t[i], precision=4)} is in contact "
                     f"with tool '{self.tools[tool_idx[i]].name}' at a point where its projection "
                     f"is undefined (on the tool axis): the node is deep inside the tool")
+        self._flag = flag
         if flag is not None:
             self._fallbacks = int(np.sum(flag == 1))
             self._fallbacks_all += self._fallbacks
@@ -786,15 +806,17 @@ class NodalContact:
         prev = self._status_prev
         same = prev is not None and np.array_equal(status, prev)
         comm = self.boundary.comm
-        # what changed since the previous iterate: status (in/out of contact), or only the
-        # projected feature (facet, patch) of a node in contact — for the cycle diagnosis
-        if prev is None:
-            n_status = n_feature = 0
-        else:
-            was, now = prev > 0, status > 0
-            n_status = int(np.sum(was != now))
-            n_feature = int(np.sum(was & now & (prev != status)))
-        self._changes = tuple(comm.allreduce(np.array([n_status, n_feature]), op=MPI.SUM))
+        active = self._h > 0
+        flag = getattr(self, "_flag", None)
+        self._recent.append((active, np.where(active, self._tool, -1),
+                             np.where(active, self._feature, -1),
+                             np.zeros(len(active), bool) if flag is None else flag == 1))
+        # round-off of the contact residual: the gap of X = x^t + dt v is known to about
+        # eps |X|, h = -gap/dt to eps |X| / dt, each active node's force S ρ h to S ρ eps |X|/dt
+        x_t = getattr(self, "x_t", np.zeros((len(active), self.gdim)))
+        X = np.abs(x_t).max(axis=1, initial=0.0) + self.dt * np.linalg.norm(self._v_last, axis=1)
+        floor = self.boundary.areas * self._rho_eval * np.finfo(float).eps * X / self.dt
+        self._floor = math.sqrt(comm.allreduce(float(np.sum(floor[active] ** 2)), op=MPI.SUM))
         self._fingerprint = tuple(comm.allgather(zlib.crc32(status.tobytes())))
         self._status_prev = status
         self._settled = bool(comm.allreduce(int(same), op=MPI.MIN))
@@ -820,16 +842,70 @@ class NodalContact:
         rank): the solver uses it to recognise a Newton iteration that cycles."""
         return self._fingerprint
 
-    def cycle_hint(self) -> str:
-        """What changes at each iteration of a cycling Newton iteration, and the usual cure."""
-        n_status, n_feature = self._changes
-        if n_feature and not n_status:
-            return (f"contact '{self.name}': {n_feature} node(s) switch between tool facets at "
-                    f"every iteration (facet switching, THEORY §6): smooth the faceted tool "
-                    f"(mode='nagata') or reduce dt")
-        return (f"contact '{self.name}': {n_status} node(s) enter and leave contact"
-                + (f" and {n_feature} switch facets" if n_feature else "")
-                + " at every iteration: reduce dt (cut-back)")
+    def residual_floor(self) -> float:
+        """Round-off level of this contact's residual norm at the last iterate (collective
+        value of the last :meth:`stable` call): the gap of a node at X is known to about
+        ε|X|, so its force S ρ h = −S ρ gap/dt to S ρ ε|X|/dt. Newton cannot reduce the
+        residual below it; the solver accepts an iterate there (a tiny dt, where this floor
+        exceeds the relative tolerance)."""
+        return self._floor
+
+    def cycle_hint(self, period: int = 1) -> str:
+        """What changes over a cycle of ``period`` Newton iterations (counted over the whole
+        cycle, each node once), and the usual cure: nodes entering and leaving contact,
+        switching between tools, between facets/features of one tool, or between the smooth
+        projection and its flat fall-back; or nothing (a residual that stagnates)."""
+        recent = list(self._recent)[-(period + 1):]
+        comm = self.boundary.comm
+        n = np.zeros(4, dtype=np.int64)
+        if len(recent) > 1:
+            act, tool, feat, fb = (np.array([r[k] for r in recent]) for k in range(4))
+            enter = np.any(act != act[-1], axis=0)
+            both = np.all(act, axis=0)
+            tools = both & np.any(tool != tool[-1], axis=0)
+            feats = both & ~tools & np.any(feat != feat[-1], axis=0)
+            fall = ~enter & ~tools & ~feats & np.any(fb != fb[-1], axis=0)
+            n = np.array([np.sum(enter), np.sum(tools), np.sum(feats), np.sum(fall)])
+        n_in, n_tool, n_feat, n_fall = (int(k) for k in comm.allreduce(n, op=MPI.SUM))
+        who = f"contact '{self.name}'"
+        parts = []
+        if n_in:
+            parts.append(f"{n_in} node(s) enter and leave contact")
+        if n_tool:
+            names = " and ".join(f"'{t.name}'" for t in self.tools)
+            parts.append(f"{n_tool} node(s) switch between the tools {names} (where the tools "
+                         f"meet or overlap)")
+        if n_feat:
+            parts.append(f"{n_feat} node(s) switch between facets/features of their tool "
+                         f"(facet switching, THEORY §6)")
+        if n_fall:
+            parts.append(f"{n_fall} node(s) switch between the smooth projection and its flat "
+                         f"fall-back (a hole or a sharp edge of the faceted tool)")
+        if not parts:
+            return (f"{who}: no node changes its contact status, tool, facet or projection "
+                    f"over the cycle: the residual stagnates, not the contact state")
+        cures = []
+        if n_feat or n_fall:
+            cures.append("smooth the faceted tool (mode='nagata') or repair its surface")
+        if n_tool:
+            cures.append("round or separate the tools where they meet")
+        cures.append(self._dt_advice())
+        return f"{who}: " + "; ".join(parts) + " over the cycle: " + ", or ".join(cures)
+
+    def _dt_advice(self) -> str:
+        """"reduce dt", unless dt is already so small that the gap's round-off ε|X|/dt is
+        more than 1e-6 of the nodes' speeds (collective values of the last iterate)."""
+        comm = self.boundary.comm
+        x_t = getattr(self, "x_t", np.zeros((0, self.gdim)))
+        X = comm.allreduce(float(np.max(np.abs(x_t), initial=0.0)), op=MPI.MAX)
+        v = comm.allreduce(float(np.max(np.linalg.norm(self._v_last, axis=1), initial=0.0)),
+                           op=MPI.MAX)
+        eps = np.finfo(float).eps
+        if v > 0 and eps * X / self.dt > 1e-6 * v:
+            return (f"a larger dt: dt = {self.dt:.3g} is so small that the positions x + dt v "
+                    f"(|x| up to {X:.3g}, |v| up to {v:.3g}) keep fewer than 6 digits of the "
+                    f"motion; dt >= {1e6 * eps * X / v:.3g} keeps them")
+        return "reduce dt (cut-back)"
 
     # ------------------------------------------------------------------ checkpoint
     def checkpoint_state(self) -> dict:
