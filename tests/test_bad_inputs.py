@@ -24,7 +24,7 @@ from fxcontact.checkpoint import CheckpointError, latest_checkpoint
 from fxcontact.io import HistoryWriter, SeriesWriter, read_pvd
 from fxcontact.simulation import IncrementError, OutputError
 
-from helpers import box_mesh, shared_tmpdir
+from helpers import HANG_TIMEOUT, box_mesh, shared_tmpdir
 
 ROOT = Path(__file__).resolve().parents[1]
 COMM = MPI.COMM_WORLD
@@ -481,7 +481,7 @@ SUBPROCESS_CASES = [
 ]
 
 
-def _run_driver(case, nranks, timeout=240):
+def _run_driver(case, nranks, timeout=HANG_TIMEOUT):
     """Run the driver under ``mpirun -n nranks`` in its own process group; kill the group and
     fail if it hangs."""
     import signal
