@@ -46,7 +46,8 @@ import dolfinx.fem.petsc
 from fxcontact import compat
 from fxcontact.materials import NortonHoff
 
-__all__ = ["P1P1Layout", "CondensedAssembler", "FFCxElementTensors"]
+__all__ = ["P1P1Layout", "CondensedAssembler", "FFCxElementTensors",
+           "NortonHoffElementTensors", "norton_hoff_forms", "norton_hoff_tensors_numpy"]
 
 _ffi = cffi.FFI()
 
@@ -319,6 +320,290 @@ def _element_tensors(src, cells):
     b = np.zeros((cells.size, ndofs))
     _tensors_loop(src.tab, src.data(), cells, A, b)
     return A, b
+
+
+# -- element tensors of Norton–Hoff from a hand-written kernel ----------------------------------
+def norton_hoff_forms(space, material: NortonHoff, w, dual=None, pressure_source=None):
+    """(Jacobian, residual) UFL forms of the Norton–Hoff law on ``space`` at the state ``w``:
+    the residual ``material.residual`` (plus ``−q g dx`` with a ``pressure_source`` g, the
+    volume correction of :class:`~fxcontact.simulation.Simulation`) and the primal–dual
+    tangent of ``dual`` (:class:`~fxcontact.dual.DualStress`; the consistent Jacobian without)
+    — the forms whose element tensors :class:`NortonHoffElementTensors` computes by hand."""
+    W = space.W
+    v, p = ufl.split(w)
+    wt, q = ufl.TestFunctions(W)
+    dw = ufl.TrialFunction(W)
+    dv, dp = ufl.split(dw)
+    F = material.residual(v, p, wt, q, space.dx, 1.0)
+    if pressure_source is not None:
+        F = F - q * pressure_source * space.dx
+    if dual is None:
+        return ufl.derivative(F, w, dw), F
+    return (dual.tangent_form(v, dv, wt, space.dx)
+            + material.incompressibility_ufl(dv, dp, wt, q, space.dx), F)
+
+
+#: the element order of the MINI space on tetrahedra that the hand kernel is written for:
+#: velocity node n (vertices 0-3, bubble 4) component c at 3 n + c, pressure of vertex i at 15 + i
+_MINI_TET_LPOS = np.array([[3 * i, 3 * i + 1, 3 * i + 2, 15 + i] for i in range(4)]).ravel()
+_MINI_TET_BPOS = np.array([12, 13, 14])
+
+
+def _reference_tables(space):
+    """The quadrature weights and the reference tabulation FFCx uses for the MINI space:
+    (velocity basis reference gradients (nq, 5, 3), pressure basis values (nq, 4), weights
+    (nq,)). The velocity basis is the element's own: basix's enriched P1 + bubble element,
+    whose vertex functions are not the P1 hat functions (they hold a share of the bubble), so
+    their gradients vary over the cell."""
+    from ffcx.element_interface import create_element
+
+    cell = basix.cell.string_to_type(space.mesh.topology.cell_type.name)
+    pts, wts = basix.make_quadrature(cell, space.quadrature_degree)
+    vel, pre = space.W.ufl_element().sub_elements()
+    tv = np.asarray(create_element(vel.sub_elements()[0]).tabulate(1, pts))   # (4, nq, 5)
+    tp = np.asarray(create_element(pre).tabulate(0, pts))[0]                  # (nq, 4)
+    return (np.ascontiguousarray(np.transpose(tv[1:], (1, 2, 0))), np.ascontiguousarray(tp),
+            np.ascontiguousarray(wts))
+
+
+@numba.njit(cache=True)
+def _nh_cell(coords, wv, s, has_dual, K, m, eps0, g, gref, psi, wq, A, b):
+    """Element matrix A (19 × 19) and vector b (19) of the Norton–Hoff residual and of its
+    primal–dual tangent (dual stress ``s`` (nq, 3, 3); ``has_dual`` False: the primal stress,
+    the consistent tangent) on an affine tetrahedron, in the element order of W."""
+    J = np.empty((3, 3))
+    for i in range(3):
+        for k in range(3):
+            J[i, k] = coords[k + 1, i] - coords[0, i]
+    det = (J[0, 0] * (J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1])
+           - J[0, 1] * (J[1, 0] * J[2, 2] - J[1, 2] * J[2, 0])
+           + J[0, 2] * (J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]))
+    Ki = np.empty((3, 3))      # J⁻¹
+    Ki[0, 0] = (J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1]) / det
+    Ki[0, 1] = (J[0, 2] * J[2, 1] - J[0, 1] * J[2, 2]) / det
+    Ki[0, 2] = (J[0, 1] * J[1, 2] - J[0, 2] * J[1, 1]) / det
+    Ki[1, 0] = (J[1, 2] * J[2, 0] - J[1, 0] * J[2, 2]) / det
+    Ki[1, 1] = (J[0, 0] * J[2, 2] - J[0, 2] * J[2, 0]) / det
+    Ki[1, 2] = (J[0, 2] * J[1, 0] - J[0, 0] * J[1, 2]) / det
+    Ki[2, 0] = (J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]) / det
+    Ki[2, 1] = (J[0, 1] * J[2, 0] - J[0, 0] * J[2, 1]) / det
+    Ki[2, 2] = (J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]) / det
+    adet = abs(det)
+    G = np.empty((5, 3))       # physical gradients of the velocity nodes (row 4: the bubble)
+    L = np.empty((3, 3))       # grad v
+    A[:, :] = 0.0
+    b[:] = 0.0
+    e = np.empty((3, 3))
+    sh = np.empty((3, 3))
+    u = np.empty(15)
+    t = np.empty(15)
+    GG = np.empty((5, 5))
+    for q in range(wq.size):
+        for n in range(5):
+            for j in range(3):
+                G[n, j] = Ki[0, j] * gref[q, n, 0] + Ki[1, j] * gref[q, n, 1] \
+                    + Ki[2, j] * gref[q, n, 2]
+        for i in range(3):
+            for j in range(3):
+                acc = 0.0
+                for n in range(5):
+                    acc += wv[3 * n + i] * G[n, j]
+                L[i, j] = acc
+        tr = L[0, 0] + L[1, 1] + L[2, 2]
+        ee = 0.0
+        for i in range(3):
+            for j in range(3):
+                e[i, j] = 0.5 * (L[i, j] + L[j, i]) - (tr / 3.0 if i == j else 0.0)
+                ee += e[i, j] * e[i, j]
+        z = np.sqrt(2.0 * ee + 3.0 * eps0 * eps0)
+        eta2 = 2.0 * K * z ** (m - 1.0)
+        cr = 2.0 * (1.0 - m) / (z * z)
+        if has_dual:
+            trs = s[q, 0, 0] + s[q, 1, 1] + s[q, 2, 2]
+            for i in range(3):
+                for j in range(3):
+                    sh[i, j] = 0.5 * (s[q, i, j] + s[q, j, i]) - (trs / 3.0 if i == j else 0.0)
+        else:
+            for i in range(3):
+                for j in range(3):
+                    sh[i, j] = eta2 * e[i, j]
+        om = wq[q] * adet
+        pq = 0.0
+        for i in range(4):
+            pq += psi[q, i] * wv[15 + i]
+        for n in range(5):
+            for c in range(3):
+                se = 0.0
+                us = 0.0
+                ts = 0.0
+                for j in range(3):
+                    se += e[c, j] * G[n, j]
+                    us += sh[c, j] * G[n, j]
+                u[3 * n + c] = us
+                t[3 * n + c] = se
+                b[3 * n + c] += om * (eta2 * se - pq * G[n, c])
+            for k in range(5):
+                GG[n, k] = G[n, 0] * G[k, 0] + G[n, 1] * G[k, 1] + G[n, 2] * G[k, 2]
+        for i in range(4):
+            b[15 + i] -= om * psi[q, i] * (tr + g)
+        for n in range(5):
+            for c in range(3):
+                a = 3 * n + c
+                for k in range(5):
+                    for d in range(3):
+                        bb = 3 * k + d
+                        val = eta2 * (0.5 * G[n, d] * G[k, c] - G[n, c] * G[k, d] / 3.0)
+                        if c == d:
+                            val += 0.5 * eta2 * GG[n, k]
+                        A[a, bb] += om * (val - 0.5 * cr * (u[a] * t[bb] + t[a] * u[bb]))
+                for i in range(4):
+                    val = om * psi[q, i] * G[n, c]
+                    A[a, 15 + i] -= val
+                    A[15 + i, a] -= val
+
+
+@numba.njit
+def _nh_tab(data, c, A, b):
+    (x, xdofs, warr, wdofs, sarr, sdofs, prm, gref, psi, wq, coords, wv, s) = data
+    for i in range(4):
+        for j in range(3):
+            coords[i, j] = x[xdofs[c, i], j]
+    for i in range(wdofs.shape[1]):
+        wv[i] = warr[wdofs[c, i]]
+    has_dual = prm[4] != 0.0
+    if has_dual:
+        for q in range(sdofs.shape[1]):
+            for k in range(9):
+                s[q, k // 3, k % 3] = sarr[sdofs[c, q] * 9 + k]
+    _nh_cell(coords, wv, s, has_dual, prm[0], prm[1], prm[2], prm[3], gref, psi, wq, A, b)
+
+
+def norton_hoff_tensors_numpy(coords, wv, s, K, m, eps0, g, tables):
+    """numpy twin of the hand-written kernel: (A (n, 19, 19), b (n, 19)) of n cells from their
+    vertex coordinates (n, 4, 3), element values of W (n, 19), dual stresses (n, nq, 3, 3) or
+    None (primal stress: the consistent tangent), the law's K, m, ε̇₀, the pressure source g and
+    :func:`_reference_tables`."""
+    gref, psi, wq = tables
+    n = coords.shape[0]
+    J = np.transpose(coords[:, 1:] - coords[:, :1], (0, 2, 1))
+    Ki = np.linalg.inv(J)
+    om = wq[None, :] * np.abs(np.linalg.det(J))[:, None]                       # (n, nq)
+    G = np.einsum("qak,nkj->nqaj", gref, Ki)                                   # (n, nq, 5, 3)
+    V = wv[:, :15].reshape(n, 5, 3)
+    P = wv[:, 15:]
+    L = np.einsum("nai,nqaj->nqij", V, G)
+    eps = 0.5 * (L + np.swapaxes(L, -1, -2))
+    tr = np.trace(eps, axis1=-2, axis2=-1)
+    I3 = np.eye(3)
+    e = eps - tr[..., None, None] / 3.0 * I3
+    z = np.sqrt(2.0 * np.einsum("nqij,nqij->nq", e, e) + 3.0 * eps0**2)
+    eta2 = 2.0 * K * z ** (m - 1.0)
+    cr = 2.0 * (1.0 - m) / z**2
+    if s is None:
+        sh = eta2[..., None, None] * e
+    else:
+        ssym = 0.5 * (s + np.swapaxes(s, -1, -2))
+        sh = ssym - np.trace(s, axis1=-2, axis2=-1)[..., None, None] / 3.0 * I3
+    pq = np.einsum("qi,ni->nq", psi, P)
+    u = np.einsum("nqcj,nqaj->nqac", sh, G).reshape(n, wq.size, 15)
+    t = np.einsum("nqcj,nqaj->nqac", e, G).reshape(n, wq.size, 15)
+    b = np.zeros((n, 19))
+    b[:, :15] = np.einsum("nq,nqa->na", om, eta2[..., None] * t
+                          - (pq[..., None, None] * G).reshape(n, wq.size, 15))
+    b[:, 15:] = -np.einsum("nq,qi->ni", om * (tr + g), psi)
+    GG = np.einsum("nqaj,nqbj->nqab", G, G)
+    Avv = (0.5 * np.einsum("nqab,cd->nqacbd", GG, I3)
+           + 0.5 * np.einsum("nqad,nqbc->nqacbd", G, G)
+           - np.einsum("nqac,nqbd->nqacbd", G, G) / 3.0).reshape(n, wq.size, 15, 15)
+    Avv = eta2[..., None, None] * Avv - 0.5 * cr[..., None, None] * (
+        np.einsum("nqa,nqb->nqab", u, t) + np.einsum("nqa,nqb->nqab", t, u))
+    A = np.zeros((n, 19, 19))
+    A[:, :15, :15] = np.einsum("nq,nqab->nab", om, Avv)
+    Bp = -np.einsum("nq,qi,nqa->nai", om, psi, G.reshape(n, wq.size, 15))
+    A[:, :15, 15:] = Bp
+    A[:, 15:, :15] = np.swapaxes(Bp, 1, 2)
+    return A, b
+
+
+class NortonHoffElementTensors:
+    """Element tensors of the Norton–Hoff residual and its primal–dual (or consistent) tangent
+    from a hand-written numba kernel: the forms of :func:`norton_hoff_forms` on affine
+    tetrahedra, at the quadrature points of the space's degree (basix's, as FFCx) with the
+    basis tabulated by the element itself.
+
+    Args:
+        layout: the :class:`P1P1Layout` of a 3D MINI :class:`~fxcontact.spaces.MixedSpace`.
+        space: that MixedSpace (quadrature degree, measures).
+        material: a :class:`~fxcontact.materials.NortonHoff` with its own law (a subclass that
+            redefines the stress, z, the exponent or the residual is refused: use
+            :class:`FFCxElementTensors` with its forms).
+        w: the state (a Function on W).
+        dual: the :class:`~fxcontact.dual.DualStress` whose stress enters the tangent, or None
+            for the consistent tangent.
+        pressure_source: the constant g of the term ``−q g dx`` of the residual (attribute,
+            may change between assemblies).
+    """
+
+    def __init__(self, layout: P1P1Layout, space, material, w, dual=None,
+                 pressure_source: float = 0.0):
+        if not (isinstance(material, NortonHoff) and all(
+                getattr(type(material), name) is getattr(NortonHoff, name)
+                for name in ("stress_ufl", "z_ufl", "exponent_ufl", "residual",
+                             "incompressibility_ufl", "dual_tangent_ufl"))):
+            raise ValueError("the hand-written kernel is NortonHoff's own law: for a material "
+                             f"{type(material).__name__} use FFCxElementTensors with its forms")
+        if (space.mesh.topology.cell_type != dolfinx.mesh.CellType.tetrahedron
+                or space.element != "mini"
+                or not np.array_equal(layout.lpos, _MINI_TET_LPOS)
+                or not np.array_equal(layout.bpos, _MINI_TET_BPOS)
+                or compat.geometry_dofmap(space.mesh).shape[1] != 4):
+            raise ValueError("the hand-written kernel is for the MINI space on affine "
+                             "tetrahedra: use FFCxElementTensors on other spaces")
+        self.layout = layout
+        self.space = space
+        self.material = material
+        self.w = w
+        self.dual = dual
+        self.pressure_source = float(pressure_source)
+        self.tables = _reference_tables(space)
+        msh = space.mesh
+        self._x = msh.geometry.x
+        self._xdofs = compat.geometry_dofmap(msh)
+        self._wdofs = compat.dofmap_array(space.W)
+        nq = self.tables[2].size
+        if dual is not None:
+            self._sdofs = compat.dofmap_array(dual.Q)
+            if self._sdofs.shape[1] != nq or dual.Q.dofmap.index_map_bs != 9:
+                raise ValueError("the dual stress is not at the quadrature points of the space")
+        else:
+            self._sdofs = np.zeros((0, 0), dtype=np.int32)
+        self._scratch = (np.zeros((4, 3)), np.zeros(19), np.zeros((nq, 3, 3)))
+        self.tab = _nh_tab
+
+    def data(self):
+        """The kernel's inputs at the current state."""
+        mat = self.material
+        prm = np.array([mat.K, mat.m, mat.regularization, self.pressure_source,
+                        0.0 if self.dual is None else 1.0])
+        sarr = np.zeros(0) if self.dual is None else self.dual.s.x.array
+        return (self._x, self._xdofs, self.w.x.array, self._wdofs, sarr, self._sdofs, prm) \
+            + self.tables + self._scratch
+
+    def tensors(self, cells: np.ndarray):
+        """(A, b): the (n, 19, 19) element matrices and (n, 19) vectors of ``cells``."""
+        return _element_tensors(self, cells)
+
+    def inputs(self, cells: np.ndarray) -> tuple:
+        """The arguments of :func:`norton_hoff_tensors_numpy` for ``cells`` (the numpy twin)."""
+        cells = np.asarray(cells, dtype=np.int32)
+        coords = self._x[self._xdofs[cells]]
+        wv = self.w.x.array[self._wdofs[cells]]
+        s = None
+        if self.dual is not None:
+            s = self.dual.s.x.array.reshape(-1, 3, 3)[self._sdofs[cells]]
+        mat = self.material
+        return (coords, wv, s, mat.K, mat.m, mat.regularization, self.pressure_source,
+                self.tables)
 
 
 # -- assembly of the condensed system ----------------------------------------------------------

@@ -22,7 +22,9 @@ import fxcontact as fx
 from fxcontact import compat
 from fxcontact.condense import CondensationLayout, CondensedPC
 from fxcontact.dual import DualStress
-from fxcontact.element_condense import (CondensedAssembler, FFCxElementTensors, P1P1Layout)
+from fxcontact.element_condense import (CondensedAssembler, FFCxElementTensors,
+                                        NortonHoffElementTensors, P1P1Layout,
+                                        norton_hoff_forms, norton_hoff_tensors_numpy)
 from helpers import box_mesh
 
 PREFIX = "test_ec_"
@@ -47,7 +49,7 @@ class Case:
     """A Norton–Hoff primal–dual Jacobian and residual on a distorted box, at a state reached
     by one dual update (dual stress ≠ primal stress)."""
 
-    def __init__(self, m, comm=MPI.COMM_WORLD, n=4, volume_rate=0.0):
+    def __init__(self, m, comm=MPI.COMM_WORLD, n=4, volume_rate=0.05):
         msh = box_mesh(comm, n=(n, n, n), perturb=0.25)
         self.space = sp = fx.MixedSpace(msh)
         self.material = mat = fx.NortonHoff(K=2.0, m=m, regularization=1e-2)
@@ -58,13 +60,16 @@ class Case:
         self.dual.begin(self.w.vector)
         set_state(self.layout, self.w, phase=0.7)
         self.dual.accept(self.w.vector)
-        v, p = ufl.split(self.w)
-        wt, q = ufl.TestFunctions(sp.W)
-        dv, dp = ufl.TrialFunctions(sp.W)
-        self.J = (self.dual.tangent_form(v, dv, wt, sp.dx)
-                  + mat.incompressibility_ufl(dv, dp, wt, q, sp.dx))
-        self.F = mat.residual(v, p, wt, q, sp.dx, 1.0) - q * volume_rate * sp.dx
-        self.a, self.L = compat.form(self.J), compat.form(self.F)
+        self.volume_rate = volume_rate
+        g = dolfinx.fem.Constant(msh, PETSc.ScalarType(volume_rate))
+        J, F = norton_hoff_forms(sp, mat, self.w, self.dual, pressure_source=g)
+        self.a, self.L = compat.form(J), compat.form(F)
+
+    def sources(self):
+        """The two element-tensor sources: FFCx's kernels and the hand-written one."""
+        return {"ffcx": FFCxElementTensors(self.layout, self.a, self.L),
+                "hand": NortonHoffElementTensors(self.layout, self.space, self.material, self.w,
+                                                 self.dual, pressure_source=self.volume_rate)}
 
     def full_system(self):
         A = dolfinx.fem.petsc.assemble_matrix(self.a)
@@ -167,9 +172,63 @@ def solve_condensed(asm, Sm, rm, w):
     w.x.scatter_forward()
 
 
+def _max_rel(X, Y):
+    """Largest difference of two stacks of element tensors, relative to each cell's largest
+    entry."""
+    n = len(Y)
+    return float(np.max(np.abs(X - Y).reshape(n, -1).max(axis=1)
+                        / np.abs(Y).reshape(n, -1).max(axis=1), initial=0.0))
+
+
 @pytest.mark.parametrize("m", [0.15, 0.016])
-def test_ffcx_condensed_system_equals_algebraic_condensation(m):
-    case = Case(m, volume_rate=0.05)
+def test_hand_kernel_equals_ffcx_element_tensors(m):
+    """Element matrices and vectors of the hand kernel (numba and its numpy twin) equal FFCx's
+    on a distorted mesh, with the primal-dual tangent and with the consistent one."""
+    case = Case(m)
+    cells = np.arange(case.layout.num_cells, dtype=np.int32)
+    matrices = []
+    for dual in (case.dual, None):
+        a, L = norton_hoff_forms(case.space, case.material, case.w, dual,
+                                 pressure_source=case.volume_rate)
+        A_f, b_f = FFCxElementTensors(case.layout, a, L).tensors(cells)
+        hand = NortonHoffElementTensors(case.layout, case.space, case.material, case.w, dual,
+                                        pressure_source=case.volume_rate)
+        A_h, b_h = hand.tensors(cells)
+        A_n, b_n = norton_hoff_tensors_numpy(*hand.inputs(cells))
+        assert _max_rel(A_h, A_f) <= 1e-12 and _max_rel(b_h, b_f) <= 1e-12
+        assert _max_rel(A_n, A_h) <= 1e-12 and _max_rel(b_n, b_h) <= 1e-12
+        matrices.append(A_f)
+    # the primal-dual and consistent tangents differ here (the dual stress is not the primal)
+    assert _max_rel(*matrices) > 1e-3
+
+
+def test_hand_kernel_jacobian_is_derivative_of_its_residual():
+    """Without a dual stress the hand kernel's matrix is the derivative of its vector (central
+    differences in every element unknown of a few cells)."""
+    case = Case(0.15)
+    hand = NortonHoffElementTensors(case.layout, case.space, case.material, case.w, None,
+                                    pressure_source=case.volume_rate)
+    dofs = compat.dofmap_array(case.space.W)
+    w = case.w.x.array
+    for c in range(0, case.layout.num_cells, max(case.layout.num_cells // 4, 1)):
+        A, _ = hand.tensors([c])
+        fd = np.empty_like(A[0])
+        for j, d in enumerate(dofs[c]):
+            h = 1e-6 * max(1.0, abs(w[d]))
+            w0 = w[d]
+            w[d] = w0 + h
+            bp = hand.tensors([c])[1][0]
+            w[d] = w0 - h
+            bm = hand.tensors([c])[1][0]
+            w[d] = w0
+            fd[:, j] = (bp - bm) / (2 * h)
+        assert np.abs(fd - A[0]).max() <= 1e-6 * np.abs(A[0]).max(), c
+
+
+@pytest.mark.parametrize("source", ["ffcx", "hand"])
+@pytest.mark.parametrize("m", [0.15, 0.016])
+def test_condensed_system_equals_algebraic_condensation(m, source):
+    case = Case(m)
     # the dual stress is not the primal one (a dual update along a step)
     primal = DualStress(case.material, case.space.W, case.space.quadrature_degree)
     primal.begin(case.w.vector)
@@ -178,7 +237,7 @@ def test_ffcx_condensed_system_equals_algebraic_condensation(m):
     assert diff > 1e-2 * comm.allreduce(np.abs(primal.s.x.array).max(), op=MPI.MAX)
     A, b = case.full_system()
     S, r, positions, _, _ = algebraic_condensation(case.space.W, A, b)
-    asm = CondensedAssembler(FFCxElementTensors(case.layout, case.a, case.L), chunk=100)
+    asm = CondensedAssembler(case.sources()[source], chunk=100)
     Sm, rm = asm.assemble()
     assert Sm.getBlockSize() == 4
     assert_same_condensed_system(Sm, rm, S, r, positions(case.layout))
