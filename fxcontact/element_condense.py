@@ -366,11 +366,12 @@ def _reference_tables(space):
             np.ascontiguousarray(wts))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _nh_cell(coords, wv, s, has_dual, K, m, eps0, g, gref, psi, wq, A, b):
     """Element matrix A (19 × 19) and vector b (19) of the Norton–Hoff residual and of its
     primal–dual tangent (dual stress ``s`` (nq, 3, 3); ``has_dual`` False: the primal stress,
-    the consistent tangent) on an affine tetrahedron, in the element order of W."""
+    the consistent tangent) on an affine tetrahedron, in the element order of W (not finite on
+    a degenerate cell: the condensation then reports it)."""
     J = np.empty((3, 3))
     for i in range(3):
         for k in range(3):

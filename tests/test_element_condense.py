@@ -252,3 +252,18 @@ def test_condensed_system_equals_algebraic_condensation(m, source):
     Sm2, rm2 = asm.assemble(Sm, rm)
     assert Sm2 is Sm
     assert_same_condensed_system(Sm2, rm2, S, r, positions(case.layout))
+
+
+@pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="compares the ranks with one process")
+def test_parallel_equals_serial():
+    """The condensed system and the recovered solution on all ranks equal those of the same
+    mesh on one process (norms: independent of the numbering)."""
+    out = {}
+    for name, comm in (("world", MPI.COMM_WORLD), ("self", MPI.COMM_SELF)):
+        case = Case(0.016, comm=comm)
+        asm = CondensedAssembler(case.sources()["hand"])
+        Sm, rm = asm.assemble()
+        x = dolfinx.fem.Function(case.space.W)
+        solve_condensed(asm, Sm, rm, x)
+        out[name] = np.array([Sm.norm(PETSc.NormType.FROBENIUS), rm.norm(), x.vector.norm()])
+    assert np.allclose(out["world"], out["self"], rtol=1e-10, atol=0.0), out
