@@ -215,13 +215,14 @@ class P1P1Layout:
                                "owned by the same ranks")
         self._pattern_form = None
 
-    def create_matrix(self) -> PETSc.Mat:
+    def create_matrix(self, mat_type=None) -> PETSc.Mat:
         """An empty PETSc matrix of the condensed system (the vertex–vertex pattern of the
-        cells, block size ``bs``, local-to-global maps set)."""
+        cells, block size ``bs``, local-to-global maps set); ``mat_type``: a PETSc type
+        (default dolfinx's, AIJ; ``"baij"`` stores and inserts by blocks)."""
         if self._pattern_form is None:
             u, v = ufl.TrialFunction(self.Vc), ufl.TestFunction(self.Vc)
             self._pattern_form = compat.form(ufl.inner(u, v) * ufl.dx)
-        A = dolfinx.fem.petsc.create_matrix(self._pattern_form)
+        A = dolfinx.fem.petsc.create_matrix(self._pattern_form, mat_type)
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
         return A
 
@@ -366,12 +367,53 @@ def _reference_tables(space):
             np.ascontiguousarray(wts))
 
 
+class _KernelTables:
+    """The reference tables of the hand kernel, split as the element is: the velocity basis
+    of the MINI element is φ_n = λ_n + c_n B (n < 4: the P1 hat functions plus a share c_n of
+    the bubble B; φ_4 = B), checked on the tabulation.
+
+    Attributes:
+        full: (gradients of φ (nq, 5, 3), pressure basis values (nq, 4), weights (nq,)): the
+            tables of the numpy twin.
+        g1: (4, 3) reference gradients of the hat functions; gb: (nq, 3) of the bubble;
+        share: (4,) the c_n; psi_w: (4,) ∫ ψ_i (reference cell); psi_gb: (4, 3) ∫ ψ_i ∇B.
+    """
+
+    def __init__(self, space):
+        from ffcx.element_interface import create_element
+
+        gref, psi, wq = self.full = _reference_tables(space)
+        _, pre = space.W.ufl_element().sub_elements()
+        cell = basix.cell.string_to_type(space.mesh.topology.cell_type.name)
+        g1 = np.asarray(create_element(pre).tabulate(1, basix.geometry(cell)[:1]))[1:, 0].T
+        gb = gref[:, 4]
+        rest = gref[:, :4] - g1[None]                                      # (nq, 4, 3)
+        share = np.einsum("qnk,qk->n", rest, gb) / np.einsum("qk,qk->", gb, gb)
+        if np.abs(rest - share[None, :, None] * gb[:, None]).max() > 1e-10 * np.abs(gref).max():
+            raise ValueError("the velocity element is not P1 plus a bubble: use "
+                             "FFCxElementTensors")
+        self.g1 = np.ascontiguousarray(g1)
+        self.gb = np.ascontiguousarray(gb)
+        self.share = share
+        self.wq = wq
+        self.psi_w = psi.T @ wq
+        self.psi_gb = np.einsum("q,qi,qk->ik", wq, psi, gb)
+
+    def arrays(self) -> tuple:
+        return (self.g1, self.gb, self.share, self.wq, self.psi_w, self.psi_gb)
+
+
 @numba.njit(cache=True, error_model="numpy")
-def _nh_cell(coords, wv, s, has_dual, K, m, eps0, g, gref, psi, wq, A, b):
+def _nh_cell(coords, wv, s, has_dual, K, m, eps0, g, g1, gb, share, wq, psi_w, psi_gb, A, b):
     """Element matrix A (19 × 19) and vector b (19) of the Norton–Hoff residual and of its
     primal–dual tangent (dual stress ``s`` (nq, 3, 3); ``has_dual`` False: the primal stress,
     the consistent tangent) on an affine tetrahedron, in the element order of W (not finite on
-    a degenerate cell: the condensation then reports it)."""
+    a degenerate cell: the condensation then reports it).
+
+    Written in the basis (λ_n, B) of the hat functions, whose gradients are constant, and the
+    bubble: the vertex–vertex block is a contraction of sums over the quadrature points
+    (Σ ω η, Σ ω c Ŝ⊗e), the blocks with the bubble per point; then changed to the element's
+    basis φ_n = λ_n + c_n B (a congruence with the shares c_n)."""
     J = np.empty((3, 3))
     for i in range(3):
         for k in range(3):
@@ -390,82 +432,166 @@ def _nh_cell(coords, wv, s, has_dual, K, m, eps0, g, gref, psi, wq, A, b):
     Ki[2, 1] = (J[0, 1] * J[2, 0] - J[0, 0] * J[2, 1]) / det
     Ki[2, 2] = (J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]) / det
     adet = abs(det)
-    G = np.empty((5, 3))       # physical gradients of the velocity nodes (row 4: the bubble)
-    L = np.empty((3, 3))       # grad v
-    A[:, :] = 0.0
-    b[:] = 0.0
-    e = np.empty((3, 3))
-    sh = np.empty((3, 3))
-    u = np.empty(15)
-    t = np.empty(15)
-    GG = np.empty((5, 5))
-    for q in range(wq.size):
-        for n in range(5):
-            for j in range(3):
-                G[n, j] = Ki[0, j] * gref[q, n, 0] + Ki[1, j] * gref[q, n, 1] \
-                    + Ki[2, j] * gref[q, n, 2]
+    G = np.zeros((4, 3))       # gradients of the hat functions
+    for n in range(4):
+        for j in range(3):
+            for k in range(3):
+                G[n, j] += Ki[k, j] * g1[n, k]
+    vb = np.empty(3)           # bubble coefficient in the (λ, B) basis
+    for c in range(3):
+        vb[c] = wv[12 + c]
+        for n in range(4):
+            vb[c] += share[n] * wv[3 * n + c]
+    Lc = np.zeros((3, 3))
+    for n in range(4):
         for i in range(3):
             for j in range(3):
-                acc = 0.0
-                for n in range(5):
-                    acc += wv[3 * n + i] * G[n, j]
-                L[i, j] = acc
-        tr = L[0, 0] + L[1, 1] + L[2, 2]
+                Lc[i, j] += wv[3 * n + i] * G[n, j]
+    trc = Lc[0, 0] + Lc[1, 1] + Lc[2, 2]
+    # sums over the quadrature points
+    H = 0.0                              # Σ ω η
+    X = np.zeros(3)                      # Σ ω η ∇B
+    Y = np.zeros((3, 3))                 # Σ ω η ∇B ⊗ ∇B
+    E = np.zeros((3, 3))                 # Σ ω η e
+    Z = np.zeros(3)                      # Σ ω η e ∇B
+    M = np.zeros((3, 3, 3, 3))           # Σ ω c Ŝ ⊗ e
+    N = np.zeros((3, 3, 3))              # Σ ω c (Ŝ ⊗ e∇B + e ⊗ Ŝ∇B)
+    Rbb = np.zeros((3, 3))               # Σ ω c (Ŝ∇B ⊗ e∇B)
+    gB = np.empty(3)
+    e = np.empty((3, 3))
+    sh = np.empty((3, 3))
+    eg = np.empty(3)
+    sg = np.empty(3)
+    for q in range(wq.size):
+        for j in range(3):
+            gB[j] = Ki[0, j] * gb[q, 0] + Ki[1, j] * gb[q, 1] + Ki[2, j] * gb[q, 2]
+        tr = trc + vb[0] * gB[0] + vb[1] * gB[1] + vb[2] * gB[2]
         ee = 0.0
         for i in range(3):
             for j in range(3):
-                e[i, j] = 0.5 * (L[i, j] + L[j, i]) - (tr / 3.0 if i == j else 0.0)
+                e[i, j] = 0.5 * (Lc[i, j] + Lc[j, i] + vb[i] * gB[j] + vb[j] * gB[i])
+            e[i, i] -= tr / 3.0
+        for i in range(3):
+            for j in range(3):
                 ee += e[i, j] * e[i, j]
         z = np.sqrt(2.0 * ee + 3.0 * eps0 * eps0)
-        eta2 = 2.0 * K * z ** (m - 1.0)
-        cr = 2.0 * (1.0 - m) / (z * z)
+        om = wq[q] * adet
+        eta = om * 2.0 * K * z ** (m - 1.0)
+        cr = om * 2.0 * (1.0 - m) / (z * z)
         if has_dual:
-            trs = s[q, 0, 0] + s[q, 1, 1] + s[q, 2, 2]
+            trs = (s[q, 0, 0] + s[q, 1, 1] + s[q, 2, 2]) / 3.0
             for i in range(3):
                 for j in range(3):
-                    sh[i, j] = 0.5 * (s[q, i, j] + s[q, j, i]) - (trs / 3.0 if i == j else 0.0)
+                    sh[i, j] = 0.5 * (s[q, i, j] + s[q, j, i])
+                sh[i, i] -= trs
         else:
             for i in range(3):
                 for j in range(3):
-                    sh[i, j] = eta2 * e[i, j]
-        om = wq[q] * adet
-        pq = 0.0
-        for i in range(4):
-            pq += psi[q, i] * wv[15 + i]
-        for n in range(5):
+                    sh[i, j] = eta / om * e[i, j]
+        for i in range(3):
+            eg[i] = e[i, 0] * gB[0] + e[i, 1] * gB[1] + e[i, 2] * gB[2]
+            sg[i] = sh[i, 0] * gB[0] + sh[i, 1] * gB[1] + sh[i, 2] * gB[2]
+        H += eta
+        for i in range(3):
+            X[i] += eta * gB[i]
+            Z[i] += eta * eg[i]
+            for j in range(3):
+                Y[i, j] += eta * gB[i] * gB[j]
+                E[i, j] += eta * e[i, j]
+                Rbb[i, j] += cr * sg[i] * eg[j]
+                for d in range(3):
+                    N[i, j, d] += cr * (sh[i, j] * eg[d] + e[i, j] * sg[d])
+                    for l in range(3):
+                        M[i, j, d, l] += cr * sh[i, j] * e[d, l]
+    A[:, :] = 0.0
+    b[:] = 0.0
+    # vertex-vertex: H (½δ g_n·g_k + ½ g_n,d g_k,c − ⅓ g_n,c g_k,d) − ½ Σ g_n,j g_k,l (M + Mᵀ)
+    P = np.zeros((4, 3, 3, 3))           # P[n, c, d, l] = Σ_j g_n,j M[c, j, d, l]
+    Q = np.zeros((4, 3, 3, 3))           # Q[n, d, c, j] = Σ_l g_n,l M[c, j, d, l]
+    for n in range(4):
+        for c in range(3):
+            for j in range(3):
+                for d in range(3):
+                    for l in range(3):
+                        P[n, c, d, l] += G[n, j] * M[c, j, d, l]
+                        Q[n, d, c, j] += G[n, l] * M[c, j, d, l]
+    for n in range(4):
+        for k in range(n, 4):
+            gg = G[n, 0] * G[k, 0] + G[n, 1] * G[k, 1] + G[n, 2] * G[k, 2]
             for c in range(3):
-                se = 0.0
-                us = 0.0
-                ts = 0.0
+                for d in range(3):
+                    r1 = 0.0
+                    for l in range(3):
+                        r1 += P[n, c, d, l] * G[k, l] + Q[n, c, d, l] * G[k, l]
+                    val = H * (0.5 * G[n, d] * G[k, c] - G[n, c] * G[k, d] / 3.0) - 0.5 * r1
+                    if c == d:
+                        val += 0.5 * H * gg
+                    A[3 * n + c, 3 * k + d] = val
+                    A[3 * k + d, 3 * n + c] = val
+    # vertex-bubble and bubble-bubble
+    for n in range(4):
+        gx = G[n, 0] * X[0] + G[n, 1] * X[1] + G[n, 2] * X[2]
+        for c in range(3):
+            for d in range(3):
+                r1 = 0.0
                 for j in range(3):
-                    se += e[c, j] * G[n, j]
-                    us += sh[c, j] * G[n, j]
-                u[3 * n + c] = us
-                t[3 * n + c] = se
-                b[3 * n + c] += om * (eta2 * se - pq * G[n, c])
-            for k in range(5):
-                GG[n, k] = G[n, 0] * G[k, 0] + G[n, 1] * G[k, 1] + G[n, 2] * G[k, 2]
-        for i in range(4):
-            b[15 + i] -= om * psi[q, i] * (tr + g)
-        for n in range(5):
+                    r1 += G[n, j] * N[c, j, d]
+                val = 0.5 * G[n, d] * X[c] - G[n, c] * X[d] / 3.0 - 0.5 * r1
+                if c == d:
+                    val += 0.5 * gx
+                A[3 * n + c, 12 + d] = val
+                A[12 + d, 3 * n + c] = val
+    trY = Y[0, 0] + Y[1, 1] + Y[2, 2]
+    for c in range(3):
+        for d in range(3):
+            val = 0.5 * Y[d, c] - Y[c, d] / 3.0 - 0.5 * (Rbb[c, d] + Rbb[d, c])
+            if c == d:
+                val += 0.5 * trY
+            A[12 + c, 12 + d] = val
+    # pressure coupling, residual
+    pw = 0.0
+    for i in range(4):
+        pw += psi_w[i] * wv[15 + i]
+    pgb = np.zeros((4, 3))               # ∫ ψ_i ∇B on the cell
+    for i in range(4):
+        for j in range(3):
+            pgb[i, j] = adet * (Ki[0, j] * psi_gb[i, 0] + Ki[1, j] * psi_gb[i, 1]
+                                + Ki[2, j] * psi_gb[i, 2])
+    for i in range(4):
+        for n in range(4):
             for c in range(3):
-                a = 3 * n + c
-                for k in range(5):
-                    for d in range(3):
-                        bb = 3 * k + d
-                        val = eta2 * (0.5 * G[n, d] * G[k, c] - G[n, c] * G[k, d] / 3.0)
-                        if c == d:
-                            val += 0.5 * eta2 * GG[n, k]
-                        A[a, bb] += om * (val - 0.5 * cr * (u[a] * t[bb] + t[a] * u[bb]))
-                for i in range(4):
-                    val = om * psi[q, i] * G[n, c]
-                    A[a, 15 + i] -= val
-                    A[15 + i, a] -= val
+                val = -adet * psi_w[i] * G[n, c]
+                A[3 * n + c, 15 + i] = val
+                A[15 + i, 3 * n + c] = val
+        for c in range(3):
+            A[12 + c, 15 + i] = -pgb[i, c]
+            A[15 + i, 12 + c] = -pgb[i, c]
+        b[15 + i] = -adet * psi_w[i] * (trc + g) - (vb[0] * pgb[i, 0] + vb[1] * pgb[i, 1]
+                                                    + vb[2] * pgb[i, 2])
+    for n in range(4):
+        for c in range(3):
+            b[3 * n + c] = (E[c, 0] * G[n, 0] + E[c, 1] * G[n, 1] + E[c, 2] * G[n, 2]
+                            - adet * pw * G[n, c])
+    for c in range(3):
+        b[12 + c] = Z[c]
+        for i in range(4):
+            b[12 + c] -= wv[15 + i] * pgb[i, c]
+    # to the element's basis φ_n = λ_n + c_n B
+    for n in range(4):
+        for c in range(3):
+            for j in range(19):
+                A[3 * n + c, j] += share[n] * A[12 + c, j]
+            b[3 * n + c] += share[n] * b[12 + c]
+    for n in range(4):
+        for c in range(3):
+            for i in range(19):
+                A[i, 3 * n + c] += share[n] * A[i, 12 + c]
 
 
 @numba.njit
 def _nh_tab(data, c, A, b):
-    (x, xdofs, warr, wdofs, sarr, sdofs, prm, gref, psi, wq, coords, wv, s) = data
+    (x, xdofs, warr, wdofs, sarr, sdofs, prm, g1, gb, share, wq, psi_w, psi_gb, coords, wv,
+     s) = data
     for i in range(4):
         for j in range(3):
             coords[i, j] = x[xdofs[c, i], j]
@@ -476,7 +602,8 @@ def _nh_tab(data, c, A, b):
         for q in range(sdofs.shape[1]):
             for k in range(9):
                 s[q, k // 3, k % 3] = sarr[sdofs[c, q] * 9 + k]
-    _nh_cell(coords, wv, s, has_dual, prm[0], prm[1], prm[2], prm[3], gref, psi, wq, A, b)
+    _nh_cell(coords, wv, s, has_dual, prm[0], prm[1], prm[2], prm[3], g1, gb, share, wq, psi_w,
+             psi_gb, A, b)
 
 
 def norton_hoff_tensors_numpy(coords, wv, s, K, m, eps0, g, tables):
@@ -566,12 +693,12 @@ class NortonHoffElementTensors:
         self.w = w
         self.dual = dual
         self.pressure_source = float(pressure_source)
-        self.tables = _reference_tables(space)
+        self.tables = _KernelTables(space)
         msh = space.mesh
         self._x = msh.geometry.x
         self._xdofs = compat.geometry_dofmap(msh)
         self._wdofs = compat.dofmap_array(space.W)
-        nq = self.tables[2].size
+        nq = self.tables.wq.size
         if dual is not None:
             self._sdofs = compat.dofmap_array(dual.Q)
             if self._sdofs.shape[1] != nq or dual.Q.dofmap.index_map_bs != 9:
@@ -588,7 +715,7 @@ class NortonHoffElementTensors:
                         0.0 if self.dual is None else 1.0])
         sarr = np.zeros(0) if self.dual is None else self.dual.s.x.array
         return (self._x, self._xdofs, self.w.x.array, self._wdofs, sarr, self._sdofs, prm) \
-            + self.tables + self._scratch
+            + self.tables.arrays() + self._scratch
 
     def tensors(self, cells: np.ndarray):
         """(A, b): the (n, 19, 19) element matrices and (n, 19) vectors of ``cells``."""
@@ -604,7 +731,7 @@ class NortonHoffElementTensors:
             s = self.dual.s.x.array.reshape(-1, 3, 3)[self._sdofs[cells]]
         mat = self.material
         return (coords, wv, s, mat.K, mat.m, mat.regularization, self.pressure_source,
-                self.tables)
+                self.tables.full)
 
 
 # -- assembly of the condensed system ----------------------------------------------------------

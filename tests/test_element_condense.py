@@ -266,10 +266,13 @@ def test_condensed_system_equals_algebraic_condensation(m, source):
     assert Sm.getBlockSize() == 4
     assert_same_condensed_system(Sm, rm, S, r, positions(case.layout))
     assert_recovery_solves_full_system(asm, Sm, rm, A, b)
-    # a second assembly into the same objects gives the same system
+    # a second assembly into the same objects, and one into a block matrix, give the same
     Sm2, rm2 = asm.assemble(Sm, rm)
     assert Sm2 is Sm
     assert_same_condensed_system(Sm2, rm2, S, r, positions(case.layout))
+    Sb, rb = asm.assemble(case.layout.create_matrix("baij"))
+    assert "baij" in Sb.getType()
+    assert_same_condensed_system(Sb, rb, S, r, positions(case.layout))
 
 
 @pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="compares the ranks with one process")
