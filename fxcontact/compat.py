@@ -12,6 +12,7 @@ import numpy as np
 import dolfinx
 import dolfinx.fem
 import dolfinx.fem.petsc
+import dolfinx.la
 import dolfinx.mesh
 import dolfinx.plot
 
@@ -19,7 +20,8 @@ __all__ = [
     "DOLFINX_VERSION", "form", "function_space", "collapse", "dofmap_array", "cell_dofs",
     "entities_to_geometry", "vtk_mesh", "interpolation_points", "locate_dofs_topological",
     "cell_vertices", "model_to_mesh", "num_owned", "XDMFFile", "VTKFile", "jit_params",
-    "JIT_EXTRA_COMPILE_ARGS",
+    "JIT_EXTRA_COMPILE_ARGS", "cell_kernel", "pack_cell_coefficients", "pack_constants",
+    "geometry_dofmap", "ghosted_vector",
 ]
 
 DOLFINX_VERSION = dolfinx.__version__
@@ -130,3 +132,43 @@ def model_to_mesh(model, comm, rank: int = 0, gdim: int = 3):
     """gmsh model → (mesh, cell_tags, facet_tags) (``read_from_msh`` is broken in 0.5.2)."""
     from dolfinx.io import gmshio
     return gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
+
+
+def cell_kernel(form, name: str = "form"):
+    """The FFCx ``tabulate_tensor`` (float64) of the only cell integral of a compiled form, a
+    cffi function pointer ``(A, w, c, coordinate_dofs, entity_local_index, permutation)``.
+    ValueError unless the form has exactly one integral, over all the cells, without
+    permutation data."""
+    ufcx = form.ufcx_form
+    cell = int(dolfinx.fem.IntegralType.cell)
+    others = [t for t in form.integral_types if t != dolfinx.fem.IntegralType.cell]
+    ids = [ufcx.integral_ids(cell)[i] for i in range(ufcx.num_integrals(cell))]
+    if others or ids != [-1] or form.needs_facet_permutations:
+        raise ValueError(f"{name}: the element condensation needs a form of cell integrals over "
+                         f"the whole mesh only (got {sorted(str(t) for t in others)} integrals "
+                         f"and cell subdomains {ids}); assemble facet or subdomain terms apart")
+    return ufcx.integrals(cell)[0].tabulate_tensor_float64
+
+
+def pack_cell_coefficients(form) -> np.ndarray:
+    """(num_cells, stride) packed coefficients of the whole-mesh cell integral of a form."""
+    packed = dolfinx.cpp.fem.pack_coefficients(form)
+    return np.ascontiguousarray(packed[(dolfinx.fem.IntegralType.cell, -1)])
+
+
+def pack_constants(form) -> np.ndarray:
+    """The packed constants of a compiled form."""
+    return np.ascontiguousarray(dolfinx.cpp.fem.pack_constants(form))
+
+
+def geometry_dofmap(msh) -> np.ndarray:
+    """(num_cells, nodes per cell) geometry nodes of each cell."""
+    tdim = msh.topology.dim
+    imap = msh.topology.index_map(tdim)
+    return np.asarray(msh.geometry.dofmap.array, dtype=np.int32).reshape(
+        imap.size_local + imap.num_ghosts, -1)
+
+
+def ghosted_vector(V):
+    """A ghosted PETSc vector of the layout of the function space ``V``."""
+    return dolfinx.la.create_petsc_vector(V.dofmap.index_map, V.dofmap.index_map_bs)

@@ -18,8 +18,10 @@ import pytest
 from mpi4py import MPI
 
 import dolfinx
+import ufl
 
 import fxcontact as fx
+import fxcontact.element_condense as ec
 from fxcontact.checkpoint import CheckpointError, latest_checkpoint
 from fxcontact.io import HistoryWriter, SeriesWriter, read_pvd
 from fxcontact.simulation import IncrementError, OutputError
@@ -75,6 +77,30 @@ def _degenerate_mesh(c):
     x = msh.geometry.x
     x[np.isclose(x[:, 2], 1.0), 2] = 0.5
     fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(1.0, 0.2), progress=False)
+
+
+def _condensed_degenerate(c):
+    msh = box_mesh(COMM, n=(2, 2, 2))
+    x = msh.geometry.x
+    x[np.isclose(x[:, 2], 1.0), 2] = 0.5
+    space = fx.MixedSpace(msh)
+    w = dolfinx.fem.Function(space.W)
+    layout = ec.P1P1Layout(space.W)
+    ec.CondensedAssembler(ec.NortonHoffElementTensors(layout, space, fx.NortonHoff(1.0, 0.2),
+                                                      w)).assemble()
+
+
+def _condensed_facet_term(c):
+    space = c["space"]
+    w = dolfinx.fem.Function(space.W)
+    a, L = ec.norton_hoff_forms(space, fx.NortonHoff(1.0, 0.2), w)
+    _, q = ufl.TestFunctions(space.W)
+    ec.FFCxElementTensors(ec.P1P1Layout(space.W), a, L + q * ufl.ds)
+
+
+class _OwnNortonHoff(fx.NortonHoff):
+    def stress_ufl(self, eps):
+        return 2.0 * super().stress_ufl(eps)
 
 
 def _add_bc_after_start(c):
@@ -162,6 +188,18 @@ CASES = [
                  r"\(2, \d+\) for x of shape \(3, \d+\), expected \(3, \d+\)"),
     ("simulation-output_dir-is-a-file", _output_dir_is_a_file, ValueError,
      r"output_dir '.*results' is a file, not a directory: give a directory path"),
+    # condensation of the bubble in the element (fxcontact.element_condense)
+    ("condense-not-mini", lambda c: ec.P1P1Layout(
+        fx.MixedSpace(c["msh"], element="taylor-hood").W), ValueError,
+     "needs a MINI space.*MixedSpace\\(msh, 'mini'\\)"),
+    ("condense-facet-term", _condensed_facet_term, ValueError,
+     "L: .*cell integrals over the whole mesh only.*assemble facet or subdomain terms apart"),
+    ("condense-hand-kernel-other-law", lambda c: ec.NortonHoffElementTensors(
+        ec.P1P1Layout(c["space"].W), c["space"], _OwnNortonHoff(1.0, 0.2),
+        dolfinx.fem.Function(c["space"].W)), ValueError,
+     "hand-written kernel is NortonHoff's own law.*_OwnNortonHoff use FFCxElementTensors"),
+    ("condense-degenerate-cell", _condensed_degenerate, RuntimeError,
+     "singular interior \\(bubble\\) block in a cell: degenerate element"),
     # tools
     ("plane-zero-normal", lambda c: fx.Plane((0, 0, 0), (0, 0, 0)), ValueError, "non-zero"),
     ("sphere-negative-radius", lambda c: fx.Sphere((0, 0, 0), -1.0), ValueError,
