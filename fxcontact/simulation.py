@@ -141,6 +141,79 @@ def _plain_state(value):
                      f"lists, dicts or numpy arrays, got {type(value).__name__}")
 
 
+def _describe(obj) -> str:
+    """``NodalContact 'die'``: a registered object in messages."""
+    name = getattr(obj, "name", None)
+    return type(obj).__name__ + (f" '{name}'" if isinstance(name, str) else "")
+
+
+def _column_labels(contributor) -> Dict[str, str]:
+    """The labels that start a contributor's history columns, with what each labels: its name
+    (a contact's ``{name}_nodes``…) and its tools' names (``{tool}_force_x``…)."""
+    out = {}
+    for tool in getattr(contributor, "tools", None) or []:
+        if isinstance(getattr(tool, "name", None), str):
+            out[tool.name] = f"tool '{tool.name}' of {_describe(contributor)}"
+    if hasattr(contributor, "diagnostics") and isinstance(getattr(contributor, "name", None),
+                                                           str):
+        out[contributor.name] = _describe(contributor)
+    return out
+
+
+def _check_added_once(obj, registered, what: str):
+    """ValueError if ``obj`` (the same object) is already registered."""
+    if any(r is obj for r in registered):
+        raise ValueError(f"{what} {_describe(obj)} is already added to this simulation: added "
+                         f"twice, it would act twice (its forces counted twice, its history "
+                         f"columns wrong); add it once")
+
+
+def _merge_columns(row: dict, columns: dict, owner):
+    """Add ``columns`` to a history row; ValueError if one is already there (two contributors
+    or controllers writing the same column would overwrite each other)."""
+    clash = sorted(set(row) & set(columns))
+    if clash:
+        raise ValueError(f"history column(s) {clash} of {_describe(owner)} are already written "
+                         f"by another contributor, reaction or symmetry plane: pass a distinct "
+                         f"name= to one of them")
+    row.update(columns)
+
+
+def _initial_mesh_error(msh, X, c2v_owned, vol0, q0) -> Optional[str]:
+    """What is wrong with the initial mesh, or None (collective; the message is local):
+    degenerate cells (:func:`~fxcontact.mesh_health.degenerate_cells`) or a tangled mesh
+    (cells turned inside out, overlapping a neighbour: :func:`~fxcontact.mesh_health.
+    overlapping_facets`)."""
+    from fxcontact.mesh_health import (DEGENERATE_QUALITY, DEGENERATE_VOLUME, degenerate_cells,
+                                       overlapping_facets)
+    comm = msh.comm
+    n = comm.allreduce(len(vol0), op=MPI.SUM)
+    mean = comm.allreduce(float(np.sum(np.abs(vol0))), op=MPI.SUM) / max(n, 1)
+    bad = np.flatnonzero(degenerate_cells(vol0, q0, mean))
+    if len(bad):
+        c = X[c2v_owned[bad[0]]].mean(axis=0)
+        return (f"the mesh has {len(bad)} degenerate (zero-volume) cell(s) (volume below "
+                f"{DEGENERATE_VOLUME:g} x the mean cell volume or shape quality below "
+                f"{DEGENERATE_QUALITY:g}), e.g. with centroid {np.array2string(c, precision=4)}: "
+                f"remesh")
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    msh.topology.create_connectivity(tdim - 1, 0)
+    f2c = msh.topology.connectivity(tdim - 1, tdim)
+    nf = msh.topology.index_map(tdim - 1).size_local
+    inner = np.flatnonzero(np.diff(f2c.offsets)[:nf] == 2)
+    fc = f2c.array[f2c.offsets[inner][:, None] + np.arange(2)]
+    fv = msh.topology.connectivity(tdim - 1, 0).array.reshape(-1, tdim)[inner]
+    over = overlapping_facets(X, compat.cell_vertices(msh), fv, fc)
+    if np.any(over):
+        c = X[fv[np.argmax(over)]].mean(axis=0)
+        return (f"the mesh is tangled: {int(np.sum(over))} facet(s) have both their cells on "
+                f"the same side (cells turned inside out, overlapping their neighbour), e.g. the "
+                f"facet with centroid {np.array2string(c, precision=4)}: fix or remesh the mesh "
+                f"(check the node order of its cells)")
+    return None
+
+
 def _shear_viscosity_ufl(material, v, dt):
     """Secant shear viscosity of the velocity tangent (UFL) for the Schur preconditioner of
     the condensed iterative solver (:mod:`fxcontact.condense`), or None if unknown:
@@ -269,6 +342,7 @@ class Simulation:
         self._writer = None
         self._history_writer = None
         self._reactions: Dict[str, np.ndarray] = {}
+        self._labels: Dict[str, str] = {}   # history-column labels -> what they label
         self.checkpoint_every = int(checkpoint_every)
         self.checkpoint_keep = int(checkpoint_keep)
         self.check_inversion = bool(check_inversion)
@@ -308,6 +382,7 @@ class Simulation:
         """Record, each increment, the force exerted on the body through the Dirichlet dofs of
         ``facets`` (history columns ``{name}_x``, ``{name}_y``, ``{name}_z``), computed on the
         configuration of the increment (before the geometry update)."""
+        self._claim_labels({name: f"reaction '{name}'"})
         self._reactions[name] = np.asarray(facets, dtype=np.int32)
 
     def add_symmetry_plane(self, facets: np.ndarray, normal, name: str = "symmetry"):
@@ -329,8 +404,7 @@ class Simulation:
         axis = np.flatnonzero(np.abs(n) > 1e-12)
         if self._symmetry is None:
             self._symmetry = SymmetryPlanes(self.space)
-        if name in self._reactions or name in self._symmetry.names:
-            raise ValueError(f"a reaction or symmetry plane named '{name}' already exists")
+        self._claim_labels({name: f"symmetry plane '{name}'"})
         if len(axis) == 1:  # a coordinate plane: a velocity condition, reaction from here
             self._symmetry.add(name, facets, n, via_bc=True)
             bc = self.add_velocity_bc(facets, 0.0, component=int(axis[0]))
@@ -342,6 +416,8 @@ class Simulation:
         """Register a nodal contributor (``evaluate``, ``stable``; optional ``begin_increment``,
         ``end_increment``, ``diagnostics``, ``output_fields``)."""
         self._check_not_built()
+        _check_added_once(contributor, self.contributors, "contributor")
+        self._claim_labels(_column_labels(contributor))
         self.contributors.append(contributor)
         return contributor
 
@@ -358,12 +434,25 @@ class Simulation:
         (e.g. :class:`~fxcontact.mill.RingAxisUpdate`) may have the same two methods. A
         checkpoint is resumed only with the same controllers (number, types, order)."""
         self._check_not_built()
+        _check_added_once(controller, self.controllers, "controller")
         if hasattr(controller, "solve") and any(hasattr(c, "solve") for c in self.controllers):
             raise ValueError("only one controller may take over the Newton solve (solve()); "
                              "several idle tools go to one IdleRotation(contact, [tool1, "
                              "tool2, ...])")
         self.controllers.append(controller)
         return controller
+
+    def _claim_labels(self, labels: Dict[str, str]):
+        """Reserve the labels that start history columns (``{label}_x``, ``{label}_force_x``…):
+        a ValueError names a label that another contributor, tool, reaction or symmetry plane
+        already has (their columns would overwrite each other)."""
+        for label, what in labels.items():
+            if label in self._labels:
+                raise ValueError(f"the name '{label}' of {what} is already the name of "
+                                 f"{self._labels[label]}: their history columns ('{label}_...') "
+                                 f"would overwrite each other; pass a distinct name= to one of "
+                                 f"them")
+        self._labels.update(labels)
 
     def _check_not_built(self):
         if self._built:
@@ -641,7 +730,7 @@ class Simulation:
             if hasattr(c, "end_increment"):
                 c.end_increment(self, dt)
             if hasattr(c, "diagnostics"):
-                row.update(c.diagnostics())
+                _merge_columns(row, c.diagnostics(), c)
         return row
 
     def _cell_average(self, frm) -> np.ndarray:
@@ -868,13 +957,9 @@ class Simulation:
         tdim = self.mesh.topology.dim
         nown = self.mesh.topology.index_map(tdim).size_local
         self._c2v_owned = compat.cell_vertices(self.mesh)[:nown]
-        vol0, _ = self._cell_measures(self.space.vertex_positions())
-        msg = None
-        if np.any(vol0 == 0.0):
-            i = int(np.flatnonzero(vol0 == 0.0)[0])
-            c = self.space.vertex_positions()[self._c2v_owned[i]].mean(axis=0)
-            msg = (f"the mesh has {int(np.sum(vol0 == 0.0))} degenerate (zero-volume) cell(s), "
-                   f"e.g. with centroid {np.array2string(c, precision=4)}")
+        X = self.space.vertex_positions()
+        vol0, q0 = self._cell_measures(X)
+        msg = _initial_mesh_error(self.mesh, X, self._c2v_owned, vol0, q0)
         msgs = [m for m in self.comm.allgather(msg) if m]   # raised on every rank
         if msgs:
             raise ValueError(msgs[0])

@@ -112,6 +112,17 @@ def _pad3(x: np.ndarray) -> np.ndarray:
     return out
 
 
+def _flip_hint(tool) -> str:
+    """How to turn a tool's surface the other way (:meth:`NodalContact._check_placement`)."""
+    base = getattr(tool, "tool", tool)   # a MovedTool's tool
+    if hasattr(base, "normal") and not hasattr(base, "inside"):
+        return (f"flip the normal (normal={tuple(0.0 - float(v) for v in base.normal)}: it must "
+                f"point out of the tool, towards the body)")
+    if hasattr(base, "inside"):
+        return f"set inside={not base.inside} (inside=True: the body is inside the surface)"
+    return "flip the orientation of its surface (its normals must point towards the body)"
+
+
 class _DisplacementBody:
     """Stands for the body of a displacement-form problem (no fxcontact material): penalties
     come from the gap stiffness, friction laws carry their own material data."""
@@ -207,6 +218,12 @@ class NodalContact:
         tools = [tools] if isinstance(tools, Tool) else list(tools)
         if not tools or not all(isinstance(t, Tool) for t in tools):
             raise ValueError("tools must be a Tool or a non-empty sequence of Tools")
+        names = [t.name for t in tools]
+        twice = sorted({nm for nm in names if names.count(nm) > 1})
+        if twice:
+            raise ValueError(f"the tools of a contact need distinct names: several tools are "
+                             f"named {twice} (their history columns '{twice[0]}_force_...' "
+                             f"would overwrite each other); pass a distinct name= to each tool")
         if scheme == "implicit-exact" and not all(t.has_hessian for t in tools):
             raise ValueError("implicit-exact needs tools that provide the gap Hessian")
         if gap_stiffness is not None:
@@ -295,6 +312,7 @@ class NodalContact:
         self._changes = (0, 0)
         self._fingerprint = ()
         self._ever_active = np.zeros(n, dtype=bool)
+        self._placement_checked = False
         self._fallbacks = 0
         self._fallbacks_all = 0
         self._fields = None
@@ -492,6 +510,9 @@ class NodalContact:
         self._ever_active[:] = False
         self._fallbacks_all = 0
         self._status_prev = None
+        if not self._placement_checked:
+            body = x_t_all if self.formulation == "velocity" else b.mesh.geometry.x
+            self._check_placement(np.asarray(body)[:, : self.gdim], t)
         # burial check at the start of the increment (collective)
         pr0, tool0 = self._project_all(self.x_t, t, hessian=False)
         depth = -pr0.gap
@@ -522,6 +543,27 @@ class NodalContact:
             self._v_tool_fixed = self._tool_velocities(pr.point, tool_idx, t + dt)
         if self.has_friction:
             self._begin_friction(sim, t, dt)
+
+    def _check_placement(self, x_body: np.ndarray, t: float):
+        """ValueError (on every rank) if a tool holds the whole body at the first increment:
+        every vertex of the body is on the tool's side of its surface, none further out than
+        the burial limit and some deeper in than it (a Plane whose normal points into the body,
+        a curved tool with the wrong ``inside``). The contact could never act: no node would
+        ever be in contact, the force would stay 0."""
+        lim = self.max_initial_penetration
+        comm = self.boundary.comm
+        for tool in self.tools:
+            gap = tool.project(_pad3(x_body), t, hessian=False).gap
+            hi = comm.allreduce(float(np.max(gap, initial=-np.inf)), op=MPI.MAX)
+            lo = comm.allreduce(float(np.min(gap, initial=np.inf)), op=MPI.MIN)
+            if hi <= lim and lo < -lim:
+                raise ValueError(
+                    f"tool '{tool.name}' of contact '{self.name}' holds the whole body at t = "
+                    f"{t:.6g}: every node of the body is on the tool's side of its surface (down "
+                    f"to {-lo:.3g} deep), so the contact could never act (no contact node, zero "
+                    f"force). The tool's surface is turned the wrong way: "
+                    f"{_flip_hint(tool)}")
+        self._placement_checked = True
 
     def begin_step(self, t: float, dt: float, u):
         """Start a load step t → t + dt of the displacement formulation from the displacement
