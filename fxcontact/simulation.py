@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import shutil
 import time
 from dataclasses import dataclass
 from typing import Callable, Dict, List, Optional
@@ -284,6 +285,10 @@ class Simulation:
             ``"none"``: the plain ``div v = 0``. History columns: ``volume_change``
             (``V/V⁰ − 1``) and ``volume_restore_rate`` (``−V ln(V/V⁰)/dt``, which ``div_v``,
             the integral of ``div v``, equals to the solver tolerance).
+        overwrite: a new run (not :meth:`resume`-d) in an ``output_dir`` that holds checkpoints
+            of a run of the same ``name`` stops with a :class:`~fxcontact.checkpoint.
+            CheckpointError` before writing anything (its outputs would mix with that run's);
+            ``overwrite=True`` removes those checkpoints (with a warning) and starts afresh.
     """
 
     def __init__(self, space: MixedSpace, material: Material,
@@ -291,7 +296,8 @@ class Simulation:
                  extra_residual: Optional[Callable] = None, output_dir: Optional[str] = None,
                  name: str = "result", output_every: int = 1, progress: bool = True,
                  checkpoint_every: int = 0, checkpoint_keep: int = 2,
-                 check_inversion: bool = True, volume_correction: str = "global"):
+                 check_inversion: bool = True, volume_correction: str = "global",
+                 overwrite: bool = False):
         if not isinstance(material, Material):
             raise ValueError(f"material must be a fxcontact material, got {material!r}")
         if output_every < 1:
@@ -341,12 +347,15 @@ class Simulation:
         self._x_ref = self.mesh.geometry.x.copy()
         self._writer = None
         self._history_writer = None
+        self.overwrite = bool(overwrite)
+        self._outputs_opened = False
         self._reactions: Dict[str, np.ndarray] = {}
         self._labels: Dict[str, str] = {}   # history-column labels -> what they label
         self.checkpoint_every = int(checkpoint_every)
         self.checkpoint_keep = int(checkpoint_keep)
         self.check_inversion = bool(check_inversion)
         self._resumed: Optional[dict] = None
+        self._resumed_from: Optional[str] = None   # the directory of the resumed checkpoint
         self._resume_step: Optional[float] = None
         self._ckpt_keys = None
         self._init_mesh_health()
@@ -753,6 +762,7 @@ class Simulation:
         if max_cutbacks < 0:
             raise ValueError("max_cutbacks must be >= 0")
         self._build()
+        self._reopen_outputs()
         trial = float(dt)
         msg = ""
         msgs: List[str] = []
@@ -924,13 +934,68 @@ class Simulation:
     # ------------------------------------------------------------------------ outputs
     def _open_writers(self):
         from fxcontact.io import HistoryWriter, SeriesWriter
-        resumed = self._resumed is not None
+        if self._resumed is not None and not self._outputs_opened:
+            self._drop_later_checkpoints()
+        elif self._resumed is None and not self._outputs_opened:
+            self._claim_output_dir()
+        # a resumed run, or a run whose outputs an earlier run() closed: continue the outputs
+        resumed = self._resumed is not None or self._outputs_opened
+        self._outputs_opened = True
         self._writer = SeriesWriter(self.comm, self.output_dir, self.name,
                                     resume_time=self.t if resumed else None)
         self._history_writer = HistoryWriter(self.comm, self.output_dir, self.name,
                                              rows=self.history if resumed else None)
         if not resumed:
             self._write_fields()
+
+    def _reopen_outputs(self):
+        """Continue the CSV history and the VTK series that an earlier :meth:`run` closed (a
+        second ``run()`` to a later ``t_end``)."""
+        if self._outputs_opened and self._writer is None and self._history_writer is None:
+            log.info("%s: continuing the outputs in %s from t = %.6g", self.name,
+                     self.output_dir, self.t)
+            self._open_writers()
+
+    def _claim_output_dir(self):
+        """Before a new run writes anything: the checkpoints of another run of the same name in
+        ``output_dir`` are refused (CheckpointError on every rank), or removed with
+        ``overwrite=True``."""
+        from fxcontact.checkpoint import CheckpointError, list_checkpoints
+        old = list_checkpoints(self.checkpoint_dir, self.name) if self.comm.rank == 0 else None
+        old = self.comm.bcast(old, root=0)
+        if not old:
+            return
+        if not self.overwrite:
+            raise CheckpointError(
+                f"{self.checkpoint_dir} holds checkpoints of another run named '{self.name}' "
+                f"({', '.join(os.path.basename(p) for p in old)}): a new run would mix its outputs "
+                f"and checkpoints with them. Continue that run with resume(), or start this one "
+                f"in another output_dir or with another name, or pass overwrite=True to remove "
+                f"them")
+        log.warning("%s: overwrite=True: removing the checkpoints of the previous run %s",
+                    self.name, ", ".join(os.path.basename(p) for p in old))
+        self._remove_checkpoints(old)
+
+    def _drop_later_checkpoints(self):
+        """A run resumed from a checkpoint older than the newest: the later checkpoints (of
+        the run that was then killed) are removed, with a warning, as its later CSV rows and VTK
+        steps are dropped; otherwise the next resume() would take one of them."""
+        from fxcontact.checkpoint import list_checkpoints
+        if self._resumed_from != os.path.abspath(self.checkpoint_dir):
+            return
+        later = [p for p in list_checkpoints(self.checkpoint_dir, self.name)
+                 if int(p.rsplit("_", 1)[1]) > self.increment] if self.comm.rank == 0 else None
+        later = self.comm.bcast(later, root=0)
+        if later:
+            log.warning("%s: resumed at increment %d: removing the later checkpoints %s",
+                        self.name, self.increment, ", ".join(os.path.basename(p) for p in later))
+            self._remove_checkpoints(later)
+
+    def _remove_checkpoints(self, paths):
+        if self.comm.rank == 0:
+            for p in paths:
+                shutil.rmtree(p, ignore_errors=True)
+        self.comm.barrier()
 
     def _write_outputs(self, row):
         """CSV row and VTK step of an accepted increment; a failed write (full disk…) stops the
@@ -1054,11 +1119,22 @@ class Simulation:
         return self._ckpt_keys
 
     def _setup_signature(self) -> dict:
+        """What a checkpoint is resumed only with (as read back from JSON): the space, the
+        material and its parameters, the velocity conditions, the contributors and their
+        parameters (``setup_signature()``, e.g. a contact's penalty, friction and tools)."""
+        import json
+        from fxcontact.checkpoint import _json_default, describe
         sp = self.space
-        return {"element": sp.element, "gdim": sp.gdim, "dofs": sp.global_dofs(),
-                "material": type(self.material).__name__,
-                "small_strain": bool(self.material.small_strain),
-                "contributors": [type(c).__name__ for c in self.contributors]}
+        sig = {"element": sp.element, "gdim": sp.gdim, "dofs": sp.global_dofs(),
+               "material": type(self.material).__name__,
+               "small_strain": bool(self.material.small_strain),
+               "contributors": [type(c).__name__ for c in self.contributors],
+               "material_parameters": describe(self.material),
+               "volume_correction": self.volume_correction,
+               "velocity_bcs": [describe(b.value) for b in self._bcs],
+               "contributor_parameters": [c.setup_signature() if hasattr(c, "setup_signature")
+                                          else None for c in self.contributors]}
+        return json.loads(json.dumps(sig, default=_json_default))
 
     def write_checkpoint(self, path: Optional[str] = None) -> str:
         """Write a checkpoint of the current (accepted) state (collective); returns its path.
@@ -1168,10 +1244,11 @@ class Simulation:
                 f"mesh: {fp}): build the same initial mesh as the checkpointed run")
         sig = self._setup_signature()
         if man.get("setup") != sig:
-            diff = {k: (man["setup"].get(k), v) for k, v in sig.items()
-                    if man.get("setup", {}).get(k) != v}
-            raise CheckpointError(f"checkpoint {path} was written for a different set-up "
-                                  f"(checkpoint vs this run: {diff})")
+            diff = ck.signature_differences(man.get("setup") or {}, sig)
+            raise CheckpointError(f"checkpoint {path} was written for a different set-up: "
+                                  f"{'; '.join(diff)}. Resume with the set-up of the "
+                                  f"checkpointed run, or start a new run (another output_dir "
+                                  f"or name, or overwrite=True)")
         saved = [c["type"] for c in man.get("controllers", [])]
         mine = [type(c).__name__ for c in self.controllers]
         if saved != mine:
@@ -1231,6 +1308,7 @@ class Simulation:
         self.history = [dict(r) for r in man["history"]]
         self._resume_step = man.get("next_step")
         self._resumed = man
+        self._resumed_from = os.path.dirname(os.path.abspath(path))
         self._build()
         # the volume correction is relative to the initial volume of the body, not to the
         # volume at the checkpoint

@@ -248,7 +248,7 @@ def test_bad_checkpoints_are_refused():
     with pytest.raises(CheckpointError, match="not a complete checkpoint"):
         build(d).resume(path.replace("000002", "000003") + ".tmp")
     # resume() after the run has started
-    sim = build(d)
+    sim = build(os.path.join(d, "fresh"))
     sim.step(0.1)
     with pytest.raises(RuntimeError, match="before the first step"):
         sim.resume(path)

@@ -248,6 +248,7 @@ class NodalContact:
         self.name = name
         self.gdim = boundary.gdim
         self._penalty, self.beta = penalty, beta
+        self._penalty_given = penalty
         self.strain_rate = strain_rate
         self.sticky_gap = float(sticky_gap)
         #: factor on ρ of the current evaluations (< 1 in the softened first stage of a
@@ -890,6 +891,25 @@ class NodalContact:
                 "penalty": self._penalty, "strain_rate": self.strain_rate,
                 "slip_velocity": self.slip_velocity,
                 "p_prev": PerVertex(self.boundary.vertices, self._p_prev)}
+
+    def setup_signature(self) -> dict:
+        """The contact's parameters as given (not those resolved during the run): a checkpoint
+        is resumed only with the same (:meth:`Simulation.resume
+        <fxcontact.simulation.Simulation.resume>` names the one that differs)."""
+        from fxcontact.checkpoint import describe
+        tools = []
+        for t in self.tools:
+            base = getattr(t, "tool", t)   # a MovedTool's tool
+            geometry = base._repr_fields() if hasattr(base, "_repr_fields") else repr(base)
+            tools.append({"type": type(t).__name__, "name": t.name,
+                          "geometry": type(base).__name__ if " at 0x" in geometry else geometry,
+                          "motion": describe(t.motion)})
+        return {"name": self.name, "scheme": self.scheme, "formulation": self.formulation,
+                "penalty": self._penalty_given, "beta": self.beta,
+                "gap_stiffness": self.gap_stiffness,
+                "sticky_gap": self.sticky_gap, "friction": describe(self.friction),
+                "friction_mode": self.friction_mode, "slip_velocity": self._slip_velocity_user,
+                "tools": tools}
 
     def restore_state(self, state: dict):
         from fxcontact.checkpoint import CheckpointError
