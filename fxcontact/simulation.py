@@ -1242,13 +1242,6 @@ class Simulation:
             raise CheckpointError(
                 f"checkpoint {path} was written for a different mesh ({man.get('mesh')}; this "
                 f"mesh: {fp}): build the same initial mesh as the checkpointed run")
-        sig = self._setup_signature()
-        if man.get("setup") != sig:
-            diff = ck.signature_differences(man.get("setup") or {}, sig)
-            raise CheckpointError(f"checkpoint {path} was written for a different set-up: "
-                                  f"{'; '.join(diff)}. Resume with the set-up of the "
-                                  f"checkpointed run, or start a new run (another output_dir "
-                                  f"or name, or overwrite=True)")
         saved = [c["type"] for c in man.get("controllers", [])]
         mine = [type(c).__name__ for c in self.controllers]
         if saved != mine:
@@ -1262,6 +1255,14 @@ class Simulation:
             if e["state"] is None and hasattr(c, "restore_state"):
                 raise CheckpointError(f"checkpoint {path} holds no state for controller "
                                       f"{type(c).__name__} #{i}")
+        # after the controllers: their message is the more specific
+        sig = self._setup_signature()
+        if man.get("setup") != sig:
+            diff = ck.signature_differences(man.get("setup") or {}, sig)
+            raise CheckpointError(f"checkpoint {path} was written for a different set-up: "
+                                  f"{'; '.join(diff)}. Resume with the set-up of the "
+                                  f"checkpointed run, or start a new run (another output_dir "
+                                  f"or name, or overwrite=True)")
         arrays = ck.read_arrays(path, int(man["nranks"]))
         keys = self._checkpoint_keys()
         sp = self.space

@@ -512,7 +512,14 @@ class NodalContact:
         self._fallbacks_all = 0
         self._status_prev = None
         if not self._placement_checked:
-            body = x_t_all if self.formulation == "velocity" else b.mesh.geometry.x
+            # the whole body (a displacement-form problem: its mesh, or the contact nodes of a
+            # boundary without one)
+            if self.formulation == "velocity":
+                body = x_t_all
+            elif hasattr(b, "mesh"):
+                body = b.mesh.geometry.x
+            else:
+                body = b.mesh_positions()
             self._check_placement(np.asarray(body)[:, : self.gdim], t)
         # burial check at the start of the increment (collective)
         pr0, tool0 = self._project_all(self.x_t, t, hessian=False)
