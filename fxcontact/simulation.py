@@ -188,6 +188,9 @@ def _initial_mesh_error(msh, X, c2v_owned, vol0, q0) -> Optional[str]:
     from fxcontact.mesh_health import (DEGENERATE_QUALITY, DEGENERATE_VOLUME, degenerate_cells,
                                        overlapping_facets)
     comm = msh.comm
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)   # collective: before any local return
+    msh.topology.create_connectivity(tdim - 1, 0)
     n = comm.allreduce(len(vol0), op=MPI.SUM)
     mean = comm.allreduce(float(np.sum(np.abs(vol0))), op=MPI.SUM) / max(n, 1)
     bad = np.flatnonzero(degenerate_cells(vol0, q0, mean))
@@ -197,9 +200,6 @@ def _initial_mesh_error(msh, X, c2v_owned, vol0, q0) -> Optional[str]:
                 f"{DEGENERATE_VOLUME:g} x the mean cell volume or shape quality below "
                 f"{DEGENERATE_QUALITY:g}), e.g. with centroid {np.array2string(c, precision=4)}: "
                 f"remesh")
-    tdim = msh.topology.dim
-    msh.topology.create_connectivity(tdim - 1, tdim)
-    msh.topology.create_connectivity(tdim - 1, 0)
     f2c = msh.topology.connectivity(tdim - 1, tdim)
     nf = msh.topology.index_map(tdim - 1).size_local
     inner = np.flatnonzero(np.diff(f2c.offsets)[:nf] == 2)

@@ -539,6 +539,11 @@ def _files(out):
     return (Path(out, "p_history.csv").read_bytes(), Path(out, "p.pvd").read_bytes(), ckpts)
 
 
+def _no_wall(history):
+    """The history without its wall times (measured per rank)."""
+    return [{k: v for k, v in r.items() if not k.startswith("wall_")} for r in history]
+
+
 def test_new_run_over_another_runs_checkpoints(cube, out, caplog):
     first = _die_run(cube, out, checkpoint_every=1)
     first.run(0.2, 0.1)
@@ -558,7 +563,7 @@ def test_new_run_over_another_runs_checkpoints(cube, out, caplog):
     assert COMM.rank != 0 or _files(out)[2] == ["p_000001"]
     again = _die_run(_cube(), out, speed=0.2)
     again.resume()
-    assert again.history == third.history
+    assert _no_wall(again.history) == _no_wall(third.history)
     again.close()
 
 
