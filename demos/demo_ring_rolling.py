@@ -278,7 +278,8 @@ def run(**parameters) -> dict:
                         output_dir=out if files else None, name=name,
                         output_every=max(1, int(P["vtk_every"] or 10 ** 9)), progress=False,
                         volume_correction=P["volume_correction"],
-                        checkpoint_every=int(P["checkpoint_every"]))
+                        checkpoint_every=int(P["checkpoint_every"]),
+                        overwrite=not P["resume"])
     sim.add_velocity_bc(sim.facets(ft, fx.RING_TAGS["mid_plane"]), 0.0, component=2)
 
     # ---- tools: main roll (driven, clockwise), mandrel (idle, fed), guide rolls (idle)

@@ -118,7 +118,7 @@ def run(radius=10.0, height=15.0, h=2.5, K=50.0, m=0.15, die_speed=5.0, reductio
     space = MixedSpace(msh)
     sim = Simulation(space, NortonHoff(K=K, m=m, regularization=1e-4 * die_speed / height),
                      output_dir=output_dir, name="upsetting", progress=progress,
-                     checkpoint_every=checkpoint_every,
+                     checkpoint_every=checkpoint_every, overwrite=not resume,
                      volume_correction=volume_correction,
                      solver_options=SolverOptions(linear_solver=linear_solver))
     f = {k: sim.facets(ft, v) for k, v in BILLET_TAGS.items()}

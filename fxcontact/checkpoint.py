@@ -32,6 +32,7 @@ import logging
 import os
 import re
 import shutil
+import dataclasses
 import zipfile
 import zlib
 from dataclasses import dataclass
@@ -43,7 +44,7 @@ from mpi4py import MPI
 from fxcontact import compat
 
 __all__ = ["CheckpointError", "PerVertex", "VertexLookup", "FORMAT_VERSION", "latest_checkpoint",
-           "list_checkpoints", "mesh_fingerprint"]
+           "list_checkpoints", "mesh_fingerprint", "describe", "signature_differences"]
 
 log = logging.getLogger(__name__)
 
@@ -182,6 +183,54 @@ def mesh_fingerprint(msh, x_initial: np.ndarray) -> Dict[str, object]:
     return {"cells": int(msh.topology.index_map(tdim).size_global),
             "vertices": int(msh.topology.index_map(0).size_global),
             "gdim": int(msh.geometry.dim), "hash": f"{int(tot[0]):016x}"}
+
+
+# ------------------------------------------------------------------------------ set-up signature
+def describe(obj):
+    """Plain (JSON) description of a set-up object for the set-up signature of a checkpoint:
+    the fields of a dataclass (materials, friction laws, motions) with its type, numbers,
+    strings, sequences; a function by its name (its code is not compared)."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        out = {"type": type(obj).__name__}
+        out.update({f.name: describe(getattr(obj, f.name)) for f in dataclasses.fields(obj)
+                    if f.repr})
+        return out
+    if obj is None or isinstance(obj, (bool, str)):
+        return obj
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj)
+    if isinstance(obj, np.ndarray):
+        return describe(obj.tolist())
+    if isinstance(obj, (list, tuple)):
+        return [describe(v) for v in obj]
+    if isinstance(obj, dict):
+        return {str(k): describe(v) for k, v in obj.items()}
+    if callable(obj):
+        return f"function {getattr(obj, '__qualname__', type(obj).__name__)}"
+    return type(obj).__name__
+
+
+def _flatten(value, prefix: str, out: dict):
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _flatten(v, f"{prefix}.{k}" if prefix else str(k), out)
+    elif isinstance(value, list) and any(isinstance(v, (dict, list)) for v in value):
+        for i, v in enumerate(value):
+            _flatten(v, f"{prefix}[{i}]", out)
+    else:
+        out[prefix] = value
+    return out
+
+
+def signature_differences(saved: dict, mine: dict) -> List[str]:
+    """``["material.K: 50.0 in the checkpoint, 60.0 in this run", …]``: the parameters in
+    which two set-up signatures differ (both as read back from JSON)."""
+    a, b = _flatten(saved, "", {}), _flatten(mine, "", {})
+    return [f"{k}: {a.get(k, 'not set')!r} in the checkpoint, {b.get(k, 'not set')!r} in this "
+            f"run" for k in sorted(set(a) | set(b), key=lambda k: (k not in b, k))
+            if a.get(k, "not set") != b.get(k, "not set")]
 
 
 # ------------------------------------------------------------------------------ files

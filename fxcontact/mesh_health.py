@@ -16,7 +16,8 @@ import math
 
 import numpy as np
 
-__all__ = ["simplex_measures"]
+__all__ = ["simplex_measures", "degenerate_cells", "overlapping_facets", "DEGENERATE_VOLUME",
+           "DEGENERATE_QUALITY"]
 
 
 def simplex_measures(P: np.ndarray):
@@ -43,3 +44,45 @@ def simplex_measures(P: np.ndarray):
         else:
             q = 4.0 * math.sqrt(3.0) * np.abs(vol) / L2
     return vol, np.where(L2 > 0, q, 0.0)
+
+
+#: a cell is degenerate if its volume is below this fraction of the mean cell volume …
+DEGENERATE_VOLUME = 1e-10
+#: … or its shape quality below this (a flat cell of normal size)
+DEGENERATE_QUALITY = 1e-6
+
+
+def degenerate_cells(measure: np.ndarray, quality: np.ndarray, mean_measure: float) -> np.ndarray:
+    """(N,) bool: cells of (nearly) zero measure (relative to ``mean_measure``, the mean
+    |measure| of the mesh) or of (nearly) zero shape quality."""
+    return (np.abs(measure) <= DEGENERATE_VOLUME * mean_measure) | (quality <= DEGENERATE_QUALITY)
+
+
+def overlapping_facets(X: np.ndarray, cells: np.ndarray, facet_vertices: np.ndarray,
+                       facet_cells: np.ndarray) -> np.ndarray:
+    """Interior facets whose two cells overlap: a tangled mesh.
+
+    In a valid mesh the two cells that share a facet lie on opposite sides of it, whatever the
+    order of their vertices (dolfinx does not orient cells consistently: a mesh may hold cells
+    of both signs of the signed volume). A cell turned inside out lies on the same side as its
+    neighbour across its facets.
+
+    Args:
+        X: (num_vertices, d) vertex positions.
+        cells: (num_cells, d + 1) vertices of the cells.
+        facet_vertices: (N, d) vertices of N interior facets.
+        facet_cells: (N, 2) the two cells of each facet.
+    Returns:
+        (N,) bool: True where both cells' opposite vertices lie on the same side of the facet.
+    """
+    F = np.asarray(facet_vertices)
+    if len(F) == 0:
+        return np.zeros(0, dtype=bool)
+    E = X[F[:, 1:]] - X[F[:, :1]]                 # (N, d-1, d) edges of the facet
+    side = []
+    for j in range(2):
+        c = cells[facet_cells[:, j]]              # (N, d+1)
+        in_facet = (c[:, :, None] == F[:, None, :]).any(axis=2)
+        opp = c[~in_facet]                        # the vertex opposite the facet
+        side.append(np.linalg.det(np.concatenate([E, (X[opp] - X[F[:, 0]])[:, None]], axis=1)))
+    return side[0] * side[1] > 0.0

@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import shutil
 import time
 from dataclasses import dataclass
 from typing import Callable, Dict, List, Optional
@@ -197,6 +198,79 @@ def _output_dir_problem(path) -> Optional[str]:
     return None
 
 
+def _label(obj) -> str:
+    """``NodalContact 'die'``: a registered object in messages."""
+    name = getattr(obj, "name", None)
+    return type(obj).__name__ + (f" '{name}'" if isinstance(name, str) else "")
+
+
+def _column_labels(contributor) -> Dict[str, str]:
+    """The labels that start a contributor's history columns, with what each labels: its name
+    (a contact's ``{name}_nodes``…) and its tools' names (``{tool}_force_x``…)."""
+    out = {}
+    for tool in getattr(contributor, "tools", None) or []:
+        if isinstance(getattr(tool, "name", None), str):
+            out[tool.name] = f"tool '{tool.name}' of {_label(contributor)}"
+    if hasattr(contributor, "diagnostics") and isinstance(getattr(contributor, "name", None),
+                                                           str):
+        out[contributor.name] = _label(contributor)
+    return out
+
+
+def _check_added_once(obj, registered, what: str):
+    """ValueError if ``obj`` (the same object) is already registered."""
+    if any(r is obj for r in registered):
+        raise ValueError(f"{what} {_label(obj)} is already added to this simulation: added "
+                         f"twice, it would act twice (its forces counted twice, its history "
+                         f"columns wrong); add it once")
+
+
+def _merge_columns(row: dict, columns: dict, owner):
+    """Add ``columns`` to a history row; ValueError if one is already there (two contributors
+    or controllers writing the same column would overwrite each other)."""
+    clash = sorted(set(row) & set(columns))
+    if clash:
+        raise ValueError(f"history column(s) {clash} of {_label(owner)} are already written "
+                         f"by another contributor, reaction or symmetry plane: pass a distinct "
+                         f"name= to one of them")
+    row.update(columns)
+
+
+def _initial_mesh_error(msh, X, c2v_owned, vol0, q0) -> Optional[str]:
+    """What is wrong with the initial mesh, or None (collective; the message is local):
+    degenerate cells (:func:`~fxcontact.mesh_health.degenerate_cells`) or a tangled mesh
+    (cells turned inside out, overlapping a neighbour: :func:`~fxcontact.mesh_health.
+    overlapping_facets`)."""
+    from fxcontact.mesh_health import (DEGENERATE_QUALITY, DEGENERATE_VOLUME, degenerate_cells,
+                                       overlapping_facets)
+    comm = msh.comm
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)   # collective: before any local return
+    msh.topology.create_connectivity(tdim - 1, 0)
+    n = comm.allreduce(len(vol0), op=MPI.SUM)
+    mean = comm.allreduce(float(np.sum(np.abs(vol0))), op=MPI.SUM) / max(n, 1)
+    bad = np.flatnonzero(degenerate_cells(vol0, q0, mean))
+    if len(bad):
+        c = X[c2v_owned[bad[0]]].mean(axis=0)
+        return (f"the mesh has {len(bad)} degenerate (zero-volume) cell(s) (volume below "
+                f"{DEGENERATE_VOLUME:g} x the mean cell volume or shape quality below "
+                f"{DEGENERATE_QUALITY:g}), e.g. with centroid {np.array2string(c, precision=4)}: "
+                f"remesh")
+    f2c = msh.topology.connectivity(tdim - 1, tdim)
+    nf = msh.topology.index_map(tdim - 1).size_local
+    inner = np.flatnonzero(np.diff(f2c.offsets)[:nf] == 2)
+    fc = f2c.array[f2c.offsets[inner][:, None] + np.arange(2)]
+    fv = msh.topology.connectivity(tdim - 1, 0).array.reshape(-1, tdim)[inner]
+    over = overlapping_facets(X, compat.cell_vertices(msh), fv, fc)
+    if np.any(over):
+        c = X[fv[np.argmax(over)]].mean(axis=0)
+        return (f"the mesh is tangled: {int(np.sum(over))} facet(s) have both their cells on "
+                f"the same side (cells turned inside out, overlapping their neighbour), e.g. the "
+                f"facet with centroid {np.array2string(c, precision=4)}: fix or remesh the mesh "
+                f"(check the node order of its cells)")
+    return None
+
+
 def _shear_viscosity_ufl(material, v, dt):
     """Secant shear viscosity of the velocity tangent (UFL) for the Schur preconditioner of
     the condensed iterative solver (:mod:`fxcontact.condense`), or None if unknown:
@@ -267,6 +341,10 @@ class Simulation:
             ``"none"``: the plain ``div v = 0``. History columns: ``volume_change``
             (``V/V⁰ − 1``) and ``volume_restore_rate`` (``−V ln(V/V⁰)/dt``, which ``div_v``,
             the integral of ``div v``, equals to the solver tolerance).
+        overwrite: a new run (not :meth:`resume`-d) in an ``output_dir`` that holds checkpoints
+            of a run of the same ``name`` stops with a :class:`~fxcontact.checkpoint.
+            CheckpointError` before writing anything (its outputs would mix with that run's);
+            ``overwrite=True`` removes those checkpoints (with a warning) and starts afresh.
     """
 
     def __init__(self, space: MixedSpace, material: Material,
@@ -274,7 +352,8 @@ class Simulation:
                  extra_residual: Optional[Callable] = None, output_dir: Optional[str] = None,
                  name: str = "result", output_every: int = 1, progress: bool = True,
                  checkpoint_every: int = 0, checkpoint_keep: int = 2,
-                 check_inversion: bool = True, volume_correction: str = "global"):
+                 check_inversion: bool = True, volume_correction: str = "global",
+                 overwrite: bool = False):
         # the same checks on every rank, raised on every rank (fxcontact.collective)
         with together(getattr(getattr(space, "mesh", None), "comm", MPI.COMM_WORLD),
                       "Simulation()", name=name, output_dir=output_dir):
@@ -332,11 +411,15 @@ class Simulation:
         self._x_ref = self.mesh.geometry.x.copy()
         self._writer = None
         self._history_writer = None
+        self.overwrite = bool(overwrite)
+        self._outputs_opened = False
         self._reactions: Dict[str, np.ndarray] = {}
+        self._labels: Dict[str, str] = {}   # history-column labels -> what they label
         self.checkpoint_every = int(checkpoint_every)
         self.checkpoint_keep = int(checkpoint_keep)
         self.check_inversion = bool(check_inversion)
         self._resumed: Optional[dict] = None
+        self._resumed_from: Optional[str] = None   # the directory of the resumed checkpoint
         self._resume_step: Optional[float] = None
         self._ckpt_keys = None
         self._init_mesh_health()
@@ -376,8 +459,10 @@ class Simulation:
         """Record, each increment, the force exerted on the body through the Dirichlet dofs of
         ``facets`` (history columns ``{name}_x``, ``{name}_y``, ``{name}_z``), computed on the
         configuration of the increment (before the geometry update)."""
-        self._reactions[name] = checked_facets(self.mesh, facets, "add_reaction(facets)",
-                                               name=name)
+        facets = checked_facets(self.mesh, facets, "add_reaction(facets)", name=name)
+        with together(self.comm, "add_reaction()", name=name):
+            self._claim_labels({name: f"reaction '{name}'"})
+        self._reactions[name] = facets
 
     def add_symmetry_plane(self, facets: np.ndarray, normal, name: str = "symmetry"):
         """Symmetry plane through ``facets``: the normal velocity ``v·n`` vanishes there.
@@ -400,8 +485,8 @@ class Simulation:
         axis = np.flatnonzero(np.abs(n) > 1e-12)
         if self._symmetry is None:
             self._symmetry = SymmetryPlanes(self.space)
-        if name in self._reactions or name in self._symmetry.names:
-            raise ValueError(f"a reaction or symmetry plane named '{name}' already exists")
+        with together(self.comm, "add_symmetry_plane()", name=name):
+            self._claim_labels({name: f"symmetry plane '{name}'"})
         if len(axis) == 1:  # a coordinate plane: a velocity condition, reaction from here
             self._symmetry.add(name, facets, n, via_bc=True)
             bc = self.add_velocity_bc(facets, 0.0, component=int(axis[0]))
@@ -413,7 +498,9 @@ class Simulation:
         """Register a nodal contributor (``evaluate``, ``stable``; optional ``begin_increment``,
         ``end_increment``, ``diagnostics``, ``output_fields``)."""
         self._check_not_built()
-        check_together(self.comm, "add_contributor()", None, contributor=_describe(contributor))
+        with together(self.comm, "add_contributor()", contributor=_describe(contributor)):
+            _check_added_once(contributor, self.contributors, "contributor")
+            self._claim_labels(_column_labels(contributor))
         self.contributors.append(contributor)
         return contributor
 
@@ -431,6 +518,7 @@ class Simulation:
         checkpoint is resumed only with the same controllers (number, types, order)."""
         self._check_not_built()
         with together(self.comm, "add_controller()", controller=_describe(controller)):
+            _check_added_once(controller, self.controllers, "controller")
             if hasattr(controller, "solve") and any(hasattr(c, "solve")
                                                     for c in self.controllers):
                 raise ValueError("only one controller may take over the Newton solve (solve()); "
@@ -465,6 +553,18 @@ class Simulation:
             items[f"controller #{k}"] = _describe(c)
         check_together(self.comm, "the set-up of the first increment (Simulation.run/step)",
                        None, **items)
+
+    def _claim_labels(self, labels: Dict[str, str]):
+        """Reserve the labels that start history columns (``{label}_x``, ``{label}_force_x``…):
+        a ValueError names a label that another contributor, tool, reaction or symmetry plane
+        already has (their columns would overwrite each other)."""
+        for label, what in labels.items():
+            if label in self._labels:
+                raise ValueError(f"the name '{label}' of {what} is already the name of "
+                                 f"{self._labels[label]}: their history columns ('{label}_...') "
+                                 f"would overwrite each other; pass a distinct name= to one of "
+                                 f"them")
+        self._labels.update(labels)
 
     def _check_not_built(self):
         if self._built:
@@ -743,7 +843,7 @@ class Simulation:
             if hasattr(c, "end_increment"):
                 c.end_increment(self, dt)
             if hasattr(c, "diagnostics"):
-                row.update(c.diagnostics())
+                _merge_columns(row, c.diagnostics(), c)
         return row
 
     def _cell_average(self, frm) -> np.ndarray:
@@ -768,6 +868,7 @@ class Simulation:
             if max_cutbacks < 0:
                 raise ValueError("max_cutbacks must be >= 0")
         self._build()
+        self._reopen_outputs()
         trial = float(dt)
         msg = ""
         msgs: List[str] = []
@@ -942,13 +1043,68 @@ class Simulation:
     # ------------------------------------------------------------------------ outputs
     def _open_writers(self):
         from fxcontact.io import HistoryWriter, SeriesWriter
-        resumed = self._resumed is not None
+        if self._resumed is not None and not self._outputs_opened:
+            self._drop_later_checkpoints()
+        elif self._resumed is None and not self._outputs_opened:
+            self._claim_output_dir()
+        # a resumed run, or a run whose outputs an earlier run() closed: continue the outputs
+        resumed = self._resumed is not None or self._outputs_opened
+        self._outputs_opened = True
         self._writer = SeriesWriter(self.comm, self.output_dir, self.name,
                                     resume_time=self.t if resumed else None)
         self._history_writer = HistoryWriter(self.comm, self.output_dir, self.name,
                                              rows=self.history if resumed else None)
         if not resumed:
             self._write_fields()
+
+    def _reopen_outputs(self):
+        """Continue the CSV history and the VTK series that an earlier :meth:`run` closed (a
+        second ``run()`` to a later ``t_end``)."""
+        if self._outputs_opened and self._writer is None and self._history_writer is None:
+            log.info("%s: continuing the outputs in %s from t = %.6g", self.name,
+                     self.output_dir, self.t)
+            self._open_writers()
+
+    def _claim_output_dir(self):
+        """Before a new run writes anything: the checkpoints of another run of the same name in
+        ``output_dir`` are refused (CheckpointError on every rank), or removed with
+        ``overwrite=True``."""
+        from fxcontact.checkpoint import CheckpointError, list_checkpoints
+        old = list_checkpoints(self.checkpoint_dir, self.name) if self.comm.rank == 0 else None
+        old = self.comm.bcast(old, root=0)
+        if not old:
+            return
+        if not self.overwrite:
+            raise CheckpointError(
+                f"{self.checkpoint_dir} holds checkpoints of another run named '{self.name}' "
+                f"({', '.join(os.path.basename(p) for p in old)}): a new run would mix its outputs "
+                f"and checkpoints with them. Continue that run with resume(), or start this one "
+                f"in another output_dir or with another name, or pass overwrite=True to remove "
+                f"them")
+        log.warning("%s: overwrite=True: removing the checkpoints of the previous run %s",
+                    self.name, ", ".join(os.path.basename(p) for p in old))
+        self._remove_checkpoints(old)
+
+    def _drop_later_checkpoints(self):
+        """A run resumed from a checkpoint older than the newest: the later checkpoints (of
+        the run that was then killed) are removed, with a warning, as its later CSV rows and VTK
+        steps are dropped; otherwise the next resume() would take one of them."""
+        from fxcontact.checkpoint import list_checkpoints
+        if self._resumed_from != os.path.abspath(self.checkpoint_dir):
+            return
+        later = [p for p in list_checkpoints(self.checkpoint_dir, self.name)
+                 if int(p.rsplit("_", 1)[1]) > self.increment] if self.comm.rank == 0 else None
+        later = self.comm.bcast(later, root=0)
+        if later:
+            log.warning("%s: resumed at increment %d: removing the later checkpoints %s",
+                        self.name, self.increment, ", ".join(os.path.basename(p) for p in later))
+            self._remove_checkpoints(later)
+
+    def _remove_checkpoints(self, paths):
+        if self.comm.rank == 0:
+            for p in paths:
+                shutil.rmtree(p, ignore_errors=True)
+        self.comm.barrier()
 
     def _write_outputs(self, row):
         """CSV row and VTK step of an accepted increment; a failed write (full disk…) stops the
@@ -975,13 +1131,9 @@ class Simulation:
         tdim = self.mesh.topology.dim
         nown = self.mesh.topology.index_map(tdim).size_local
         self._c2v_owned = compat.cell_vertices(self.mesh)[:nown]
-        vol0, _ = self._cell_measures(self.space.vertex_positions())
-        msg = None
-        if np.any(vol0 == 0.0):
-            i = int(np.flatnonzero(vol0 == 0.0)[0])
-            c = self.space.vertex_positions()[self._c2v_owned[i]].mean(axis=0)
-            msg = (f"the mesh has {int(np.sum(vol0 == 0.0))} degenerate (zero-volume) cell(s), "
-                   f"e.g. with centroid {np.array2string(c, precision=4)}")
+        X = self.space.vertex_positions()
+        vol0, q0 = self._cell_measures(X)
+        msg = _initial_mesh_error(self.mesh, X, self._c2v_owned, vol0, q0)
         msgs = [m for m in self.comm.allgather(msg) if m]   # raised on every rank
         if msgs:
             raise ValueError(msgs[0])
@@ -1076,11 +1228,22 @@ class Simulation:
         return self._ckpt_keys
 
     def _setup_signature(self) -> dict:
+        """What a checkpoint is resumed only with (as read back from JSON): the space, the
+        material and its parameters, the velocity conditions, the contributors and their
+        parameters (``setup_signature()``, e.g. a contact's penalty, friction and tools)."""
+        import json
+        from fxcontact.checkpoint import _json_default, describe
         sp = self.space
-        return {"element": sp.element, "gdim": sp.gdim, "dofs": sp.global_dofs(),
-                "material": type(self.material).__name__,
-                "small_strain": bool(self.material.small_strain),
-                "contributors": [type(c).__name__ for c in self.contributors]}
+        sig = {"element": sp.element, "gdim": sp.gdim, "dofs": sp.global_dofs(),
+               "material": type(self.material).__name__,
+               "small_strain": bool(self.material.small_strain),
+               "contributors": [type(c).__name__ for c in self.contributors],
+               "material_parameters": describe(self.material),
+               "volume_correction": self.volume_correction,
+               "velocity_bcs": [describe(b.value) for b in self._bcs],
+               "contributor_parameters": [c.setup_signature() if hasattr(c, "setup_signature")
+                                          else None for c in self.contributors]}
+        return json.loads(json.dumps(sig, default=_json_default))
 
     def write_checkpoint(self, path: Optional[str] = None) -> str:
         """Write a checkpoint of the current (accepted) state (collective); returns its path.
@@ -1193,12 +1356,6 @@ class Simulation:
             raise CheckpointError(
                 f"checkpoint {path} was written for a different mesh ({man.get('mesh')}; this "
                 f"mesh: {fp}): build the same initial mesh as the checkpointed run")
-        sig = self._setup_signature()
-        if man.get("setup") != sig:
-            diff = {k: (man["setup"].get(k), v) for k, v in sig.items()
-                    if man.get("setup", {}).get(k) != v}
-            raise CheckpointError(f"checkpoint {path} was written for a different set-up "
-                                  f"(checkpoint vs this run: {diff})")
         saved = [c["type"] for c in man.get("controllers", [])]
         mine = [type(c).__name__ for c in self.controllers]
         if saved != mine:
@@ -1212,6 +1369,14 @@ class Simulation:
             if e["state"] is None and hasattr(c, "restore_state"):
                 raise CheckpointError(f"checkpoint {path} holds no state for controller "
                                       f"{type(c).__name__} #{i}")
+        # after the controllers: their message is the more specific
+        sig = self._setup_signature()
+        if man.get("setup") != sig:
+            diff = ck.signature_differences(man.get("setup") or {}, sig)
+            raise CheckpointError(f"checkpoint {path} was written for a different set-up: "
+                                  f"{'; '.join(diff)}. Resume with the set-up of the "
+                                  f"checkpointed run, or start a new run (another output_dir "
+                                  f"or name, or overwrite=True)")
         arrays = ck.read_arrays(path, int(man["nranks"]))
         keys = self._checkpoint_keys()
         sp = self.space
@@ -1258,6 +1423,7 @@ class Simulation:
         self.history = [dict(r) for r in man["history"]]
         self._resume_step = man.get("next_step")
         self._resumed = man
+        self._resumed_from = os.path.dirname(os.path.abspath(path))
         self._build()
         # the volume correction is relative to the initial volume of the body, not to the
         # volume at the checkpoint

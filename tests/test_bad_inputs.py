@@ -22,7 +22,7 @@ import ufl
 
 import fxcontact as fx
 import fxcontact.element_condense as ec
-from fxcontact.checkpoint import CheckpointError, latest_checkpoint
+from fxcontact.checkpoint import CheckpointError, latest_checkpoint, list_checkpoints
 from fxcontact.io import HistoryWriter, SeriesWriter, read_pvd
 from fxcontact.simulation import IncrementError, OutputError
 
@@ -131,6 +131,61 @@ def _run_time_backwards(c):
     s.run(0.5, 0.1)
 
 
+def _tangled_mesh(c):
+    """The cube's centre node moved through the top face: the cells under that face turn
+    inside out and overlap their neighbours (cells of both signs)."""
+    msh = box_mesh(COMM, n=(2, 2, 2))
+    x = msh.geometry.x
+    x[np.all(np.isclose(x, 0.5), axis=1), 2] = 1.3
+    fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(1.0, 0.2), progress=False)
+
+
+def _nearly_flat_mesh(c):
+    """The top layer squashed to 1e-12 of its height: tiny but positive cell volumes."""
+    msh = box_mesh(COMM, n=(2, 2, 2))
+    x = msh.geometry.x
+    x[np.isclose(x[:, 2], 1.0), 2] = 0.5 + 1e-12
+    fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(1.0, 0.2), progress=False)
+
+
+def _add_twice(c, what):
+    s = _sim(c)
+    obj = fx.NodalContact(c["top"], _die(), penalty=1.0) if what == "contributor" else object()
+    add = s.add_contributor if what == "contributor" else s.add_controller
+    add(obj)
+    add(obj)
+
+
+def _two_contacts(c, first=None, second=None, tool=None):
+    """Two contacts on the top face (names ``first``/``second``, default 'contact'), the second
+    against ``tool`` (default: another plane with its own name)."""
+    s = _sim(c)
+    kw1 = {} if first is None else {"name": first}
+    kw2 = {} if second is None else {"name": second}
+    die = _die()
+    s.add_contributor(fx.NodalContact(c["top"], die, penalty=1.0, **kw1))
+    other = fx.Plane((0, 0, 2), (0, 0, -1), name="upper") if tool is None else \
+        (die if tool == "same" else tool)
+    s.add_contributor(fx.NodalContact(c["top"], other, penalty=1.0, **kw2))
+
+
+def _contact_and(c, kind):
+    """A contact named 'base', then a reaction or a symmetry plane named 'base'."""
+    s = _sim(c)
+    s.add_contributor(fx.NodalContact(c["top"], _die(), penalty=1.0, name="base"))
+    f = s.facets(c["ft"], TAGS["z0"])
+    if kind == "reaction":
+        s.add_reaction("base", f)
+    else:
+        s.add_symmetry_plane(f, (0, 0, 1), name="base")
+
+
+def _reaction_and_plane(c):
+    s = _sim(c)
+    s.add_reaction("x0", s.facets(c["ft"], TAGS["x0"]))
+    s.add_symmetry_plane(s.facets(c["ft"], TAGS["x0"]), (1, 0, 0), name="x0")
+
+
 #: (case id, what is done, error class, key words of the message (regex))
 CASES = [
     # material and solver parameters
@@ -162,6 +217,10 @@ CASES = [
     ("mesh-missing-tag", lambda c: fx.facets_with_tags(c["msh"], c["ft"], 7), ValueError,
      r"boundary tag 7 is not present.*tags present: \[1, 2, 3, 4\]"),
     ("mesh-degenerate-cell", _degenerate_mesh, ValueError, "degenerate .*zero-volume"),
+    ("mesh-nearly-degenerate-cell", _nearly_flat_mesh, ValueError,
+     r"degenerate .*zero-volume.*below 1e-10 x the mean cell volume.*remesh"),
+    ("mesh-tangled", _tangled_mesh, ValueError,
+     r"tangled: \d+ facet\(s\) have both their cells on the same side.*inside out.*remesh"),
     ("contact-tags-missing", lambda c: fx.ContactBoundary(c["space"], c["ft"]), ValueError,
      "facet_tags given without tags"),
     ("contact-taylor-hood", lambda c: fx.ContactBoundary(
@@ -200,6 +259,30 @@ CASES = [
      "hand-written kernel is NortonHoff's own law.*_OwnNortonHoff use FFCxElementTensors"),
     ("condense-degenerate-cell", _condensed_degenerate, RuntimeError,
      "singular interior \\(bubble\\) block in a cell: degenerate element"),
+    # the same object twice, names whose history columns clash
+    ("simulation-contributor-added-twice", lambda c: _add_twice(c, "contributor"), ValueError,
+     r"contributor NodalContact 'contact' is already added.*added twice.*add it once"),
+    ("simulation-controller-added-twice", lambda c: _add_twice(c, "controller"), ValueError,
+     r"controller object is already added.*add it once"),
+    ("contact-tools-same-name", lambda c: fx.NodalContact(
+        c["top"], [fx.Plane((0, 0, 1), (0, 0, -1)), fx.Plane((0, 0, 0), (0, 0, 1))]),
+     ValueError, r"distinct names.*named \['plane'\].*pass a distinct name= to each tool"),
+    ("history-name-two-default-contacts", _two_contacts, ValueError,
+     r"name 'contact' of NodalContact 'contact' is already the name of NodalContact "
+     r"'contact'.*overwrite each other; pass a distinct name="),
+    ("history-name-tool-in-two-contacts", lambda c: _two_contacts(c, "c1", "c2", "same"),
+     ValueError, r"name 'die' of tool 'die' of NodalContact 'c2' is already the name of tool "
+     r"'die' of NodalContact 'c1'.*pass a distinct name="),
+    ("history-name-contact-and-tool", lambda c: _two_contacts(
+        c, "c1", "die", fx.Plane((0, 0, 2), (0, 0, -1), name="upper")), ValueError,
+     r"name 'die' of NodalContact 'die' is already the name of tool 'die'.*pass a distinct "
+     r"name="),
+    ("history-name-contact-and-reaction", lambda c: _contact_and(c, "reaction"), ValueError,
+     r"name 'base' of reaction 'base' is already the name of NodalContact 'base'.*name="),
+    ("history-name-contact-and-symmetry-plane", lambda c: _contact_and(c, "plane"), ValueError,
+     r"name 'base' of symmetry plane 'base' is already the name of NodalContact 'base'"),
+    ("history-name-reaction-and-symmetry-plane", _reaction_and_plane, ValueError,
+     r"name 'x0' of symmetry plane 'x0' is already the name of reaction 'x0'.*name="),
     # tools
     ("plane-zero-normal", lambda c: fx.Plane((0, 0, 0), (0, 0, 0)), ValueError, "non-zero"),
     ("sphere-negative-radius", lambda c: fx.Sphere((0, 0, 0), -1.0), ValueError,
@@ -274,7 +357,9 @@ RUN_TIME_CASES = ["bc-function-returns-nan", "bc-function-returns-wrong-shape",
                   "checkpoint-corrupted", "newton-fails-after-all-cutbacks",
                   "disk-full-history", "disk-full-vtk", "disk-full-checkpoint",
                   "checkpoint-of-another-mesh",
-                  "tool-starts-buried", "friction-needs-shear-limit"]
+                  "tool-starts-buried", "friction-needs-shear-limit",
+                  "tool-holds-the-body", "history-column-clash", "second-run-continues-the-outputs",
+                  "new-run-over-another-runs-checkpoints", "checkpoint-of-other-parameters"]
 
 
 def _pressed(c, out, top=-0.1, **kw):
@@ -560,3 +645,131 @@ def test_bad_setup_neither_crashes_nor_hangs(case, ranks, exc, words):
         assert len(results) == n, (case, n, results)
         for r in results:
             assert r.startswith(f"{exc}: ") and re.search(words, r), (case, n, r)
+
+
+# ------------------------------------------------ silent wrong answers and lost outputs
+def _die_run(c, out, K=1.0, m=0.2, mu=0.2, speed=0.1, tool=None, **kw):
+    """The cube on its symmetry planes pressed by a die with Coulomb friction (a contact)."""
+    s = fx.Simulation(c["space"], fx.NortonHoff(K, m), progress=False, output_dir=out,
+                      name="p", **kw)
+    for tag, comp in (("x0", 0), ("y0", 1), ("z0", 2)):
+        s.add_velocity_bc(s.facets(c["ft"], TAGS[tag]), 0.0, comp)
+    tool = fx.Plane((0, 0, 1), (0, 0, -1), velocity=(0, 0, -speed), name="die") \
+        if tool is None else tool
+    s.add_contributor(fx.NodalContact(fx.ContactBoundary(c["space"], c["ft"], TAGS["z1"]),
+                                      tool, penalty=10.0, friction=fx.Coulomb(mu)))
+    return s
+
+
+@pytest.mark.parametrize("tool,words", [
+    (fx.Plane((0, 0, 1), (0, 0, 1), velocity=(0, 0, -0.1), name="die"),
+     r"flip the normal \(normal=\(0.0, 0.0, -1.0\)"),
+    (fx.Cylinder((0.5, 0.5, 0), (0, 0, 1), 3.0, inside=False, name="ring"),
+     r"set inside=True")], ids=["plane-normal-into-the-body", "cylinder-inside-out"])
+def test_tool_holds_the_body(cube, out, tool, words):
+    """A tool turned the wrong way holds the whole body: no node would ever touch it."""
+    s = _die_run(cube, out, tool=tool)
+    with pytest.raises(ValueError, match=rf"tool '{tool.name}' of contact 'contact' holds the "
+                       rf"whole body at t = 0.*zero force.*{words}"):
+        s.run(0.2, 0.1)
+    _outputs_intact(out, 0, [0.0])
+
+
+@pytest.mark.parametrize("tool", [
+    fx.Plane((0, 0, 1.2), (0, 0, -1), velocity=(0, 0, -0.1), name="die"),
+    fx.Cylinder((0.5, 0.5, 0), (0, 0, 1), 3.0, inside=True, velocity=(0, 0, -0.1),
+                name="bore")],
+    ids=["die-away-from-the-body", "bore-around-the-body"])
+def test_tool_placed_right_is_accepted(cube, out, tool):
+    s = _die_run(cube, out, tool=tool)
+    s.run(0.1, 0.1)
+    _outputs_intact(out, 1, [0.0, 0.1])
+
+
+class _WritesVolume:
+    """A contributor whose history column is one of the simulation's own."""
+
+    def evaluate(self, w, jacobian):
+        return fx.NodalTerms.empty(3)
+
+    def stable(self):
+        return True
+
+    def diagnostics(self):
+        return {"volume": 1.0}
+
+
+def test_history_column_clash(cube, out):
+    s = _pressed(cube, out)
+    s.add_contributor(_WritesVolume())
+    with pytest.raises(ValueError, match=r"history column\(s\) \['volume'\] of _WritesVolume "
+                       r"are already written.*pass a distinct name="):
+        s.run(0.2, 0.1)
+    _outputs_intact(out, 0, [0.0])
+
+
+def test_second_run_continues_the_outputs(cube, out):
+    """run() closes the outputs; a second run() (and a step() after it) continues them."""
+    s = _pressed(cube, out)
+    s.run(0.2, 0.1)
+    s.run(0.4, 0.1)
+    _outputs_intact(out, 4, [0.0, 0.1, 0.2, 0.3, 0.4])
+    s.step(0.1)
+    s.close()
+    _outputs_intact(out, 5, [0.0, 0.1, 0.2, 0.3, 0.4, 0.5])
+    assert len(s.history) == 5
+
+
+def _files(out):
+    """The CSV and .pvd of run 'p' and the names of its checkpoints (rank 0's view)."""
+    if COMM.rank != 0:
+        return None
+    ckpts = [os.path.basename(p) for p in list_checkpoints(os.path.join(out, "checkpoints"))]
+    return (Path(out, "p_history.csv").read_bytes(), Path(out, "p.pvd").read_bytes(), ckpts)
+
+
+def _no_wall(history):
+    """The history without its wall times (measured per rank)."""
+    return [{k: v for k, v in r.items() if not k.startswith("wall_")} for r in history]
+
+
+def test_new_run_over_another_runs_checkpoints(cube, out, caplog):
+    first = _die_run(cube, out, checkpoint_every=1)
+    first.run(0.2, 0.1)
+    before = _files(out)
+    second = _die_run(_cube(), out, speed=0.2, checkpoint_every=1)
+    with pytest.raises(CheckpointError, match=rf"{re.escape(os.path.join(out, 'checkpoints'))} "
+                       r"holds checkpoints of another run named 'p' \(p_000001, p_000002\).*"
+                       r"resume\(\).*another output_dir.*another name.*overwrite=True"):
+        second.run(0.2, 0.1)
+    assert _files(out) == before      # nothing of the first run touched
+    _outputs_intact(out, 2, [0.0, 0.1, 0.2])
+    # overwrite=True: the old checkpoints go (with a warning), resume() takes the new run's
+    third = _die_run(_cube(), out, speed=0.2, checkpoint_every=1, overwrite=True)
+    with caplog.at_level("WARNING", logger="fxcontact.simulation"):
+        third.run(0.1, 0.1)
+    assert "removing the checkpoints of the previous run p_000001, p_000002" in caplog.text
+    assert COMM.rank != 0 or _files(out)[2] == ["p_000001"]
+    again = _die_run(_cube(), out, speed=0.2)
+    again.resume()
+    assert _no_wall(again.history) == _no_wall(third.history)
+    again.close()
+
+
+@pytest.mark.parametrize("change,words", [
+    ({"K": 2.0}, r"material_parameters\.K: 1\.0 in the checkpoint, 2\.0 in this run"),
+    ({"m": 0.3}, r"material_parameters\.m: 0\.2 in the checkpoint, 0\.3 in this run"),
+    ({"mu": 0.3}, r"contributor_parameters\[0\]\.friction\[0\]\.mu: 0\.2 in the checkpoint, "
+                  r"0\.3 in this run"),
+    ({"speed": 0.2}, r"tools\[0\]\.motion\.velocity: \[0, 0, -0\.1\] in the checkpoint, "
+                     r"\[0, 0, -0\.2\] in this run")],
+    ids=["K", "m", "friction-mu", "die-speed"])
+def test_checkpoint_of_other_parameters(cube, out, change, words):
+    s = _die_run(cube, out, checkpoint_every=1)
+    s.run(0.2, 0.1)
+    before = _files(out)
+    other = _die_run(_cube(), out, **change)
+    with pytest.raises(CheckpointError, match=r"different set-up: .*" + words +
+                       r".*Resume with the set-up of the checkpointed run"):
+        other.resume()
+    assert _files(out) == before

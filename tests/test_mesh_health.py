@@ -10,7 +10,8 @@ from mpi4py import MPI
 import dolfinx
 
 from fxcontact.materials import NortonHoff
-from fxcontact.mesh_health import simplex_measures
+from fxcontact import compat
+from fxcontact.mesh_health import overlapping_facets, simplex_measures
 from fxcontact.simulation import MeshInversionError, Simulation
 from fxcontact.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
@@ -131,3 +132,27 @@ def test_degenerate_mesh_is_refused():
     x[np.isclose(x[:, 2], 1.0), 2] = 0.5     # top layer onto the middle one: flat cells
     with pytest.raises(ValueError, match="degenerate"):
         Simulation(MixedSpace(msh), NortonHoff(1.0, 0.2), progress=False)
+
+
+def test_overlapping_facets_of_two_triangles():
+    """Two triangles sharing the edge (0, 1): apart whatever their vertex order (signs of both
+    kinds are normal), overlapping once the third vertex of one crosses the edge."""
+    X = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1.0], [0.5, -1.0]])
+    facet, pair = np.array([[0, 1]]), np.array([[0, 1]])
+    for cells in ([[0, 1, 2], [0, 1, 3]], [[0, 1, 2], [1, 0, 3]], [[2, 1, 0], [3, 0, 1]]):
+        assert not overlapping_facets(X, np.array(cells), facet, pair)[0]
+    X[3, 1] = 0.5                              # both on the same side: tangled
+    assert overlapping_facets(X, np.array([[0, 1, 2], [1, 0, 3]]), facet, pair)[0]
+
+
+def test_valid_meshes_of_both_orientations_are_accepted():
+    """dolfinx's unit square holds triangles of both signs: a valid mesh, accepted; its mirror
+    image too (every sign turned)."""
+    msh = dolfinx.mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
+    sp = MixedSpace(msh)
+    vol, _ = simplex_measures(sp.vertex_positions()[compat.cell_vertices(msh)])
+    signs = {int(v) for vs in MPI.COMM_WORLD.allgather(np.sign(vol).tolist()) for v in vs}
+    assert signs == {-1, 1}
+    Simulation(sp, NortonHoff(1.0, 0.2), progress=False)
+    msh.geometry.x[:, 0] *= -1.0
+    Simulation(MixedSpace(msh), NortonHoff(1.0, 0.2), progress=False)

@@ -114,6 +114,17 @@ def _pad3(x: np.ndarray) -> np.ndarray:
     return out
 
 
+def _flip_hint(tool) -> str:
+    """How to turn a tool's surface the other way (:meth:`NodalContact._check_placement`)."""
+    base = getattr(tool, "tool", tool)   # a MovedTool's tool
+    if hasattr(base, "normal") and not hasattr(base, "inside"):
+        return (f"flip the normal (normal={tuple(0.0 - float(v) for v in base.normal)}: it must "
+                f"point out of the tool, towards the body)")
+    if hasattr(base, "inside"):
+        return f"set inside={not base.inside} (inside=True: the body is inside the surface)"
+    return "flip the orientation of its surface (its normals must point towards the body)"
+
+
 class _DisplacementBody:
     """Stands for the body of a displacement-form problem (no fxcontact material): penalties
     come from the gap stiffness, friction laws carry their own material data."""
@@ -215,6 +226,13 @@ class NodalContact:
                 list(tools) if isinstance(tools, (list, tuple)) else [tools])
             if not tools or not all(isinstance(t, Tool) for t in tools):
                 raise ValueError("tools must be a Tool or a non-empty sequence of Tools")
+            names = [t.name for t in tools]
+            twice = sorted({nm for nm in names if names.count(nm) > 1})
+            if twice:
+                raise ValueError(f"the tools of a contact need distinct names: several tools are "
+                                 f"named {twice} (their history columns '{twice[0]}_force_...' "
+                                 f"would overwrite each other); pass a distinct name= to each "
+                                 f"tool")
             if scheme == "implicit-exact" and not all(t.has_hessian for t in tools):
                 raise ValueError("implicit-exact needs tools that provide the gap Hessian")
             if gap_stiffness is not None:
@@ -239,6 +257,7 @@ class NodalContact:
             self.name = name
             self.gdim = boundary.gdim
             self._penalty, self.beta = penalty, beta
+            self._penalty_given = penalty
             self.strain_rate = strain_rate
             self.sticky_gap = float(sticky_gap)
             #: factor on ρ of the current evaluations (< 1 in the softened first stage of a
@@ -311,6 +330,7 @@ class NodalContact:
         self._rho_eval = 0.0
         self._fingerprint = ()
         self._ever_active = np.zeros(n, dtype=bool)
+        self._placement_checked = False
         self._fallbacks = 0
         self._fallbacks_all = 0
         self._fields = None
@@ -509,6 +529,16 @@ class NodalContact:
         self._fallbacks_all = 0
         self._status_prev = None
         self._recent.clear()
+        if not self._placement_checked:
+            # the whole body (a displacement-form problem: its mesh, or the contact nodes of a
+            # boundary without one)
+            if self.formulation == "velocity":
+                body = x_t_all
+            elif hasattr(b, "mesh"):
+                body = b.mesh.geometry.x
+            else:
+                body = b.mesh_positions()
+            self._check_placement(np.asarray(body)[:, : self.gdim], t)
         # burial check at the start of the increment (collective)
         pr0, tool0 = self._project_all(self.x_t, t, hessian=False)
         depth = -pr0.gap
@@ -539,6 +569,27 @@ class NodalContact:
             self._v_tool_fixed = self._tool_velocities(pr.point, tool_idx, t + dt)
         if self.has_friction:
             self._begin_friction(sim, t, dt)
+
+    def _check_placement(self, x_body: np.ndarray, t: float):
+        """ValueError (on every rank) if a tool holds the whole body at the first increment:
+        every vertex of the body is on the tool's side of its surface, none further out than
+        the burial limit and some deeper in than it (a Plane whose normal points into the body,
+        a curved tool with the wrong ``inside``). The contact could never act: no node would
+        ever be in contact, the force would stay 0."""
+        lim = self.max_initial_penetration
+        comm = self.boundary.comm
+        for tool in self.tools:
+            gap = tool.project(_pad3(x_body), t, hessian=False).gap
+            hi = comm.allreduce(float(np.max(gap, initial=-np.inf)), op=MPI.MAX)
+            lo = comm.allreduce(float(np.min(gap, initial=np.inf)), op=MPI.MIN)
+            if hi <= lim and lo < -lim:
+                raise ValueError(
+                    f"tool '{tool.name}' of contact '{self.name}' holds the whole body at t = "
+                    f"{t:.6g}: every node of the body is on the tool's side of its surface (down "
+                    f"to {-lo:.3g} deep), so the contact could never act (no contact node, zero "
+                    f"force). The tool's surface is turned the wrong way: "
+                    f"{_flip_hint(tool)}")
+        self._placement_checked = True
 
     def begin_step(self, t: float, dt: float, u):
         """Start a load step t → t + dt of the displacement formulation from the displacement
@@ -924,6 +975,25 @@ class NodalContact:
                 "penalty": self._penalty, "strain_rate": self.strain_rate,
                 "slip_velocity": self.slip_velocity,
                 "p_prev": PerVertex(self.boundary.vertices, self._p_prev)}
+
+    def setup_signature(self) -> dict:
+        """The contact's parameters as given (not those resolved during the run): a checkpoint
+        is resumed only with the same (:meth:`Simulation.resume
+        <fxcontact.simulation.Simulation.resume>` names the one that differs)."""
+        from fxcontact.checkpoint import describe
+        tools = []
+        for t in self.tools:
+            base = getattr(t, "tool", t)   # a MovedTool's tool
+            geometry = base._repr_fields() if hasattr(base, "_repr_fields") else repr(base)
+            tools.append({"type": type(t).__name__, "name": t.name,
+                          "geometry": type(base).__name__ if " at 0x" in geometry else geometry,
+                          "motion": describe(t.motion)})
+        return {"name": self.name, "scheme": self.scheme, "formulation": self.formulation,
+                "penalty": self._penalty_given, "beta": self.beta,
+                "gap_stiffness": self.gap_stiffness,
+                "sticky_gap": self.sticky_gap, "friction": describe(self.friction),
+                "friction_mode": self.friction_mode, "slip_velocity": self._slip_velocity_user,
+                "tools": tools}
 
     def restore_state(self, state: dict):
         from fxcontact.checkpoint import CheckpointError
