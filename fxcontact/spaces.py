@@ -192,7 +192,10 @@ def checked_facets(msh, facets, what: str, exterior: bool = False,
         tdim = msh.topology.dim
         msh.topology.create_connectivity(tdim - 1, tdim)
         with together(msh.comm, what):
-            inner = np.setdiff1d(arr, dolfinx.mesh.exterior_facet_indices(msh.topology))
+            # dolfinx lists the owned exterior facets only: a ghost facet is checked by its
+            # owner (on 2 ranks a ghost of the boundary is otherwise taken for an interior one)
+            owned = arr[arr < msh.topology.index_map(tdim - 1).size_local]
+            inner = np.setdiff1d(owned, dolfinx.mesh.exterior_facet_indices(msh.topology))
             if len(inner):
                 raise ValueError(f"{what}: {len(inner)} facet(s) on rank {msh.comm.rank} are not "
                                  f"on the boundary of the mesh (interior facets: facet indices "

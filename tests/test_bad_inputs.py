@@ -675,6 +675,26 @@ def test_tool_holds_the_body(cube, out, tool, words):
     _outputs_intact(out, 0, [0.0])
 
 
+def test_boundary_facets_with_ghosts_are_accepted():
+    """A mesh with ghost facets (ghost mode ``shared_facet``, as the meshing builders make):
+    the boundary facets found on each rank, ghosts where the partition meets the boundary
+    included, are accepted where exterior facets are required (dolfinx lists the owned
+    exterior facets only, so a ghost must not be taken for an interior facet)."""
+    from fxcontact.spaces import checked_facets
+    msh = dolfinx.mesh.create_unit_cube(COMM, 4, 4, 4,
+                                        ghost_mode=dolfinx.mesh.GhostMode.shared_facet)
+    # the facets on the cube's faces among all the local ones (ghosts included)
+    every = np.unique(np.concatenate([dolfinx.mesh.locate_entities(
+        msh, 2, (lambda c, v: lambda x: np.isclose(x[c], v))(c, v))
+        for c in range(3) for v in (0.0, 1.0)]))
+    n_ghost = COMM.allreduce(int(np.sum(every >= msh.topology.index_map(2).size_local)))
+    assert (n_ghost > 0) == (COMM.size > 1)      # the case is there on 2 ranks
+    assert np.array_equal(checked_facets(msh, every, "boundary", exterior=True), every)
+    x0 = dolfinx.mesh.locate_entities_boundary(msh, 2, lambda x: np.isclose(x[0], 0.0))
+    sim = fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(1.0, 0.2), progress=False)
+    sim.add_symmetry_plane(x0, (1.0, 0.0, 0.0), name="x0")
+
+
 @pytest.mark.parametrize("tool", [
     fx.Plane((0, 0, 1.2), (0, 0, -1), velocity=(0, 0, -0.1), name="die"),
     fx.Cylinder((0.5, 0.5, 0), (0, 0, 1), 3.0, inside=True, velocity=(0, 0, -0.1),
