@@ -255,7 +255,7 @@ def gather_profile(contact: NodalContact, x: np.ndarray, comm) -> tuple:
 
 # %%
 def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, width=80.0,
-        height=80.0, refine=0.4, growth=0.15, scheme="implicit", penalty=None, beta=1e4, n_steps=3,
+        height=80.0, refine=0.4, growth=0.15, scheme=None, penalty=None, beta=1e4, n_steps=3,
         tool="analytic", tool_facet_size=1.0, tool_normals="nvv",
         output_dir="results/hertz_sphere", picture=True, progress=True,
         comm=MPI.COMM_WORLD, formulation="mixed", linear_solver="auto") -> dict:
@@ -271,7 +271,8 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
         h_fine: element size within the distance ``refine`` of the first contact point; it
             grows linearly with slope ``growth`` up to ``h`` far away [mm].
         width, height: quarter block ``[0, width]² × [-height, 0]`` [mm].
-        scheme: contact scheme (see :data:`fxcontact.contact.nodal.SCHEMES`).
+        scheme: contact scheme (see :data:`fxcontact.contact.nodal.SCHEMES`); None: the
+            contact's default (``implicit``, and ``implicit-exact`` in P1 displacement).
         penalty: ρ, or None to use ``beta`` (ρ = β dt E*/h_fine, THEORY §2.5).
         n_steps: number of increments.
         tool: ``"analytic"`` (exact sphere), ``"nagata"`` or ``"flat"`` (octahedral faceted
@@ -280,8 +281,10 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
         tool_normals: nodal normals of the Nagata patches: ``"nvv"`` (estimated from the
             facets, default), ``"exact"`` (the sphere's radial normals) or any value
             :class:`FacetedTool` accepts.
-        linear_solver: ``SolverOptions.linear_solver`` of the mixed formulation (``"auto"``:
-            by the problem's size).
+        linear_solver: ``SolverOptions.linear_solver`` of the mixed formulation, or the kind of
+            :meth:`fxcontact.ContactProblem.use_linear_solver` in P1 (``"auto"``: by the
+            problem's size; P1: ``"direct"`` or ``"iterative"``, or ``"mumps"``: the demo's
+            own plain MUMPS LU at every Newton iteration, without the helper).
     Returns:
         dict with ``force`` (4 × quarter), ``contact_radius`` (FEM, equivalent disc),
         ``contact_radius_bounds`` (largest active / smallest inactive nodal radius),
@@ -297,7 +300,7 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
                       width=width, height=height, refine=refine, growth=growth, scheme=scheme,
                       beta=beta, n_steps=n_steps, tool=tool, tool_facet_size=tool_facet_size,
                       tool_normals=tool_normals, output_dir=output_dir, picture=picture,
-                      comm=comm)
+                      comm=comm, linear_solver=linear_solver)
     if formulation != "mixed":
         raise ValueError(f"formulation must be 'mixed' or 'p1', got {formulation!r}")
     t_start = time.perf_counter()
@@ -377,10 +380,13 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, wid
 
 # %%
 def run_p1(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, width=80.0,
-           height=80.0, refine=0.4, growth=0.15, scheme="implicit", beta=1e4, n_steps=3,
+           height=80.0, refine=0.4, growth=0.15, scheme=None, beta=1e4, n_steps=3,
            tool="analytic", tool_facet_size=1.0, tool_normals="nvv",
-           output_dir="results/hertz_sphere", picture=True, comm=MPI.COMM_WORLD) -> dict:
-    """:func:`run` in P1 displacement; returns the same keys (no deformed-mesh picture)."""
+           output_dir="results/hertz_sphere", picture=True, comm=MPI.COMM_WORLD,
+           linear_solver="auto") -> dict:
+    """:func:`run` in P1 displacement; returns the same keys (no deformed-mesh picture) plus
+    the wall-time split ``times`` (``assembly``, ``contact``, ``linear_solve``, ``newton``: the
+    whole solves) and the ``linear_solver`` used."""
     import ufl
     import dolfinx.fem
     import dolfinx.fem.petsc
@@ -419,18 +425,29 @@ def run_p1(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, 
     solver.convergence_criterion = "incremental"
     solver.rtol, solver.atol = 1e-9, 1e-14
     problem.set_solver(solver)
-    ksp = solver.krylov_solver
-    opts, pfx = PETSc.Options(), ksp.getOptionsPrefix()
-    for key, val in {"ksp_type": "preonly", "pc_type": "lu",
-                     "pc_factor_mat_solver_type": "mumps"}.items():
-        opts[pfx + key] = val
-    ksp.setFromOptions()
+    if linear_solver == "mumps":
+        # the user's own KSP: MUMPS LU at every Newton iteration
+        ksp = solver.krylov_solver
+        opts, pfx = PETSc.Options(), ksp.getOptionsPrefix()
+        for key, val in {"ksp_type": "preonly", "pc_type": "lu",
+                         "pc_factor_mat_solver_type": "mumps"}.items():
+            opts[pfx + key] = val
+        ksp.setFromOptions()
+        kind = "mumps"
+    else:
+        # MUMPS reused while the active set holds, or CG + GAMG with the rigid-body modes
+        # from 30k unknowns (fxcontact's opt-in helper)
+        kind = problem.use_linear_solver(solver, linear_solver)
     newton = 0
+    t_newton = time.perf_counter()
     for k in range(1, n_steps + 1):
         problem.begin_step(k / n_steps)       # the sphere at t = k/n: indentation k δ/n
         its, converged = solver.solve(u)
         newton += its
     problem.end_step()
+    times = {**problem.timers.times, "newton": time.perf_counter() - t_newton,
+             "krylov_iterations": problem.krylov_iterations,
+             "factorisations": problem.factorisations[0]}
     # --- outputs (as run) -----------------------------------------------------------------
     E_star = mat.plane_strain_modulus
     P = 4.0 * float(contact.tool_force(0)[2])
@@ -466,7 +483,7 @@ def run_p1(radius=5.0, E=2e5, nu=0.3, indentation=0.0133, h_fine=0.025, h=16.0, 
            "fallbacks": int(diag["contact_fallbacks"]),
            "tool_projection_fallbacks": comm.allreduce(
                int(getattr(indenter, "total_fallbacks", 0)), op=MPI.SUM),
-           "formulation": "p1", **tool_info}
+           "formulation": "p1", "times": times, "linear_solver": kind, **tool_info}
     if output_dir is not None and comm.rank == 0:
         os.makedirs(output_dir, exist_ok=True)
         np.savetxt(os.path.join(output_dir, "profile_p1.csv"), np.c_[rs, ps, Ss],
@@ -659,7 +676,8 @@ def render_deformed(sim: Simulation, path: str, zone: float, scale: float = 20.0
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description="Hertz point contact (rigid sphere)")
     ap.add_argument("--size", type=float, default=0.025, help="fine element size h_fine [mm]")
-    ap.add_argument("--scheme", default="implicit")
+    ap.add_argument("--scheme", default=None,
+                    help="contact scheme (default: implicit; implicit-exact in P1)")
     ap.add_argument("--tool", default="analytic", choices=TOOLS,
                     help="indenter: exact sphere or faceted sphere (Nagata / flat)")
     ap.add_argument("--tool-facet-size", type=float, default=1.0,

@@ -27,9 +27,10 @@ import dolfinx.fem
 import dolfinx.fem.petsc
 
 from fxcontact import compat
+from fxcontact.collective import together
 
 __all__ = ["NodalTerms", "NonlinearProblem", "ContactProblem", "Timers", "add_nodal_residual",
-           "add_nodal_jacobian", "ContributorError", "lifting_needed"]
+           "add_nodal_jacobian", "ContributorError", "lifting_needed", "LINEAR_SOLVERS"]
 
 log = logging.getLogger(__name__)
 
@@ -400,6 +401,10 @@ def owned_sum(comm: MPI.Comm, value) -> float:
     return comm.allreduce(value, op=MPI.SUM)
 
 
+#: kinds of :meth:`ContactProblem.use_linear_solver`
+LINEAR_SOLVERS = ("auto", "direct", "iterative")
+
+
 class ContactProblem(dolfinx.fem.petsc.NonlinearProblem):
     """dolfinx's ``NonlinearProblem`` plus fxcontact's nodal terms: contact in your own solver.
 
@@ -421,12 +426,22 @@ class ContactProblem(dolfinx.fem.petsc.NonlinearProblem):
       ``snes.setJacobian(problem.snes_jacobian, A)`` and
       ``snes.setConvergenceTest(problem.snes_converged)`` (the SNES tolerances plus the stable
       active set); :meth:`snes_callbacks` returns the three.
+    * The linear solver stays the user's: the problem never changes a KSP by itself.
+      :meth:`use_linear_solver` is the opt-in set-up for displacement problems (MUMPS, or CG +
+      GAMG with the rigid-body near-null space for large ones).
+
+    ``timers``: wall times of the ``assembly`` (UFL residuals and Jacobians), the ``contact``
+    (the contributors' evaluations and insertion) and the ``linear_solve`` (from the end of each
+    Jacobian to the next residual: the solver's linear solve and update).
 
     Args:
         F, u, bcs, J, form_compiler_params, jit_params: as dolfinx's ``NonlinearProblem``.
         contributors: nodal contributors (``evaluate(u, jacobian) -> NodalTerms``, ``stable()``,
             optional ``begin_step(t, dt, u)``, ``begin_solve()``, ``end_step(u)``).
     """
+
+    #: unknowns from which ``use_linear_solver(kind="auto")`` picks CG + GAMG (see there)
+    ITERATIVE_FROM_DOFS = 30_000
 
     def __init__(self, F, u, bcs=None, J=None, contributors: Sequence = (),
                  form_compiler_params=None, jit_params=None):
@@ -449,6 +464,13 @@ class ContactProblem(dolfinx.fem.petsc.NonlinearProblem):
         self._solver = None
         self._tolerances = None
         self._started = False
+        self._near_null = None
+        self._jacobian_done = None
+        self._reuse_ksp = self._ksp = None
+        #: factorisations done / reused by the ``"direct"`` linear solver
+        self.factorisations = [0, 0]
+        #: Krylov iterations summed over the linear solves (after :meth:`use_linear_solver`)
+        self.krylov_iterations = 0
 
     # ------------------------------------------------------------------ load steps
     def begin_step(self, t: Optional[float] = None):
@@ -509,6 +531,11 @@ class ContactProblem(dolfinx.fem.petsc.NonlinearProblem):
         return terms
 
     def _residual(self, x: PETSc.Vec, b: PETSc.Vec):
+        if self._jacobian_done is not None:   # the linear solve since the last Jacobian
+            self.timers.add("linear_solve", time.perf_counter() - self._jacobian_done)
+            self._jacobian_done = None
+            if self._ksp is not None:
+                self.krylov_iterations += self._ksp.getIterationNumber()
         self._sync(x)
         terms = self._evaluate(jacobian=False)
         assemble_residual_with_terms(b, self.L, self.a, self.bcs, self.u.vector, terms,
@@ -518,8 +545,108 @@ class ContactProblem(dolfinx.fem.petsc.NonlinearProblem):
         self._sync(x)
         terms = self._evaluate(jacobian=True)
         assemble_jacobian_with_terms(A, self.a, self.bcs, terms, self.bc_marker, self.timers)
+        if self._near_null is not None:
+            A.setNearNullSpace(self._near_null)
+        if self._reuse_ksp is not None:
+            self._reuse_factorisation(self._reuse_ksp)
         if terms is None:
             raise ContributorError(self.error)
+        self._jacobian_done = time.perf_counter()
+
+    # ------------------------------------------------------------------ linear solver (opt-in)
+    #: Krylov iterations of a solve preconditioned by an older factorisation above which the
+    #: next Jacobian is factorised again (``use_linear_solver(kind="direct")``)
+    REUSE_MAX_ITS = 10
+
+    def _reuse_factorisation(self, ksp: PETSc.KSP):
+        """Keep the last factorisation as the preconditioner of this Jacobian if the contact's
+        active set did not change at this iterate and the last Krylov solve needed few
+        iterations (the same decision on every rank; never under ``preonly``)."""
+        reuse = (self.factorisations[0] > 0 and self.stable_iterate and
+                 ksp.getType() != PETSc.KSP.Type.PREONLY and ksp.getConvergedReason() > 0 and
+                 ksp.getIterationNumber() <= self.REUSE_MAX_ITS)
+        ksp.getPC().setReusePreconditioner(reuse)
+        self.factorisations[1 if reuse else 0] += 1
+
+    def use_linear_solver(self, solver, kind: str = "auto", rtol: float = 1e-8):
+        """Set up the linear solver of ``solver`` for this displacement problem (opt-in: the
+        problem never changes a KSP by itself). Collective.
+
+        Args:
+            solver: a dolfinx ``NewtonSolver`` (its ``krylov_solver``), a petsc4py ``SNES`` (its
+                KSP) or a ``KSP``.
+            kind: ``"direct"`` (MUMPS LU; the factorisation of the previous Newton iteration is
+                kept as the preconditioner of GMRES while the contact's active set is unchanged
+                and GMRES needs at most :attr:`REUSE_MAX_ITS` iterations), ``"iterative"`` (CG
+                + GAMG with the rigid-body modes of ``u``'s space as near-null space, relative
+                tolerance ``rtol``; needs ``u`` in a vector P1 space
+                ``VectorFunctionSpace(msh, ("Lagrange", 1))``) or
+                ``"auto"``: iterative from :attr:`ITERATIVE_FROM_DOFS` unknowns on a vector P1
+                space, direct otherwise.
+            rtol: relative tolerance of the iterative solve (the Newton step's accuracy).
+
+        The settings are written into PETSc's options database under the KSP's prefix (they
+        replace what was there, e.g. dolfinx's ``nls_solve_ksp_type preonly``) and applied with
+        ``ksp.setFromOptions()``: to change one, set it after the call and call
+        ``ksp.setFromOptions()`` again. With dolfinx's
+        ``NewtonSolver`` (which does not check the Krylov solve) a Krylov solve that does not
+        converge is an error. Returns the kind chosen.
+
+        Measured (``benchmarks/README.md``, ``bench_anyfem_hertz.py``): on the Hertz sphere in
+        P1 elasticity CG + GAMG takes the Newton iterations of MUMPS with 25–65 Krylov
+        iterations, and its cost grows linearly with the unknowns where MUMPS's factorisation
+        (at every Newton iteration: the contact changes the matrix) grows about as their
+        square. Its Chebyshev smoothers estimate their own spectrum (with a random vector): the
+        penalty's nodal blocks lie outside the estimate GAMG passes on, which made the
+        preconditioner indefinite.
+        """
+        V = self.u.function_space
+        bs = V.dofmap.index_map_bs
+        size = V.dofmap.index_map.size_global * bs
+        vector_p1 = (V.ufl_element().family() in ("Lagrange", "P", "Q") and
+                     V.ufl_element().degree() == 1 and bs == V.mesh.geometry.dim and
+                     V.num_sub_spaces == bs)
+        with together(self.comm, "ContactProblem.use_linear_solver()", kind=kind, rtol=rtol):
+            if kind not in LINEAR_SOLVERS:
+                raise ValueError(f"use_linear_solver: unknown kind {kind!r}; choose one of "
+                                 f"{LINEAR_SOLVERS}")
+            if not (np.isfinite(rtol) and 0 < rtol < 1):
+                raise ValueError(f"use_linear_solver: rtol must be in (0, 1), got {rtol!r}")
+            if kind == "iterative" and not vector_p1:
+                raise ValueError("use_linear_solver: kind='iterative' (GAMG with rigid-body "
+                                 "modes) needs u in a vector P1 space VectorFunctionSpace(msh, "
+                                 "('Lagrange', 1)); use kind='direct' for this space")
+            if isinstance(solver, PETSc.KSP):
+                ksp = solver
+            elif isinstance(solver, PETSc.SNES):
+                ksp = solver.getKSP()
+            elif isinstance(getattr(solver, "krylov_solver", None), PETSc.KSP):
+                ksp = solver.krylov_solver
+            else:
+                raise ValueError(f"use_linear_solver: solver must be a dolfinx NewtonSolver, a "
+                                 f"petsc4py SNES or KSP, got {type(solver).__name__}")
+        if kind == "auto":
+            kind = "iterative" if vector_p1 and size >= self.ITERATIVE_FROM_DOFS else "direct"
+        self._near_null = self._reuse_ksp = None
+        self._ksp = ksp
+        if kind == "direct":
+            defaults = {"ksp_type": "gmres", "ksp_rtol": 1e-10, "ksp_max_it": 50,
+                        "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
+            self._reuse_ksp = ksp
+        else:
+            defaults = {"ksp_type": "cg", "ksp_rtol": rtol, "ksp_max_it": 1000,
+                        "pc_type": "gamg", "pc_gamg_use_sa_esteig": False,
+                        "mg_levels_ksp_chebyshev_esteig_noisy": True}
+            from fxcontact.condense import rigid_body_modes
+            x = V.tabulate_dof_coordinates()[:V.dofmap.index_map.size_local, :bs]
+            self._near_null = rigid_body_modes(self.comm, np.ascontiguousarray(x))
+        ksp.setErrorIfNotConverged(kind == "iterative" and
+                                   not isinstance(solver, (PETSc.KSP, PETSc.SNES)))
+        opts, prefix = PETSc.Options(), ksp.getOptionsPrefix() or ""
+        for key, value in defaults.items():
+            opts[prefix + key] = value
+        ksp.setFromOptions()
+        return kind
 
     # ------------------------------------------------------------------ dolfinx NewtonSolver
     def set_solver(self, solver):

@@ -234,9 +234,10 @@ def _top_tags(msh, z=1.0):
 E, NU = 1000.0, 0.3
 
 
-def _elastic_problem(comm, n=(5, 5, 4)):
+def _elastic_problem(comm, n=(5, 5, 4), scheme="implicit-exact"):
     """Unit cube on a fixed base, pressed on its top by a descending sphere (P1 displacement,
-    compressible neo-Hookean, written the dolfinx way)."""
+    compressible neo-Hookean, written the dolfinx way); ``scheme=None``: the contact's
+    default."""
     msh = box_mesh(comm, n=n)
     V = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", 1))
     u = dolfinx.fem.Function(V)
@@ -257,12 +258,14 @@ def _elastic_problem(comm, n=(5, 5, 4)):
                                  dolfinx.fem.locate_dofs_topological(V, fdim, bottom), V)
     ft = _top_tags(msh)
     sphere = fx.Sphere((0.5, 0.5, 1.6), 0.6, velocity=(0.0, 0.0, -0.05), name="ball")
-    contact = fx.NodalContact(fx.ContactBoundary(V, ft, 7), sphere, scheme="implicit-exact",
+    contact = fx.NodalContact(fx.ContactBoundary(V, ft, 7), sphere, scheme=scheme,
                               formulation="displacement", beta=100.0, modulus=E / (1 - NU**2))
     return msh, V, u, F, bc, contact
 
 
-def _run(comm, driver, steps=3):
+def _run(comm, driver, steps=3, linear_solver=None):
+    """Press the cube in ``steps`` load steps with ``driver``; ``linear_solver``: a kind of
+    ``ContactProblem.use_linear_solver`` (None: the user's own MUMPS LU)."""
     msh, V, u, F, bc, contact = _elastic_problem(comm)
     problem = fx.ContactProblem(F, u, [bc], contributors=[contact])
     if driver == "newton":
@@ -271,12 +274,15 @@ def _run(comm, driver, steps=3):
         solver.convergence_criterion = "residual"
         problem.set_solver(solver)
         ksp = solver.krylov_solver
-        opts = PETSc.Options()
-        pfx = ksp.getOptionsPrefix()
-        opts[f"{pfx}ksp_type"] = "preonly"
-        opts[f"{pfx}pc_type"] = "lu"
-        opts[f"{pfx}pc_factor_mat_solver_type"] = "mumps"
-        ksp.setFromOptions()
+        if linear_solver is None:
+            opts = PETSc.Options()
+            pfx = ksp.getOptionsPrefix()
+            opts[f"{pfx}ksp_type"] = "preonly"
+            opts[f"{pfx}pc_type"] = "lu"
+            opts[f"{pfx}pc_factor_mat_solver_type"] = "mumps"
+            ksp.setFromOptions()
+        else:
+            problem.use_linear_solver(solver, linear_solver)
         solve = lambda: solver.solve(u)  # noqa: E731
     elif driver == "snes":
         b = dolfinx.fem.petsc.create_vector(problem.L)
@@ -294,6 +300,8 @@ def _run(comm, driver, steps=3):
         snes.setConvergenceTest(conv)
         snes.setTolerances(rtol=1e-10, atol=1e-12, stol=0.0, max_it=30)
         snes.setFromOptions()
+        if linear_solver is not None:
+            problem.use_linear_solver(snes, linear_solver)
 
         def solve():
             x = u.vector.copy()
@@ -370,3 +378,97 @@ def test_hyperelastic_demo_small():
     forces = [row["force"] for row in r1["rows"]]
     assert forces[0] > 0 and np.all(np.diff(forces) > 0)
     assert r1["penetration"] < 0.02 * 0.3
+
+
+# ----------------------------------------------------------------------------- fast defaults
+def test_linear_solver_helper_agrees_with_mumps():
+    """``ContactProblem.use_linear_solver``: ``"iterative"`` (CG + GAMG with the rigid-body
+    modes, with dolfinx's NewtonSolver and with a SNES) and ``"direct"`` (MUMPS kept while
+    the active set holds) give the answer of the user's plain MUMPS LU to the solver tolerance;
+    under ``mpirun -n 2`` the two-rank solves are compared with a serial MUMPS run."""
+    comm = MPI.COMM_WORLD
+    f0, x0, u0 = _run(MPI.COMM_SELF, "newton", steps=2)[:3]
+    for driver, kind in (("newton", "iterative"), ("snes", "iterative"), ("newton", "direct")):
+        f, x, uu, its, contact, problem = _run(comm, driver, steps=2, linear_solver=kind)
+        assert np.allclose(x, x0, atol=1e-12)
+        assert np.linalg.norm(f - f0) <= 1e-7 * np.linalg.norm(f0), (driver, kind)
+        assert np.max(np.abs(uu - u0)) <= 1e-7 * np.max(np.abs(u0)), (driver, kind)
+        if kind == "iterative":   # Krylov iterations, not one exact solve per Newton step
+            assert problem.krylov_iterations > 2 * sum(its), (driver, its)
+        else:                     # the factorisation was kept at some stable iterate
+            assert problem.factorisations[1] > 0 and problem.factorisations[0] > 0
+
+
+def test_linear_solver_helper_sets_the_ksp_and_leaves_a_users_ksp_alone():
+    """The helper sets CG + GAMG and the near-null space (6 rigid-body modes) on the Jacobian;
+    without it the problem keeps the user's KSP as it is (here GMRES + Jacobi)."""
+    comm = MPI.COMM_WORLD
+    msh, V, u, F, bc, contact = _elastic_problem(comm)
+    problem = fx.ContactProblem(F, u, [bc], contributors=[contact])
+    solver = dolfinx.nls.petsc.NewtonSolver(comm, problem)
+    assert problem.use_linear_solver(solver, "auto") == "direct"   # small: MUMPS
+    assert problem.use_linear_solver(solver, "iterative") == "iterative"
+    ksp = solver.krylov_solver
+    assert (ksp.getType(), ksp.getPC().getType()) == ("cg", "gamg")
+    problem.begin_step(1.0)
+    problem.J(u.vector, solver.A)
+    assert solver.A.getNearNullSpace() is not None
+    assert len(solver.A.getNearNullSpace().getVecs()) == 6
+    # a user's own KSP is left as it is
+    problem2 = fx.ContactProblem(F, u, [bc], contributors=[contact])
+    solver2 = dolfinx.nls.petsc.NewtonSolver(comm, problem2)
+    problem2.set_solver(solver2)
+    ksp2 = solver2.krylov_solver
+    ksp2.setType("gmres")
+    ksp2.getPC().setType("jacobi")
+    problem2.begin_step(1.0)
+    problem2.F(u.vector, solver2.b)
+    problem2.J(u.vector, solver2.A)
+    assert (ksp2.getType(), ksp2.getPC().getType()) == ("gmres", "jacobi")
+    assert problem2.krylov_iterations == 0 and problem2.factorisations == [0, 0]
+
+
+def _residual_history(scheme, steps=2):
+    """‖F‖ at each Newton iterate of the last of ``steps`` load steps (dolfinx NewtonSolver,
+    MUMPS) and whether the contact's active set was stable there."""
+    comm = MPI.COMM_WORLD
+    msh, V, u, F, bc, contact = _elastic_problem(comm, scheme=scheme)
+    problem = fx.ContactProblem(F, u, [bc], contributors=[contact])
+    solver = dolfinx.nls.petsc.NewtonSolver(comm, problem)
+    solver.rtol, solver.atol, solver.max_it = 0.0, 1e-9, 12
+    solver.convergence_criterion = "residual"
+    problem.set_solver(solver)
+    problem.use_linear_solver(solver, "direct")
+    hist = []
+
+    def F_(x, b):
+        problem.F(x, b)
+        hist.append((b.norm(), problem.stable_iterate))
+
+    solver.setF(F_, solver.b)
+    for k in range(1, steps + 1):
+        problem.begin_step(float(k))
+        hist.clear()
+        try:
+            solver.solve(u)
+        except RuntimeError:   # the iteration cap (the Gauss-Newton tangent's linear rate)
+            pass
+    return contact, hist
+
+
+def test_implicit_exact_is_the_displacement_default_and_converges_quadratically():
+    """The displacement form's default scheme is ``implicit-exact``: on the neo-Hookean cube
+    pressed by a ball its residuals fall quadratically once the active set holds,
+    e_{k+1} <= 1e3 e_k² (e = ‖F‖/‖F₀‖, above the round-off floor), where the Gauss–Newton
+    ``implicit`` scheme converges linearly (the same bound fails)."""
+    def worst(hist):
+        r0 = hist[0][0]
+        e = [r / r0 for r, stable in hist if stable and r > 1e-9]
+        assert len(e) >= 3, hist
+        return max(b / a**2 for a, b in zip(e, e[1:]))
+
+    contact, exact = _residual_history(None)
+    assert contact.scheme == "implicit-exact"
+    assert worst(exact) <= 1e3, exact
+    contact, gn = _residual_history("implicit")
+    assert worst(gn) > 1e3, gn

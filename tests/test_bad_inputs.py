@@ -103,6 +103,14 @@ class _OwnNortonHoff(fx.NortonHoff):
         return 2.0 * super().stress_ufl(eps)
 
 
+def _contact_problem(c, degree):
+    """A ContactProblem (no contributor) on a vector Lagrange space of ``degree``."""
+    import ufl
+    V = dolfinx.fem.VectorFunctionSpace(c["msh"], ("Lagrange", degree))
+    u = dolfinx.fem.Function(V)
+    return fx.ContactProblem(ufl.inner(ufl.grad(u), ufl.grad(ufl.TestFunction(V))) * ufl.dx, u)
+
+
 def _add_bc_after_start(c):
     s = _sim(c)
     s.add_velocity_bc(s.facets(c["ft"], TAGS["z0"]), 0.0, 2)
@@ -325,6 +333,14 @@ CASES = [
     ("friction-slip-velocity<=0", lambda c: fx.NodalContact(
         c["top"], _die(), penalty=1.0, friction=fx.Coulomb(0.3), slip_velocity=0.0),
      ValueError, "slip_velocity"),
+    ("linear-solver-unknown-kind", lambda c: _contact_problem(c, 1).use_linear_solver(
+        None, "amg"), ValueError, r"use_linear_solver: unknown kind 'amg'; choose one of"),
+    ("linear-solver-iterative-not-vector-p1", lambda c: _contact_problem(c, 2).use_linear_solver(
+        None, "iterative"), ValueError,
+     r"kind='iterative' .* needs u in a vector P1 space .* use kind='direct'"),
+    ("linear-solver-not-a-solver", lambda c: _contact_problem(c, 1).use_linear_solver(
+        "mumps", "direct"), ValueError,
+     "solver must be a dolfinx NewtonSolver, a petsc4py SNES or KSP, got str"),
     ("springs-negative-stiffness", lambda c: fx.NodalSprings(c["top"], -1.0), ValueError,
      "stiffness must be finite and >= 0"),
     # time stepping

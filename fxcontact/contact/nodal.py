@@ -152,7 +152,11 @@ class NodalContact:
     Args:
         boundary: the contact nodes.
         tools: one tool or a sequence of tools.
-        scheme: one of :data:`SCHEMES`.
+        scheme: one of :data:`SCHEMES`. Default: ``"implicit"`` in velocity form,
+            ``"implicit-exact"`` in displacement form (``"implicit"`` if a tool has no gap
+            Hessian): a dolfinx problem has no other fxcontact solver settings to tune, and the
+            exact tangent takes the neo-Hookean block of ``demos/demo_hyperelastic_contact.py``
+            from 114 to 35 Newton iterations (``benchmarks/README.md``).
         penalty: ρ [stress/velocity]; or give ``beta`` (THEORY §2.5) with ``strain_rate``
             (Norton–Hoff) — elastic materials take dt from the increment.
         beta: dimensionless penalty, used when ``penalty`` is None.
@@ -201,7 +205,7 @@ class NodalContact:
     ``shear_limit``/``K`` in the law.
     """
 
-    def __init__(self, boundary: ContactBoundary, tools, scheme: str = "implicit",
+    def __init__(self, boundary: ContactBoundary, tools, scheme: Optional[str] = None,
                  penalty: Optional[float] = None, beta: Optional[float] = None,
                  element_size: Optional[float] = None, strain_rate: Optional[float] = None,
                  sticky_gap: float = 0.0, max_initial_penetration: Optional[float] = None,
@@ -220,8 +224,6 @@ class NodalContact:
             if formulation == "velocity" and modulus is not None:
                 raise ValueError("modulus is for the displacement formulation (k = beta E*/h_e); "
                                  "the velocity form takes beta with the material of the Simulation")
-            if scheme not in SCHEMES:
-                raise ValueError(f"unknown contact scheme {scheme!r}; choose one of {SCHEMES}")
             tools = [tools] if isinstance(tools, Tool) else (
                 list(tools) if isinstance(tools, (list, tuple)) else [tools])
             if not tools or not all(isinstance(t, Tool) for t in tools):
@@ -233,6 +235,11 @@ class NodalContact:
                                  f"named {twice} (their history columns '{twice[0]}_force_...' "
                                  f"would overwrite each other); pass a distinct name= to each "
                                  f"tool")
+            if scheme is None:
+                scheme = ("implicit-exact" if formulation == "displacement" and
+                          all(t.has_hessian for t in tools) else "implicit")
+            if scheme not in SCHEMES:
+                raise ValueError(f"unknown contact scheme {scheme!r}; choose one of {SCHEMES}")
             if scheme == "implicit-exact" and not all(t.has_hessian for t in tools):
                 raise ValueError("implicit-exact needs tools that provide the gap Hessian")
             if gap_stiffness is not None:
