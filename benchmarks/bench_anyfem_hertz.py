@@ -16,6 +16,8 @@ MUMPS kept while the active set holds below 30k unknowns, CG + GAMG above), ``p1
 MUMPS LU at every Newton iteration), ``ufl`` (``hertz_ufl_penalty.py``), ``mixed`` (MINI).
 
 Run: ``python benchmarks/bench_anyfem_hertz.py --sizes 0.025,0.018,0.0125``
+"""
+
 from __future__ import annotations
 
 import argparse

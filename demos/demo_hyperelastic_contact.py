@@ -138,10 +138,12 @@ def _lu(prefix: str):
 
 def run(driver: str = "newton", n: int = 12, n_steps: int = 6, depth: float = 0.3,
         E: float = 10.0, nu: float = 0.3, scheme: str = "implicit-exact",
-        comm=MPI.COMM_WORLD) -> dict:
+        comm=MPI.COMM_WORLD, linear_solver=None) -> dict:
     """Press the ball in ``n_steps`` load steps with ``driver``: ``"newton"`` (dolfinx's
     NewtonSolver), ``"snes"`` (a petsc4py SNES with ContactProblem's callbacks) or
-    ``"fxcontact"`` (fxcontact's NewtonSolver on a fxcontact NonlinearProblem)."""
+    ``"fxcontact"`` (fxcontact's NewtonSolver on a fxcontact NonlinearProblem).
+    ``linear_solver``: None (the user's MUMPS LU) or a kind of
+    :meth:`fxcontact.ContactProblem.use_linear_solver` (``"newton"`` and ``"snes"``)."""
     t0 = time.perf_counter()
     msh, facet_tags, V, u, F, bcs = hyperelastic_problem(comm, n, E, nu)
     contact = add_contact(V, facet_tags, E, nu, depth, scheme)
@@ -154,6 +156,8 @@ def run(driver: str = "newton", n: int = 12, n_steps: int = 6, depth: float = 0.
         ksp = solver.krylov_solver
         _lu(ksp.getOptionsPrefix())
         ksp.setFromOptions()
+        if linear_solver is not None:
+            problem.use_linear_solver(solver, linear_solver)
 
         def solve():
             return solver.solve(u)[0]
@@ -170,6 +174,8 @@ def run(driver: str = "newton", n: int = 12, n_steps: int = 6, depth: float = 0.
         snes.setConvergenceTest(converged)
         snes.setTolerances(rtol=1e-10, atol=1e-12, stol=1e-10, max_it=50)
         snes.setFromOptions()
+        if linear_solver is not None:
+            problem.use_linear_solver(snes, linear_solver)
 
         def solve():
             x = u.vector.copy()
@@ -207,6 +213,7 @@ def run(driver: str = "newton", n: int = 12, n_steps: int = 6, depth: float = 0.
             "penetration": contact.diagnostics()["contact_penetration_true"],
             "newton": sum(r["newton"] for r in rows), "held": problem.iterations_unstable,
             "dofs": V.dofmap.index_map.size_global * 3, "wall_time": time.perf_counter() - t0,
+            "times": dict(problem.timers.times), "krylov": problem.krylov_iterations,
             "msh": msh, "u": u, "V": V, "contact": contact}
 
 
