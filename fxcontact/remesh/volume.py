@@ -1,0 +1,331 @@
+"""A new tetrahedral mesh of a body from its triangulated boundary, made by gmsh on rank 0 and
+distributed (as the workpiece builders of :mod:`fxcontact.meshing` do).
+
+The boundary (:class:`~fxcontact.remesh.boundary.BoundarySurface`) is cut into patches: the
+triangles of one facet tag connected across edges whose dihedral angle is below
+``feature_angle``. Each patch becomes a gmsh discrete surface; ``createTopology`` builds their
+boundary curves and corners (the sharp edges and the tag boundaries are kept as curves) and
+``createGeometry`` a parametrisation of each patch on its old triangles, so that the new surface
+nodes lie on the old surface and the patches are remeshed at the new sizes. Nodes of planar
+patches (symmetry planes, flat die faces) are then projected onto the patch's plane, or the
+intersection of the planes they lie on, so those faces stay exactly planar.
+
+The element size is ``h`` away from the tools and ``zone.h + zone.grading × distance`` near a
+:class:`SizeZone` (the distance to its points or its box): graded, finer where the tools bite.
+
+Each new boundary surface takes the facet tag that most of its triangles' nearest old
+triangles carry (the old facet nearest to each new facet's centroid).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+from fxcontact.remesh.boundary import UNTAGGED, BoundarySurface
+
+__all__ = ["SizeZone", "size_field", "surface_patches", "volume_mesh", "CELL_TAG"]
+
+log = logging.getLogger(__name__)
+
+#: the cell tag of the new mesh's volume
+CELL_TAG = 1
+
+
+@dataclass
+class SizeZone:
+    """A region meshed finer: size ``h`` within it, growing by ``grading`` per unit distance
+    away from it (bounded by the mesh's size far away).
+
+    Args:
+        h: element size in the zone (> 0).
+        points: (n, 3) points (e.g. sample points of a tool's surface, the contact nodes): the
+            distance is to the nearest of them.
+        box: ``(lower, upper)`` corners of an axis-aligned box (a mesh box around the bite):
+            the distance is 0 inside.
+        grading: growth of the size per unit distance (0.3: +30 % of the distance).
+    """
+
+    h: float
+    points: Optional[np.ndarray] = None
+    box: Optional[Sequence] = None
+    grading: float = 0.3
+
+    def __post_init__(self):
+        if not (np.isfinite(self.h) and self.h > 0):
+            raise ValueError(f"SizeZone: h must be > 0, got {self.h!r}")
+        if not (np.isfinite(self.grading) and self.grading >= 0):
+            raise ValueError(f"SizeZone: grading must be >= 0, got {self.grading!r}")
+        if (self.points is None) == (self.box is None):
+            raise ValueError("SizeZone: give either points= or box= (one of them)")
+        if self.points is not None:
+            self.points = np.asarray(self.points, dtype=float).reshape(-1, 3)
+            if len(self.points) == 0:
+                raise ValueError("SizeZone: points= is empty: give at least one point")
+        else:
+            lo, hi = (np.asarray(b, dtype=float) for b in self.box)
+            if lo.shape != (3,) or hi.shape != (3,) or np.any(hi < lo):
+                raise ValueError(f"SizeZone: box must be (lower, upper) corners with lower <= "
+                                 f"upper, got {self.box!r}")
+            self.box = (lo, hi)
+
+    def distance(self, x: np.ndarray) -> np.ndarray:
+        """(n,) distance of the points x (n, 3) to the zone."""
+        if self.points is not None:
+            from scipy.spatial import cKDTree
+            if not hasattr(self, "_tree"):
+                self._tree = cKDTree(self.points)
+            return self._tree.query(x)[0]
+        lo, hi = self.box
+        return np.linalg.norm(np.maximum(np.maximum(lo - x, x - hi), 0.0), axis=1)
+
+
+def size_field(x: np.ndarray, h: float, zones: Sequence[SizeZone] = ()) -> np.ndarray:
+    """(n,) element size at the points x (n, 3): ``min(h, min_k(h_k + g_k d_k(x)))``."""
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    out = np.full(len(x), float(h))
+    for z in zones:
+        out = np.minimum(out, z.h + z.grading * z.distance(x))
+    return out
+
+
+def surface_patches(surface: BoundarySurface, feature_angle: float = 40.0) -> np.ndarray:
+    """(m,) patch number of each triangle: the triangles of one tag connected across edges
+    whose dihedral angle (between the outward normals) is below ``feature_angle`` degrees."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    T = surface.triangles
+    m = len(T)
+    edges = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+    owner = np.tile(np.arange(m), 3)
+    order = np.lexsort(edges.T[::-1])
+    e, o = edges[order], owner[order]
+    same = np.all(e[1:] == e[:-1], axis=1)
+    a, b = o[:-1][same], o[1:][same]
+    n = surface.normals()
+    smooth = (np.einsum("ij,ij->i", n[a], n[b]) >= np.cos(np.radians(feature_angle))) \
+        & (surface.tags[a] == surface.tags[b])
+    g = coo_matrix((np.ones(int(smooth.sum())), (a[smooth], b[smooth])), shape=(m, m))
+    return connected_components(g, directed=False)[1]
+
+
+def _patch_planes(surface: BoundarySurface, patches: np.ndarray, tol: float):
+    """{patch: (unit normal, offset)} of the planar patches (every vertex within ``tol`` of the
+    least-squares plane)."""
+    out = {}
+    for p in np.unique(patches):
+        P = surface.points[np.unique(surface.triangles[patches == p])]
+        c = P.mean(axis=0)
+        _, s, vt = np.linalg.svd(P - c, full_matrices=False)
+        nrm = vt[-1]
+        if np.max(np.abs((P - c) @ nrm)) <= tol:
+            # an axis plane stays an axis plane exactly
+            k = np.argmax(np.abs(nrm))
+            if np.all(np.abs(np.delete(nrm, k)) < 1e-12):
+                nrm = np.eye(3)[k] * np.sign(nrm[k])
+            out[int(p)] = (nrm, float(nrm @ c))
+    return out
+
+
+def _project_on_planes(x: np.ndarray, planes) -> np.ndarray:
+    """The point nearest to x on the intersection of the planes [(n, d), …]."""
+    N = np.array([p[0] for p in planes])
+    d = np.array([p[1] for p in planes])
+    lam = np.linalg.lstsq(N @ N.T, N @ x - d, rcond=None)[0]
+    return x - N.T @ lam
+
+
+def _size_callback(h: float, zones):
+    """gmsh's size callback (gmsh 4.8: ``f(dim, tag, x, y, z)``); an exception inside a ctypes
+    callback would abort the process, so a failure gives ``h`` and is logged once."""
+    failed = []
+
+    def size(*args):
+        x, y, z = args[2:5]
+        try:
+            return float(size_field(np.array([[x, y, z]]), h, zones)[0])
+        except Exception as e:   # never propagate into gmsh
+            if not failed:
+                failed.append(e)
+                log.warning("remesh size field failed at (%g, %g, %g): %s", x, y, z, e)
+            return float(h)
+    return size
+
+
+def _build_on_root(gmsh, surface: BoundarySurface, h: float, zones, feature_angle: float,
+                   optimize: bool):
+    patches = surface_patches(surface, feature_angle)
+    diam = np.linalg.norm(np.ptp(surface.points, axis=0))
+    planes = _patch_planes(surface, patches, 1e-9 * diam)
+    node_tags = np.arange(1, len(surface.points) + 1)
+    ids = np.unique(patches)
+    for p in ids:
+        gmsh.model.addDiscreteEntity(2, int(p) + 1)
+    gmsh.model.mesh.addNodes(2, int(ids[0]) + 1, node_tags, surface.points.ravel())
+    etag = 1
+    for p in ids:
+        tri = surface.triangles[patches == p]
+        gmsh.model.mesh.addElementsByType(int(p) + 1, 2, np.arange(etag, etag + len(tri)),
+                                          (tri + 1).ravel())
+        etag += len(tri)
+    gmsh.model.mesh.createTopology()
+    gmsh.model.mesh.createGeometry()
+    surfs = [t for _, t in gmsh.model.getEntities(2)]
+    loop = gmsh.model.geo.addSurfaceLoop(surfs)
+    gmsh.model.geo.addVolume([loop])
+    gmsh.model.geo.synchronize()
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.Optimize", 1 if optimize else 0)
+    gmsh.option.setNumber("General.NumThreads", 1)   # the same mesh every time
+    gmsh.model.mesh.setSizeCallback(_size_callback(h, zones))
+    gmsh.model.mesh.generate(3)
+    origin = _entity_patches(gmsh, surface, patches)
+    on_planes = _flatten_planes(gmsh, origin, planes)
+    for _ in range(2):
+        _restore_volume(gmsh, surface.enclosed_volume(), on_planes)
+    groups = {}
+    for s, p in origin.items():
+        groups.setdefault(int(surface.tags[np.flatnonzero(patches == p)[0]]), []).append(s)
+    for tag, ss in sorted(groups.items()):
+        if tag != UNTAGGED:
+            gmsh.model.addPhysicalGroup(2, ss, tag)
+    gmsh.model.addPhysicalGroup(3, [t for _, t in gmsh.model.getEntities(3)], CELL_TAG)
+
+
+def _entity_patches(gmsh, surface: BoundarySurface, patches: np.ndarray) -> dict:
+    """{new surface entity: the old patch it lies on}: the patch that most of the nearest old
+    triangles of its triangles' centroids belong to."""
+    from scipy.spatial import cKDTree
+    tags, xyz, _ = gmsh.model.mesh.getNodes()
+    lookup = np.zeros(int(tags.max()) + 1, dtype=np.int64)
+    lookup[tags.astype(np.int64)] = np.arange(len(tags))
+    X = xyz.reshape(-1, 3)
+    tree = cKDTree(surface.points[surface.triangles].mean(axis=1))
+    out = {}
+    for _, s in gmsh.model.getEntities(2):
+        _, _, enodes = gmsh.model.mesh.getElements(2, s)
+        if len(enodes) and len(enodes[0]):
+            c = X[lookup[np.asarray(enodes[0], dtype=np.int64)]].reshape(-1, 3, 3).mean(axis=1)
+            vals, counts = np.unique(patches[tree.query(c)[1]], return_counts=True)
+            out[s] = int(vals[np.argmax(counts)])
+    return out
+
+
+def _flatten_planes(gmsh, origin: dict, planes: dict) -> dict:
+    """Project the nodes of the new surfaces made from planar patches onto their planes (nodes
+    on two planes or more onto their intersection); returns {node tag: [planes]}."""
+    on = {}
+    for s, p in origin.items():
+        if p not in planes:
+            continue
+        tags, xyz, _ = gmsh.model.mesh.getNodes(2, s, includeBoundary=True)
+        for t, x in zip(tags.tolist(), xyz.reshape(-1, 3)):
+            on.setdefault(t, (x, []))[1].append(planes[p])
+    for t, (x, pl) in on.items():
+        gmsh.model.mesh.setNode(int(t), _project_on_planes(x, pl).tolist(), [])
+    return {t: pl for t, (_, pl) in on.items()}
+
+
+def _tetrahedra(gmsh):
+    """(node tags (n,), coordinates (n, 3), tetrahedra (m, 4) as rows of those)."""
+    tags, xyz, _ = gmsh.model.mesh.getNodes()
+    lookup = np.zeros(int(tags.max()) + 1, dtype=np.int64)
+    lookup[tags.astype(np.int64)] = np.arange(len(tags))
+    _, _, enodes = gmsh.model.mesh.getElements(3)
+    return tags, xyz.reshape(-1, 3), lookup[np.asarray(enodes[0], dtype=np.int64).reshape(-1, 4)]
+
+
+def boundary_faces(X: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """(k, 3) the faces of the tetrahedra that belong to one only, oriented outward."""
+    F = np.concatenate([tets[:, [1, 2, 3]], tets[:, [0, 3, 2]], tets[:, [0, 1, 3]],
+                        tets[:, [0, 2, 1]]])
+    opp = np.concatenate([tets[:, 0], tets[:, 1], tets[:, 2], tets[:, 3]])
+    _, inv, cnt = np.unique(np.sort(F, axis=1), axis=0, return_inverse=True, return_counts=True)
+    once = cnt[inv.ravel()] == 1
+    F, opp = F[once], opp[once]
+    P = X[F]
+    inward = np.einsum("ij,ij->i", np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]),
+                       X[opp] - P[:, 0]) > 0
+    F[inward] = F[inward][:, [0, 2, 1]]
+    return F
+
+
+def _restore_volume(gmsh, volume: float, on_planes):
+    """Move the surface nodes along their normals (within their planes for nodes on planar
+    patches) by the one offset that gives the new surface the old enclosed ``volume``: the new
+    nodes lie on the old facets, so a remeshed convex surface cuts its creases and loses volume
+    (≈ h²/(8R) × area); the offset puts them back between the old facets and the smooth surface
+    they approximate. Nodes on two planes or more (a sector's axis) stay."""
+    tags, X, tets = _tetrahedra(gmsh)
+    from fxcontact.mesh_health import simplex_measures
+    dV = volume - np.sum(np.abs(simplex_measures(X[tets])[0]))
+    T = boundary_faces(X, tets)
+    P = X[T]
+    an = 0.5 * np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])     # area-weighted normals
+    N = np.zeros_like(X)
+    for k in range(3):
+        np.add.at(N, T[:, k], an / 3.0)
+    planar = np.zeros(len(X), dtype=bool)
+    for i, t in enumerate(tags.tolist()):
+        pl = on_planes.get(t)
+        if pl:
+            if len(pl) > 1:
+                N[i] = 0.0
+            else:
+                nrm = pl[0][0]
+                N[i] -= (N[i] @ nrm) * nrm
+            planar[i] = True
+    # dV ≈ δ Σ_i N_i · n̂_i |...|: the volume swept by moving node i by δ n̂_i is N_i · n̂_i δ
+    length = np.linalg.norm(N, axis=1)
+    move = length > 1e-14 * max(length.max(), 1e-300)
+    u = np.zeros_like(N)
+    u[move] = N[move] / length[move, None]
+    rate = np.sum(np.einsum("ij,ij->i", N, u))
+    if rate <= 0 or not np.isfinite(dV):
+        return
+    delta = dV / rate
+    for i in np.flatnonzero(move):
+        gmsh.model.mesh.setNode(int(tags[i]), (X[i] + delta * u[i]).tolist(), [])
+
+
+def volume_mesh(comm, surface: BoundarySurface, h: float, zones: Sequence[SizeZone] = (),
+                feature_angle: float = 40.0, optimize: bool = True, root: int = 0):
+    """A tetrahedral mesh of the body bounded by ``surface`` (given on ``root``), made there by
+    gmsh and distributed over ``comm`` (collective; module docstring).
+
+    Args:
+        surface: the boundary (:func:`~fxcontact.remesh.boundary.gather_boundary`).
+        h: element size away from the zones (> 0).
+        zones: :class:`SizeZone` s where the mesh is finer (near the tools).
+        feature_angle: edges whose dihedral angle exceeds it (degrees) are kept as sharp edges.
+        optimize: gmsh's tetrahedron optimisation.
+    Returns:
+        ``(mesh, cell_tags, facet_tags)``; the facet tags are those of the old boundary.
+    """
+    from fxcontact import compat
+    from fxcontact.collective import together
+    from fxcontact.meshing import gmsh_session
+    with together(comm, "volume_mesh()", h=h, feature_angle=feature_angle):
+        if not (np.isfinite(h) and h > 0):
+            raise ValueError(f"volume_mesh: h must be > 0, got {h!r}")
+        if not 0.0 < feature_angle < 180.0:
+            raise ValueError(f"volume_mesh: feature_angle must be in (0, 180) degrees, got "
+                             f"{feature_angle!r}")
+    with gmsh_session("remesh") as gmsh:
+        err = None
+        if comm.rank == root:
+            try:
+                _build_on_root(gmsh, surface, h, list(zones), feature_angle, optimize)
+            except Exception as e:   # gmsh's errors are plain Exceptions
+                err = f"{type(e).__name__}: {e}"
+        err = comm.bcast(err, root=root)
+        if err is not None:
+            raise RuntimeError(f"volume_mesh: gmsh failed to mesh the boundary ({err}): a "
+                               f"boundary that is not closed or intersects itself, or a size too "
+                               f"large for its thinnest part; try a smaller h or feature_angle")
+        return compat.model_to_mesh(gmsh.model, comm, root, gdim=3)
