@@ -166,11 +166,16 @@ class PointLocation:
         """``f(points, cells) -> (n, k)`` evaluated where each point was located (on the rank
         that owns its old cell; ``cells`` are that rank's local cell indices); returns the
         (N, k) values at this rank's points, in their order (collective)."""
-        vals = [np.asarray(f(p, c), dtype=np.float64).reshape(len(p), -1)
-                for p, c in zip(self._eval_points, self._eval_cells)]
-        back = self.comm.alltoall(vals)
-        k = max((b.shape[1] for b in back if b.size), default=0)
-        k = self.comm.allreduce(k, op=MPI.MAX)
+        from fxcontact.collective import check_together
+        vals, err = [], None
+        try:
+            vals = [np.asarray(f(p, c), dtype=np.float64).reshape(len(p), -1) if len(p) else None
+                    for p, c in zip(self._eval_points, self._eval_cells)]
+        except Exception as e:   # raised on every rank, not a hang in the exchange
+            err = e
+        k = max((v.shape[1] for v in vals if v is not None), default=0)
+        k = max(check_together(self.comm, "PointLocation.evaluate()", err, share=k))
+        back = self.comm.alltoall([np.zeros((0, k)) if v is None else v for v in vals])
         out = np.zeros((len(self.points), k))
         for t, b in zip(self._targets, back):
             if len(t):
@@ -195,8 +200,7 @@ def interpolate_from(old, new, location: Optional[PointLocation] = None) -> Poin
     V = new.function_space
     if location is None:
         location = PointLocation(old.function_space.mesh, dof_points(V))
-    vals = location.evaluate(lambda p, c: old.eval(p, c) if len(p) else
-                             np.zeros((0, int(np.prod(old.ufl_shape) or 1))))
+    vals = location.evaluate(old.eval)
     bs = V.dofmap.index_map_bs
     n = _owned_blocks(V)
     new.x.array.reshape(-1, bs)[:n] = vals.reshape(n, bs)

@@ -1,0 +1,276 @@
+"""Remeshing building blocks (fxcontact.remesh): transfer of fields by parallel point location,
+the new volume mesh of a deformed billet, the criteria. Serial and on 2 ranks."""
+
+import numpy as np
+import pytest
+import ufl
+from mpi4py import MPI
+
+import dolfinx
+import dolfinx.fem
+
+import fxcontact as fx
+from fxcontact import compat
+from fxcontact.mesh_health import simplex_measures
+from fxcontact.remesh import criteria
+from fxcontact.remesh.boundary import gather_boundary
+from fxcontact.remesh.transfer import (PointLocation, _physical, _quadrature,
+                                       cell_vertex_coordinates, cellwise_integral,
+                                       interpolate_from, transfer_cellwise)
+from fxcontact.remesh.volume import SizeZone, size_field, volume_mesh
+
+COMM = MPI.COMM_WORLD
+BOX = [[0.0, 0.0, 0.0], [1.0, 2.0, 1.0]]
+
+
+def _box(comm, n):
+    return dolfinx.mesh.create_box(comm, BOX, n, dolfinx.mesh.CellType.tetrahedron)
+
+
+def _linear(x):
+    return np.stack([1.0 + x[0] + 2.0 * x[1], x[2] - x[0], 3.0 * x[1] - 0.5 * x[2]])
+
+
+def _all_cells(msh):
+    imap = msh.topology.index_map(msh.topology.dim)
+    return np.arange(imap.size_local + imap.num_ghosts)
+
+
+def _max(a):
+    return COMM.allreduce(float(np.max(np.abs(a))) if np.size(a) else 0.0, op=MPI.MAX)
+
+
+def _volume(msh):
+    return COMM.allreduce(float(np.sum(np.abs(simplex_measures(cell_vertex_coordinates(msh))[0]))),
+                          op=MPI.SUM)
+
+
+def _piecewise(c):
+    """A piecewise-constant field of the cell centroids c (N, 3): the same on any partition."""
+    return 1.0 + np.floor(3.0 * c[:, 0]) + 2.0 * (c[:, 1] > 1.1) + np.sin(7.0 * c[:, 2]) ** 2
+
+
+@pytest.mark.parametrize("kind", ["P1", "P2", "mini"])
+def test_linear_velocity_transferred_exactly(kind):
+    old, new = _box(COMM, [4, 6, 5]), _box(COMM, [7, 5, 6])
+    if kind == "mini":
+        Vo, Vn = fx.MixedSpace(old).V, fx.MixedSpace(new).V
+    else:
+        d = int(kind[1])
+        Vo = dolfinx.fem.VectorFunctionSpace(old, ("Lagrange", d))
+        Vn = dolfinx.fem.VectorFunctionSpace(new, ("Lagrange", d))
+    fo, fn, ex = (dolfinx.fem.Function(V) for V in (Vo, Vn, Vn))
+    fo.interpolate(_linear)
+    ex.interpolate(_linear)
+    loc = interpolate_from(fo, fn)
+    assert _max(fn.x.array - ex.x.array) < 1e-10
+    assert COMM.allreduce(loc.outside, op=MPI.SUM) == 0
+
+
+def _quadrature_function(msh, degree, f):
+    Q = dolfinx.fem.FunctionSpace(msh, ufl.FiniteElement("Quadrature", msh.ufl_cell(), degree,
+                                                         quad_scheme="default"))
+    q = dolfinx.fem.Function(Q)
+    pts, _ = _quadrature(msh, degree)
+    X = _physical(cell_vertex_coordinates(msh, _all_cells(msh)), pts)
+    q.x.array[compat.dofmap_array(Q)] = f(X)
+    return q
+
+
+def test_linear_strain_transferred_exactly():
+    """A strain linear in x held at the quadrature points: the new DG0 cell averages and the
+    new quadrature values are exact; the conservative correction is round-off."""
+    old, new = _box(COMM, [4, 6, 5]), _box(COMM, [7, 5, 6])
+
+    def lin(X):
+        return 0.2 + X[..., 0] + 0.5 * X[..., 1] - 0.3 * X[..., 2]
+
+    qo = _quadrature_function(old, 2, lin)
+    dg = dolfinx.fem.Function(dolfinx.fem.FunctionSpace(new, ("DG", 0)))
+    info = transfer_cellwise(qo, dg)
+    c = cell_vertex_coordinates(new, _all_cells(new)).mean(axis=1)
+    assert _max(dg.x.array - lin(c)) < 1e-10
+    assert np.all(np.abs(info["correction"]) < 1e-12)
+    qn = _quadrature_function(new, 2, lambda X: 0.0 * X[..., 0])
+    transfer_cellwise(qo, qn, conserve="shift")
+    exact = _quadrature_function(new, 2, lin)
+    assert _max(qn.x.array - exact.x.array) < 1e-10
+
+
+def _piecewise_dg0(msh):
+    f = dolfinx.fem.Function(dolfinx.fem.FunctionSpace(msh, ("DG", 0)))
+    f.x.array[:] = _piecewise(cell_vertex_coordinates(msh, _all_cells(msh)).mean(axis=1))
+    return f
+
+
+def test_piecewise_constant_integral_conserved_and_partition_independent():
+    """The integral of a piecewise-constant strain is conserved to 1e-10, and the transferred
+    cell values on this communicator equal those of the same transfer made on one rank."""
+    old, new = _box(COMM, [5, 7, 4]), _box(COMM, [6, 6, 7])
+    fo = _piecewise_dg0(old)
+    fn = dolfinx.fem.Function(dolfinx.fem.FunctionSpace(new, ("DG", 0)))
+    info = transfer_cellwise(fo, fn)
+    I_old = cellwise_integral(fo)[0]
+    assert abs(cellwise_integral(fn)[0] - I_old) < 1e-10 * abs(I_old)
+    assert abs(info["integral_new"][0] - I_old) < 1e-10 * abs(I_old)
+    # the sampling error the correction removed is small (measured 0.2 %)
+    assert 0.0 < abs(info["correction"][0]) < 0.02
+    # the same transfer on one rank: the same integral and cell values
+    so, sn = _box(MPI.COMM_SELF, [5, 7, 4]), _box(MPI.COMM_SELF, [6, 6, 7])
+    gn = dolfinx.fem.Function(dolfinx.fem.FunctionSpace(sn, ("DG", 0)))
+    info1 = transfer_cellwise(_piecewise_dg0(so), gn)
+    assert abs(info1["integral_new"][0] - info["integral_new"][0]) < 1e-12 * abs(I_old)
+    assert abs(info1["correction"][0] - info["correction"][0]) < 1e-12
+    key = np.round(cell_vertex_coordinates(sn).mean(axis=1), 9)
+    serial = dict(zip(map(tuple, key.tolist()), gn.x.array[: len(key)]))
+    mine = np.round(cell_vertex_coordinates(new).mean(axis=1), 9)
+    n = len(mine)
+    assert _max(fn.x.array[:n] - np.array([serial[tuple(k)] for k in mine.tolist()])) < 1e-12
+
+
+def test_points_outside_take_the_nearest_cell():
+    """Points a little outside the old mesh (a new boundary slightly off) and far outside
+    (beyond the boxes' padding: the second round asks every rank) get the nearest cell's
+    polynomial, extrapolated: a linear field stays exact."""
+    old = _box(COMM, [3, 4, 3])
+    V = dolfinx.fem.VectorFunctionSpace(old, ("Lagrange", 1))
+    f = dolfinx.fem.Function(V)
+    f.interpolate(_linear)
+    pts = np.array([[0.5, 1.0, 1.0 + 1e-4], [-1e-3, 0.3, 0.2], [0.5, 1.0, 1.5],
+                    [0.2, 0.7, 0.4]])[COMM.rank % 2::COMM.size]
+    loc = PointLocation(old, pts)
+    vals = loc.evaluate(f.eval)
+    assert _max(vals - _linear(pts.T).T) < 1e-10
+    outside = np.linalg.norm(pts - np.clip(pts, BOX[0], BOX[1]), axis=1)
+    assert COMM.allreduce(loc.outside, op=MPI.SUM) == COMM.allreduce(int(np.sum(outside > 0)),
+                                                                      op=MPI.SUM) == 3
+    assert abs(COMM.allreduce(loc.max_distance, op=MPI.MAX) - 0.5) < 1e-12
+
+
+# ------------------------------------------------------------------------- new volume mesh
+@pytest.fixture(scope="module")
+def deformed_billet():
+    """A quarter billet barrelled and sheared (the plane x = 0 becomes x = 0.1 z, an inclined
+    plane; y = 0 stays), its boundary and a remesh finer near a die at the top."""
+    msh, _, ft = fx.cylinder_billet(COMM, radius=10.0, height=15.0, h=3.0)
+    x = msh.geometry.x
+    z = x[:, 2].copy()
+    s = 1.0 + 0.15 * np.sin(np.pi * z / 15.0)
+    x[:, 0] = s * x[:, 0] + 0.1 * 0.8 * z
+    x[:, 1] *= s
+    x[:, 2] = 0.8 * z
+    surface = gather_boundary(msh, ft)
+    zone = SizeZone(h=0.9, box=([0.0, 0.0, 11.5], [14.0, 14.0, 12.5]), grading=0.3)
+    new, _, nft = volume_mesh(COMM, surface, h=2.5, zones=[zone])
+    return msh, ft, surface, zone, new, nft
+
+
+def test_remesh_keeps_volume_tags_and_planes(deformed_billet):
+    msh, ft, surface, _, new, nft = deformed_billet
+    V0 = _volume(msh)
+    if COMM.rank == 0:
+        assert abs(surface.enclosed_volume() / V0 - 1.0) < 1e-12
+    assert abs(_volume(new) / V0 - 1.0) <= 5e-4
+    old_tags = set(v for vs in COMM.allgather(np.unique(ft.values).tolist()) for v in vs)
+    new_tags = set(v for vs in COMM.allgather(np.unique(nft.values).tolist()) for v in vs)
+    assert old_tags == new_tags == set(fx.BILLET_TAGS.values())
+    # the symmetry planes stay exactly planar: y = 0 and the sheared x = 0.1 z
+    new.topology.create_connectivity(2, 0)
+    X = new.geometry.x
+    for tag, dist in ((fx.BILLET_TAGS["symmetry_y"], lambda p: p[:, 1]),
+                      (fx.BILLET_TAGS["symmetry_x"],
+                       lambda p: (p[:, 0] - 0.1 * p[:, 2]) / np.sqrt(1.01))):
+        g = compat.entities_to_geometry(new, 2, nft.indices[nft.values == tag]).ravel()
+        assert _max(dist(X[g])) < 1e-12
+    # every new boundary facet is tagged
+    new.topology.create_connectivity(2, 3)
+    ext = dolfinx.mesh.exterior_facet_indices(new.topology)
+    assert np.all(np.isin(ext, nft.indices))
+
+
+def test_size_field_refines_near_the_tool(deformed_billet):
+    _, _, _, zone, new, _ = deformed_billet
+    P = cell_vertex_coordinates(new)
+    c = P.mean(axis=1)
+    edge = np.mean([np.linalg.norm(P[:, i] - P[:, j], axis=1)
+                    for i in range(4) for j in range(i + 1, 4)], axis=0)
+    d = zone.distance(c)
+    near = COMM.allreduce(np.r_[edge[d < 0.5].sum(), np.sum(d < 0.5)], op=MPI.SUM)
+    far = COMM.allreduce(np.r_[edge[d > 8.0].sum(), np.sum(d > 8.0)], op=MPI.SUM)
+    assert near[1] > 0 and far[1] > 0
+    assert near[0] / near[1] < 0.6 * far[0] / far[1]
+    assert np.allclose(size_field(np.array([[1.0, 1.0, 12.0], [1.0, 1.0, 8.0], [1.0, 1.0, 2.0]]), 2.5,
+                                  [zone]),
+                       [0.9, 0.9 + 0.3 * 3.5, 2.5])
+
+
+def test_transfer_to_the_remeshed_billet(deformed_billet):
+    """Linear velocity exact on the new mesh (its boundary nodes a little off the old surface
+    are extrapolated from the nearest cell); a piecewise-constant strain's integral conserved."""
+    msh, _, _, _, new, _ = deformed_billet
+    Vo, Vn = fx.MixedSpace(msh).V, fx.MixedSpace(new).V
+    fo, fn, ex = (dolfinx.fem.Function(V) for V in (Vo, Vn, Vn))
+    fo.interpolate(_linear)
+    ex.interpolate(_linear)
+    interpolate_from(fo, fn)
+    assert _max(fn.x.array - ex.x.array) < 1e-10
+    so = _piecewise_dg0(msh)
+    sn = dolfinx.fem.Function(dolfinx.fem.FunctionSpace(new, ("DG", 0)))
+    info = transfer_cellwise(so, sn)
+    assert abs(cellwise_integral(sn)[0] / cellwise_integral(so)[0] - 1.0) < 1e-10
+    assert abs(info["correction"][0]) < 0.05
+
+
+def test_volume_mesh_bad_inputs():
+    with pytest.raises(ValueError, match="h must be > 0"):
+        SizeZone(h=0.0, points=[[0, 0, 0]])
+    with pytest.raises(ValueError, match="either points= or box="):
+        SizeZone(h=1.0)
+    with pytest.raises(ValueError, match="lower <= upper"):
+        SizeZone(h=1.0, box=([1, 0, 0], [0, 1, 1]))
+    with pytest.raises(ValueError, match="unknown conserve"):
+        old = _box(COMM, [2, 2, 2])
+        f = dolfinx.fem.Function(dolfinx.fem.FunctionSpace(old, ("DG", 0)))
+        transfer_cellwise(f, f, conserve="mean")
+    with pytest.raises(ValueError, match="DG0 or quadrature space"):
+        old = _box(COMM, [2, 2, 2])
+        f = dolfinx.fem.Function(dolfinx.fem.FunctionSpace(old, ("Lagrange", 1)))
+        transfer_cellwise(f, f)
+
+
+# ------------------------------------------------------------------------- criteria
+def test_criteria_measures():
+    regular = np.array([[[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]]], dtype=float)
+    vol0 = simplex_measures(regular)[0]
+    q, r = criteria.quality_and_volume_ratio(regular, vol0)
+    assert abs(q - 1.0) < 1e-12 and abs(r - 1.0) < 1e-12
+    flat = regular.copy()
+    base = flat[0, :3].mean(axis=0)
+    flat[0, 3] = base + 0.05 * (flat[0, 3] - base)
+    q2, r2 = criteria.quality_and_volume_ratio(flat, vol0)
+    assert r2 == pytest.approx(0.05) and q2 < 0.3
+    inverted = regular[:, [1, 0, 2, 3]]
+    q3, r3 = criteria.quality_and_volume_ratio(inverted, vol0)
+    assert q3 < 0 and r3 < 0
+    assert criteria.strain_increment([0.3, 0.9], [0.1, 0.2]) == pytest.approx(0.7)
+    # a strip of contact nodes 4 wide in y and 20 long in x, on the plane z = 1
+    xs, ys = np.meshgrid(np.linspace(0, 20, 81), np.linspace(0, 4, 17))
+    pts = np.c_[xs.ravel(), ys.ravel(), np.ones(xs.size)]
+    m = criteria.zone_moments(pts)
+    assert criteria.elements_across(m, 0.5) == pytest.approx(8.0, rel=0.1)
+    assert criteria.elements_across(criteria.zone_moments(pts[:2]), 0.5) == 0.0
+
+
+def test_criteria_check_is_collective():
+    msh = _box(COMM, [3, 3, 3])
+    P = cell_vertex_coordinates(msh)
+    vol0 = simplex_measures(P)[0]
+    strain = np.zeros(len(P))
+    P2 = P.copy()
+    P2[..., 2] *= 0.01     # flattened: quality falls, volume ratio 0.01
+    res = criteria.check(COMM, criteria.RemeshCriteria(max_strain_increment=0.5), P2, vol0,
+                         strain + 0.6 * (COMM.rank == 0), strain)
+    assert res["min_volume_ratio"] == pytest.approx(0.01)
+    assert len(res["reasons"]) == 3
+    ok = criteria.check(COMM, criteria.RemeshCriteria(), P, vol0)
+    assert ok["reasons"] == [] and ok["min_volume_ratio"] == pytest.approx(1.0)
