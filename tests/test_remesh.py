@@ -274,3 +274,24 @@ def test_criteria_check_is_collective():
     assert len(res["reasons"]) == 3
     ok = criteria.check(COMM, criteria.RemeshCriteria(), P, vol0)
     assert ok["reasons"] == [] and ok["min_volume_ratio"] == pytest.approx(1.0)
+
+
+def test_simulation_state_transferred(deformed_billet):
+    """A Simulation's predictor velocity (linear) and strain (piecewise constant) on the
+    remeshed billet: the velocity exact, the strain's integral conserved, V⁰ kept."""
+    from fxcontact.remesh.state import transfer_simulation_state
+    msh, _, _, _, new, _ = deformed_billet
+    sim = fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(K=50.0, m=0.15), progress=False)
+    sp = sim.space
+    v = dolfinx.fem.Function(sp.V)
+    v.interpolate(_linear)
+    sim.w_prev.x.array[sp.V_to_W] = v.x.array
+    sim.strain.x.array[:] = _piecewise_dg0(msh).x.array
+    space = fx.MixedSpace(new)
+    st = transfer_simulation_state(sim, space)
+    ex = dolfinx.fem.Function(space.V)
+    ex.interpolate(_linear)
+    assert _max(st["w_prev"].x.array[space.V_to_W] - ex.x.array) < 1e-10
+    assert _max(st["w_prev"].x.array[space.Q_to_W]) == 0.0
+    assert abs(cellwise_integral(st["strain"])[0] / cellwise_integral(sim.strain)[0] - 1) < 1e-10
+    assert st["volume_initial"] == sim.initial_volume
