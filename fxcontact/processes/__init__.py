@@ -11,10 +11,13 @@ pictures, ``report()``).
   the processes.
 """
 
-from fxcontact.processes import flat_rolling
+from fxcontact.processes import bar_rolling, flat_rolling
+from fxcontact.processes.bar_rolling import BarRollingCase, BarRollingResult, BarRollingSetup
 from fxcontact.processes.flat_rolling import FlatRollingCase, FlatRollingResult, FlatRollingSetup
 from fxcontact.processes.monitor import (STATUSES, SteadyMonitor, SteadyRun, StopRules,
                                          window_increments)
 
-__all__ = ["flat_rolling", "FlatRollingCase", "FlatRollingResult", "FlatRollingSetup",
+__all__ = ["bar_rolling", "flat_rolling",
+           "BarRollingCase", "BarRollingResult", "BarRollingSetup",
+           "FlatRollingCase", "FlatRollingResult", "FlatRollingSetup",
            "STATUSES", "SteadyMonitor", "SteadyRun", "StopRules", "window_increments"]
