@@ -514,7 +514,7 @@ class BarRollingResult(SteadyRun):
     def report(self) -> str:
         """The summary a process engineer reads."""
         geo, c = self.pass_geometry, self.case
-        lines = [f"status: {self.status} {self.message} (model: {c.model}, h = {c.h:g} mm, "
+        lines = [f"status: {self.status}: {self.message} (model: {c.model}, h = {c.h:g} mm, "
                  f"dt = {c.dt:g} s, {self.cells} cells, {self.dofs} dofs)",
                  f"pass: groove r_g = {geo['r_g']:g} mm, half-angle {math.degrees(geo['beta']):g}"
                  f" deg, depth {geo['h_g']:.2f} mm, roll R_w = {geo['R_w']:g} (barrel "
@@ -563,7 +563,7 @@ def run(case: BarRollingCase, comm=None, output_dir: Optional[str] = None,
         settle=case.settle * L, max_increments=int(case.max_increments),
         grip_travel=case.grip_travel * L, front_start=length - s.z_r,
         tail_limit=-L - 0.5 * case.h, body="bar", zone="bite",
-        hints={"no steady state": "raise length_factor (or max_increments)"})
+        hints={"no steady state": "raise length_factor"})
     out = SteadyMonitor(sim, case.dt, measure, rules, release=s.release,
                         before_step=before_step, name="bar rolling").run()
     sim.close()

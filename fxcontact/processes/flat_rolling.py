@@ -442,7 +442,7 @@ class FlatRollingResult(SteadyRun):
     def report(self) -> str:
         """The summary a process engineer reads."""
         th, c = self.theory, self.case
-        lines = [f"status: {self.status} {self.message} (roll: {c.roll}, scheme: {c.scheme})",
+        lines = [f"status: {self.status}: {self.message} (roll: {c.roll}, scheme: {c.scheme})",
                  f"sigma0 = {self.sigma0:.2f} MPa at the mean strain rate "
                  f"{self.mean_strain_rate:.3f} 1/s; L = {self.contact_length_theory:.2f} mm, "
                  f"tan(alpha) = {th['tan_bite_angle']:.4f}",
@@ -515,7 +515,7 @@ def run(case: FlatRollingCase, comm=None, output_dir: Optional[str] = None,
                "lost": "with friction alone holding it along x the quasi-static strip has a "
                        "free rigid translation, and this increment converged to the ejected "
                        "solution; reduce dt, refine the bite or raise tail_damping",
-               "no steady state": "raise length_factor (or max_increments)"})
+               "no steady state": "raise length_factor"})
     out = SteadyMonitor(sim, case.dt, _Measure(s), rules, release=s.release,
                         name="flat rolling").run()
     sim.close()

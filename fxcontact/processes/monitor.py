@@ -256,10 +256,11 @@ class SteadyMonitor:
                                         ready=lambda q: q["front"] > ru.settle)
             if steady_from is not None:
                 status = "steady"
+                message = (f"the means of {', '.join(ru.steady_keys)} over two windows of "
+                           f"{ru.window} increments agree within {ru.steady_tol:g}")
                 break
         else:
             status = "no steady state"
-            message = self._message("no steady state", (
-                f"no steady state within max_increments = {ru.max_increments} increments"))
+            message = f"max_increments = {ru.max_increments} reached before a steady state"
         return SteadyRun(status, message, rows, gripped_at, steady_from,
                          time.perf_counter() - wall0)
