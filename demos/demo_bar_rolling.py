@@ -30,24 +30,18 @@
 # `results/bar_rolling`.
 
 # %%
-import argparse
 import math
 
 import numpy as np
 from mpi4py import MPI
 
-from fxcontact.console import (add_case_arguments, add_verbosity_arguments,
-                               case_from_arguments, configure_logging)
+from fxcontact.console import case_parser, parse_case
 from fxcontact.processes import BarRollingCase, bar_rolling
 
-ap = argparse.ArgumentParser(description="Three-roll rolling of a round bar to steady state")
-add_case_arguments(ap, BarRollingCase)
-ap.add_argument("--compare", type=int, default=0, metavar="N",
-                help="the third against the whole model over N increments")
-ap.add_argument("--output-dir", dest="output_dir", default="results/bar_rolling")
-add_verbosity_arguments(ap)
-args = ap.parse_args()
-configure_logging(verbose=args.verbose, quiet=args.quiet)
+parser = case_parser(BarRollingCase, "Three-roll rolling of a round bar to steady state",
+                     "results/bar_rolling")
+parser.add_argument("--compare", type=int, default=0, metavar="N",
+                    help="the third against the whole model over N increments")
 rank0 = MPI.COMM_WORLD.rank == 0
 
 # %% [markdown]
@@ -61,7 +55,7 @@ rank0 = MPI.COMM_WORLD.rank == 0
 # r_c = 2 R1 cos β, beyond the incoming bar's radius, so the ears stay open.
 
 # %%
-case = case_from_arguments(args, BarRollingCase)
+case, args = parse_case(parser, BarRollingCase)
 geo = bar_rolling.stand_pass(case)
 if rank0:
     print(f"pass: groove depth {geo['h_g']:.2f} mm, corner radius r_c = {geo['r_c']:.2f} mm "

@@ -35,22 +35,16 @@
 # `mpirun -n 2`. Outputs in `results/flat_rolling`.
 
 # %%
-import argparse
 import math
 
 from mpi4py import MPI
 
 from fxcontact import rolling
-from fxcontact.console import (add_case_arguments, add_verbosity_arguments,
-                               case_from_arguments, configure_logging)
+from fxcontact.console import case_parser, parse_case
 from fxcontact.processes import FlatRollingCase, flat_rolling
 
-ap = argparse.ArgumentParser(description="Flat rolling of a strip to steady state")
-add_case_arguments(ap, FlatRollingCase)
-ap.add_argument("--output-dir", dest="output_dir", default="results/flat_rolling")
-add_verbosity_arguments(ap)
-args = ap.parse_args()
-configure_logging(verbose=args.verbose, quiet=args.quiet)
+parser = case_parser(FlatRollingCase, "Flat rolling of a strip to steady state",
+                     "results/flat_rolling")
 rank0 = MPI.COMM_WORLD.rank == 0
 
 # %% [markdown]
@@ -63,7 +57,7 @@ rank0 = MPI.COMM_WORLD.rank == 0
 # with `dataclasses.replace` (or on the command line).
 
 # %%
-case = case_from_arguments(args, FlatRollingCase)
+case, args = parse_case(parser, FlatRollingCase)
 bite = case.bite
 if rank0:
     print(f"pass: R = {case.R:g} mm, {case.h0:g} -> {case.h1:.4g} mm ({100 * case.reduction:g} %)"

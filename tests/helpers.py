@@ -145,3 +145,24 @@ def run_demo(name, *args, nranks=1, timeout=HANG_TIMEOUT):
         cmd = ["mpirun", "-n", str(nranks), "--oversubscribe"] + cmd
     return subprocess.run(cmd, env=env, cwd=str(root), capture_output=True, text=True,
                           timeout=timeout)
+
+
+def run_readme_block(title, replacements, max_lines=40):
+    """Run the python block of the README's section ``### <title>`` with ``replacements``
+    (old → new, each found exactly once: an example that no longer matches fails) in a
+    namespace holding ``dataclasses.replace`` as ``replace``; returns the namespace. The block
+    must stay within ``max_lines`` lines."""
+    import dataclasses
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    code = re.search(r"```python\n(.*?)```", text.split(f"### {title}\n", 1)[1],
+                     re.S).group(1)
+    assert len(code.splitlines()) <= max_lines, f"README {title}: more than {max_lines} lines"
+    for old, new in replacements.items():
+        assert code.count(old) == 1, f"README example {title} changed: {old!r} not found once"
+        code = code.replace(old, new)
+    ns = {"replace": dataclasses.replace}
+    exec(compile(code, "README.md", "exec"), ns)
+    return ns

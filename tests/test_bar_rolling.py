@@ -13,7 +13,6 @@ import math
 import os
 import re
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,9 +27,7 @@ from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar
 from fxcontact.processes import BarRollingCase
 from fxcontact.processes import bar_rolling as bar
 
-from helpers import run_demo, shared_tmpdir
-
-ROOT = Path(__file__).resolve().parents[1]
+from helpers import run_readme_block, shared_tmpdir
 
 #: the reduced size of the tests
 QUICK = BarRollingCase().quick()
@@ -210,58 +207,9 @@ def test_bad_case(fields, words):
         BarRollingCase(radius=3.0)
 
 
-@pytest.mark.serial   # the demo is its own job, on 1 and 2 ranks
-@pytest.mark.parametrize("nranks", [1, 2])
-def test_demo_runs_as_a_script(nranks, tmp_path):
-    """The demo, run as a script on a short bar for two increments, prints its summary and
-    writes its rows."""
-    p = run_demo("demo_bar_rolling", "--quick", "--length_factor", 1.6, "--max_increments", 2,
-                 "--output-dir", tmp_path, "--quiet", nranks=nranks)
-    assert p.returncode == 0, p.stderr[-3000:]
-    assert "max_increments = 2 reached" in p.stdout, p.stdout
-    assert "A_pass = 7579 mm2" in p.stdout
-    assert os.path.getsize(tmp_path / "bar_rolling_third_diagnostics.csv") > 0
-
-
 def test_readme_example():
     """The README's bar-rolling example, cut to one increment of a short bar, runs."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    code = re.search(r"```python\n(.*?)```", text.split("### Bar rolling\n", 1)[1],
-                     re.S).group(1)
-    assert len(code.splitlines()) <= 40
-    old = "case.quick()"
-    assert code.count(old) == 1, "README example changed"
-    code = code.replace(old, "replace(case.quick(), length_factor=1.6, max_increments=1)")
-    code = code.replace('"results/bar_rolling"', repr(shared_tmpdir("fxc-bar-readme-")))
-    ns = {"replace": replace}
-    exec(compile(code, "README.md", "exec"), ns)
+    ns = run_readme_block("Bar rolling", {
+        "case.quick()": "replace(case.quick(), length_factor=1.6, max_increments=1)",
+        '"results/bar_rolling"': repr(shared_tmpdir("fxc-bar-readme-"))})
     assert ns["result"].increments == 1 and ns["result"].history[0]["roll_force"] > 0
-
-
-def test_rounded_groove_edges():
-    """``edge_radius``: the groove's edges become arcs tangent to the barrel and to the groove
-    (every junction of the profile is a tangent junction, no kink), the inscribed radius of the
-    pass stays R1, the pass opens by a few mm² (the outline sampled from the rolls), and the
-    sharp pass's outline from the rolls has the formula's area."""
-    import fxcontact as fx
-    geo = bar.pass_geometry(48.0, 50.0, 180.0)
-    roll = fx.RevolvedProfile.grooved_roll(geo["R_b"], 4 * geo["b"], geo["r_g"], geo["h_g"],
-                                           edge_radius=5.0)
-    assert "kink" not in " ".join(roll.feature_names.values())
-    assert sum("tangent junction" in v for v in roll.feature_names.values()) == 4
-    # the edge arcs' centres are r_g + r_e from the groove centre and r_e below the barrel
-    pts = roll.points
-    c_groove = np.array([0.0, geo["R_b"] - geo["h_g"] + geo["r_g"]])
-    c_edge = np.array([pts[1, 0], geo["R_b"] - 5.0])
-    assert np.linalg.norm(c_edge - c_groove) == pytest.approx(geo["r_g"] + 5.0, rel=1e-12)
-    assert np.linalg.norm(pts[2] - c_edge) == pytest.approx(5.0, rel=1e-12)
-    areas = []
-    for e in (0.0, 5.0):
-        rolls = bar.make_rolls(geo, 0.0, 0.0, [60.0, 180.0, 300.0], e)
-        P = bar.pass_outline_of_rolls(rolls, 0.0, 2.0 * geo["r_c"])
-        assert np.min(np.hypot(P[:, 0], P[:, 1])) == pytest.approx(48.0, rel=1e-9)
-        areas.append(bar.polygon_area(P))
-    assert areas[0] == pytest.approx(geo["A_pass"], rel=1e-5)
-    assert 0.0 < areas[1] - areas[0] < 0.01 * areas[0]
-    with pytest.raises(ValueError, match="edge_radius"):
-        fx.RevolvedProfile.grooved_roll(200.0, 100.0, edge_radius=2.0)

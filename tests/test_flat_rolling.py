@@ -9,19 +9,15 @@ another pass (radius, reduction, μ); 1 vs 2 ranks; the case's checks; the demo 
 README's example run."""
 
 import math
-import os
 import re
 from dataclasses import replace
-from pathlib import Path
 
 import pytest
 from mpi4py import MPI
 
 from fxcontact.processes import FlatRollingCase, flat_rolling
 
-from helpers import run_demo, shared_tmpdir
-
-ROOT = Path(__file__).resolve().parents[1]
+from helpers import run_readme_block, shared_tmpdir
 
 #: the reduced size of the tests
 QUICK = FlatRollingCase().quick()
@@ -150,36 +146,11 @@ def test_bad_case(field, value, words):
         FlatRollingCase(radius=3.0)
 
 
-@pytest.mark.serial   # the demo is its own job, on 1 and 2 ranks
-@pytest.mark.parametrize("nranks", [1, 2])
-def test_demo_runs_as_a_script(nranks, tmp_path):
-    """The demo, run as a script at the test size for three increments, prints its summary
-    and writes its rows."""
-    p = run_demo("demo_flat_rolling", "--quick", "--max_increments", 3, "--output-dir",
-                 tmp_path, "--quiet", nranks=nranks)
-    assert p.returncode == 0, p.stderr[-3000:]
-    assert "max_increments = 3 reached" in p.stdout, p.stdout
-    assert "theory P/w" in p.stdout
-    assert os.path.getsize(tmp_path / "flat_rolling_diagnostics.csv") > 0
-
-
-def readme_block(title):
-    """The python block of the README's process section ``title``."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    section = text.split(f"### {title}\n", 1)[1]
-    return re.search(r"```python\n(.*?)```", section, re.S).group(1)
-
-
 def test_readme_example():
     """The README's flat-rolling example, cut to two increments, runs and reports."""
-    code = readme_block("Flat rolling")
-    assert len(code.splitlines()) <= 40
-    old = "case.quick()"
-    assert code.count(old) == 1, "README example changed"
-    code = code.replace(old, "replace(case.quick(), max_increments=2)")
-    code = code.replace('"results/flat_rolling"', repr(shared_tmpdir("fxc-flat-readme-")))
-    ns = {"replace": replace}
-    exec(compile(code, "README.md", "exec"), ns)
+    ns = run_readme_block("Flat rolling", {
+        "case.quick()": "replace(case.quick(), max_increments=2)",
+        '"results/flat_rolling"': repr(shared_tmpdir("fxc-flat-readme-"))})
     assert ns["result"].increments == 2 and ns["result"].status == "no steady state"
 
 

@@ -45,8 +45,8 @@ import fxcontact as fx
 from fxcontact import compat
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.power import PowerBalance
-from fxcontact.processes.monitor import (SteadyMonitor, SteadyRun, StopRules, gather,
-                                         window_increments)
+from fxcontact.processes.monitor import (RunNumerics, SteadyMonitor, SteadyRun, StopRules,
+                                         gather, is_number, window_increments)
 
 __all__ = ["BarRollingCase", "BarRollingSetup", "BarRollingResult", "build", "run", "compare",
            "pass_geometry", "stand_pass", "make_rolls", "pass_outline", "pass_outline_of_rolls",
@@ -59,7 +59,7 @@ QUICK = dict(h=16.0, dt=20.0e-3, length_factor=2.6, settle=0.6, window=0.5)
 
 
 @dataclass(frozen=True)
-class BarRollingCase:
+class BarRollingCase(RunNumerics):
     """One pass of a three-roll stand; the defaults are the thesis case (lengths mm, stresses
     MPa, times s): a round bar R0 = 58 → R1 = 48 mm, groove half-angle 50°, groove-bottom roll
     radius 180 mm, groove edges rounded 5 mm; Norton–Hoff K = 50 MPa·s^m, m = 0.03; Norton
@@ -97,13 +97,12 @@ class BarRollingCase:
     m_start: float = 0.1            #: strain-rate sensitivity of the first increment
     model: str = "third"            #: "third" (symmetry planes) or "full"
     mesh: str = "symmetric"         #: "symmetric" or "gmsh"
-    scheme: str = "implicit"
+    # RunNumerics, with Newton's trust region (fewer iterations and cut-backs here)
     line_search: str = "trust-region"
-    penalty_continuation: Optional[float] = None
-    active_set_prediction: object = "auto"
     max_increments: int = 5000
 
     def __post_init__(self):
+        super().__post_init__()
         if not (_number(self.edge_radius) and self.edge_radius >= 0):
             raise ValueError(f"edge_radius must be >= 0, got {self.edge_radius!r}")
         for key in ("R0", "R1", "roll_radius", "K", "v_roll", "dt", "h", "length_factor",
@@ -130,9 +129,6 @@ class BarRollingCase:
             raise ValueError(f"model must be 'third' or 'full', got {self.model!r}")
         if self.mesh not in ("symmetric", "gmsh"):
             raise ValueError(f"mesh must be 'symmetric' or 'gmsh', got {self.mesh!r}")
-        if not (isinstance(self.max_increments, (int, np.integer)) and self.max_increments >= 1):
-            raise ValueError(f"max_increments must be an integer >= 1, got "
-                             f"{self.max_increments!r}")
         pass_geometry(self.R1, self.groove_angle, self.roll_radius)   # checks groove_angle
 
     def quick(self) -> "BarRollingCase":
@@ -147,8 +143,7 @@ class BarRollingCase:
         return math.sqrt(Rw**2 - (Rw - (float(self.R0) - float(self.R1))) ** 2)
 
 
-def _number(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+_number = is_number
 
 
 # ---- the pass and the rolls
@@ -367,10 +362,7 @@ def build(case: BarRollingCase, comm=None) -> BarRollingSetup:
     mat = _StartupNortonHoff(K=case.K, m=case.m, regularization=case.regularization * rate)
     mat.bind(msh, case.m_start)
     sp = fx.MixedSpace(msh)
-    opts = fx.SolverOptions(line_search=case.line_search,
-                            active_set_prediction=case.active_set_prediction,
-                            penalty_continuation=case.penalty_continuation)
-    sim = fx.Simulation(sp, mat, solver_options=opts, progress=False)
+    sim = fx.Simulation(sp, mat, solver_options=case.solver_options(), progress=False)
     if third:
         normals = sector_plane_normals(120.0)
         for k, name in (("symmetry_0", "sym0"), ("symmetry_1", "sym1")):
@@ -476,33 +468,28 @@ class BarRollingResult(SteadyRun):
 
     case: Optional[BarRollingCase] = None
     pass_geometry: dict = field(default_factory=dict)
-    bite_length: float = _NAN
-    omega: float = _NAN
-    z_r: float = _NAN
-    cells: int = 0
+    bite_length: float = _NAN          #: at the groove bottom [mm]
+    omega: float = _NAN                #: the rolls' angular velocity [1/s]
+    z_r: float = _NAN                  #: the exit plane (roll axes) [mm]
+    cells: int = 0                     #: of the model
     dofs: int = 0
-    factor: float = 1.0
-    n_model_rolls: float = 1.0
-    roll_force: float = _NAN
-    roll_force_axial: float = _NAN
-    roll_torque: float = _NAN
-    contact_area: float = _NAN
-    penetration: float = _NAN
-    power_balance: float = _NAN
-    power_balance_penalty: float = _NAN
-    dissipation: float = _NAN
-    friction_power: float = _NAN
-    roll_power: float = _NAN
-    penalty_power: float = _NAN
-    exit_area: float = _NAN
-    stand_torque: float = _NAN
-    stand_power: float = _NAN
-    stand_contact_area: float = _NAN
+    factor: float = 1.0                #: model → whole stand
+    n_model_rolls: float = 1.0         #: rolls in the model
+    roll_force: float = _NAN           #: radial (separating) force per roll [N]
+    roll_force_axial: float = _NAN     #: axial force per roll [N]
+    roll_torque: float = _NAN          #: driving torque per roll [N mm]
+    contact_area: float = _NAN         #: of the model [mm²]
+    penetration: float = _NAN          #: true penetration [mm]
+    roll_power: float = _NAN           #: M ω of the model's rolls [N mm/s]
+    exit_area: float = _NAN            #: of the whole bar's exit section [mm²]
+    stand_torque: float = _NAN         #: [N mm]
+    stand_power: float = _NAN          #: [N mm/s]
+    stand_contact_area: float = _NAN   #: [mm²]
     force_oscillation: float = _NAN
-    fill: float = _NAN
+    fill: float = _NAN                 #: exit area / pass area
     fill_inscribed: float = _NAN
     outline: Optional[np.ndarray] = None
-    radius_gap: float = _NAN
+    radius_gap: float = _NAN           #: the section's radius at the roll gaps [mm]
     radius_min: float = _NAN
     radius_max: float = _NAN
     pictures: List[str] = field(default_factory=list)

@@ -36,8 +36,8 @@ import dolfinx.mesh
 import fxcontact as fx
 from fxcontact import compat, rolling
 from fxcontact.power import PowerBalance
-from fxcontact.processes.monitor import (SteadyMonitor, SteadyRun, StopRules, gather,
-                                         window_increments)
+from fxcontact.processes.monitor import (RunNumerics, SteadyMonitor, SteadyRun, StopRules,
+                                         gather, is_number, window_increments)
 
 __all__ = ["FlatRollingCase", "FlatRollingSetup", "FlatRollingResult", "build", "run",
            "strip_mesh", "faceted_roll", "ROLLS"]
@@ -51,7 +51,7 @@ QUICK = dict(h_x=7.5, ny=3, nz=2, dt=3.0e-3, length_factor=2.2, settle=0.3, wind
 
 
 @dataclass(frozen=True)
-class FlatRollingCase:
+class FlatRollingCase(RunNumerics):
     """One pass of flat rolling; the defaults are the thesis case (lengths mm, stresses MPa,
     times s): a strip 100 mm wide, 25 → 18 mm (28 %), rolls R = 300 mm at 500 mm/s,
     Norton–Hoff K = 30 MPa·s^m, m = 0.3, Coulomb μ = 0.3 limited by Tresca m̄ = 1; the mesh
@@ -87,13 +87,11 @@ class FlatRollingCase:
     steady_tol: float = 0.03        #: relative change of the window means
     roll: str = "analytic"          #: one of :data:`ROLLS`
     facet_size: Optional[float] = None   #: faceted roll: facet width (default h_x/2)
-    scheme: str = "implicit"
-    line_search: str = "bt"
-    penalty_continuation: Optional[float] = None
-    active_set_prediction: object = "auto"
-    max_increments: int = 2000
+    # (RunNumerics: scheme, line_search, penalty_continuation, active_set_prediction,
+    # max_increments)
 
     def __post_init__(self):
+        super().__post_init__()
         for key in ("R", "h0", "width", "K", "v_roll", "dt", "h_x", "length_factor",
                     "slip_ratio", "push_ratio", "grip_travel", "window", "steady_tol"):
             _positive(key, getattr(self, key))
@@ -113,7 +111,7 @@ class FlatRollingCase:
             raise ValueError(f"mbar (Tresca factor) must be in [0, 1], got {self.mbar!r}")
         if not (_number(self.settle) and self.settle >= 0):
             raise ValueError(f"settle must be a finite number >= 0, got {self.settle!r}")
-        for key in ("ny", "nz", "max_increments"):
+        for key in ("ny", "nz"):
             if not (isinstance(getattr(self, key), (int, np.integer)) and getattr(self, key) >= 1):
                 raise ValueError(f"{key} must be an integer >= 1, got {getattr(self, key)!r}")
         if self.roll not in ROLLS:
@@ -135,8 +133,7 @@ class FlatRollingCase:
         return rolling.bite(float(self.R), float(self.h0), self.h1)
 
 
-def _number(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+_number = is_number
 
 
 def _positive(name, x):
@@ -220,7 +217,7 @@ class FlatRollingSetup:
     x_entry: float                #: the entry plane (x < 0)
     x_front: float                #: the front at the start
     v_push: float
-    facet_sag: float = 0.0
+    facet_sag: float = 0.0             #: a faceted roll's sag [mm]
     t_release: float = math.inf   #: the time the pusher stopped (set at the grip)
 
     def pusher_speed(self, t: float) -> float:
@@ -254,10 +251,7 @@ def build(case: FlatRollingCase, comm=None, output_dir: Optional[str] = None,
     msh, ft = strip_mesh(comm, x_front - length, x_front, 0.5 * case.width, 0.5 * h0, nx,
                          int(case.ny), int(case.nz), 0.5 * h1 + R, R)
     sp = fx.MixedSpace(msh)
-    opts = fx.SolverOptions(line_search=case.line_search,
-                            active_set_prediction=case.active_set_prediction,
-                            penalty_continuation=case.penalty_continuation)
-    sim = fx.Simulation(sp, mat, solver_options=opts,
+    sim = fx.Simulation(sp, mat, solver_options=case.solver_options(),
                         output_dir=output_dir if vtk_every else None, name="flat_rolling",
                         output_every=max(1, int(vtk_every or 1)), progress=False)
     f = {k: sim.facets(ft, v) for k, v in fx.BLOCK_TAGS.items()}
@@ -407,26 +401,21 @@ class FlatRollingResult(SteadyRun):
 
     case: Optional[FlatRollingCase] = None
     theory: dict = field(default_factory=dict)
-    sigma0: float = _NAN
-    mean_strain_rate: float = _NAN
-    h1: float = _NAN
-    contact_length_theory: float = _NAN
-    bite_angle: float = _NAN
+    sigma0: float = _NAN               #: flow stress at the bite's mean strain rate [MPa]
+    mean_strain_rate: float = _NAN     #: (v_R / L) ln(h0 / h1) [1/s]
+    h1: float = _NAN                   #: exit thickness [mm]
+    contact_length_theory: float = _NAN  #: L = √(R Δh) [mm]
+    bite_angle: float = _NAN           #: α [rad]
     facet_sag: float = 0.0
-    force_per_width: float = _NAN
-    torque_per_width: float = _NAN
-    forward_slip: float = _NAN
-    half_width_exit: float = _NAN
-    half_width_exit_max: float = _NAN
-    contact_length: float = _NAN
-    power_balance: float = _NAN
-    power_balance_penalty: float = _NAN
-    penetration: float = _NAN
-    dissipation: float = _NAN
-    friction_power: float = _NAN
-    roll_power: float = _NAN
-    penalty_power: float = _NAN
-    damper_power: float = _NAN
+    force_per_width: float = _NAN      #: roll separating force per unit width [N/mm]
+    torque_per_width: float = _NAN     #: driving torque of one roll per width [N mm/mm]
+    forward_slip: float = _NAN         #: exit speed / roll speed − 1
+    half_width_exit: float = _NAN      #: mean half-width past the exit [mm]
+    half_width_exit_max: float = _NAN  #: largest half-width past the exit [mm]
+    contact_length: float = _NAN       #: x-extent of the contact nodes [mm]
+    penetration: float = _NAN          #: true penetration [mm]
+    roll_power: float = _NAN           #: −M ω of the quarter [N mm/s]
+    damper_power: float = _NAN         #: the tail's pseudo-inertia [N mm/s]
     force_oscillation: float = _NAN
     force_ratio_band: tuple = (_NAN, _NAN)
     force_ratio_slab: float = _NAN

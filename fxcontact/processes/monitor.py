@@ -38,8 +38,8 @@ import numpy as np
 from fxcontact.simulation import IncrementError, format_wall_split, wall_split
 from fxcontact.steady import steady_window
 
-__all__ = ["StopRules", "SteadyMonitor", "SteadyRun", "STATUSES", "window_increments",
-           "gather"]
+__all__ = ["StopRules", "SteadyMonitor", "SteadyRun", "RunNumerics", "STATUSES",
+           "window_increments", "gather", "is_number"]
 
 log = logging.getLogger("fxcontact.processes")
 
@@ -59,12 +59,42 @@ def gather(comm, arr) -> np.ndarray:
     return np.concatenate(parts) if parts else np.asarray(arr)
 
 
+def is_number(x) -> bool:
+    """A finite int or float (not a bool)."""
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
 def _finite(name, value, low=0.0, strict=True):
-    ok = isinstance(value, (int, float)) and math.isfinite(value) and (
+    ok = is_number(value) and (
         value > low if strict else value >= low)
     if not ok:
         raise ValueError(f"{name} must be a finite number {'>' if strict else '>='} {low:g}, "
                          f"got {value!r}")
+
+
+@dataclass(frozen=True)
+class RunNumerics:
+    """The numerics every process case shares (the base of the cases): the contact scheme,
+    Newton's line search, penalty continuation and active-set prediction
+    (:class:`fxcontact.SolverOptions`), and the increments allowed."""
+
+    scheme: str = "implicit"
+    line_search: str = "bt"
+    penalty_continuation: Optional[float] = None
+    active_set_prediction: object = "auto"
+    max_increments: int = 2000
+
+    def __post_init__(self):
+        if not (isinstance(self.max_increments, (int, np.integer)) and self.max_increments >= 1):
+            raise ValueError(f"max_increments must be an integer >= 1, got "
+                             f"{self.max_increments!r}")
+
+    def solver_options(self):
+        """The :class:`fxcontact.SolverOptions` of these numerics."""
+        from fxcontact.solver import SolverOptions
+        return SolverOptions(line_search=self.line_search,
+                             active_set_prediction=self.active_set_prediction,
+                             penalty_continuation=self.penalty_continuation)
 
 
 @dataclass(frozen=True)
@@ -125,6 +155,12 @@ class SteadyRun:
     gripped_at: Optional[float]
     steady_from: Optional[int]
     wall: float
+    # the steady window's means of the power balance (:class:`fxcontact.power.PowerBalance`)
+    dissipation: float = math.nan
+    friction_power: float = math.nan
+    penalty_power: float = math.nan
+    power_balance: float = math.nan
+    power_balance_penalty: float = math.nan
 
     @property
     def increments(self) -> int:
@@ -177,7 +213,7 @@ class SteadyRun:
 
     def run_fields(self) -> dict:
         """This run's fields (to build a process result from it)."""
-        return {f.name: getattr(self, f.name) for f in fields(SteadyRun)}
+        return {f.name: getattr(self, f.name) for f in fields(SteadyRun)[:6]}
 
 
 class SteadyMonitor:
