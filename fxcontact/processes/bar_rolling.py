@@ -305,8 +305,6 @@ class BarRollingSetup:
 
     case: BarRollingCase
     sim: object                   #: the :class:`fxcontact.Simulation`
-    roll_contact: object          #: one :class:`fxcontact.NodalContact` for the rolls
-    pusher_contact: object
     rolls: list                   #: the rolls of the model (roll0, …)
     material: object              #: Norton–Hoff with the start-up exponent
     pass_geometry: dict           #: :func:`stand_pass`
@@ -314,8 +312,10 @@ class BarRollingSetup:
     omega: float
     z_r: float                    #: the exit plane (roll axes)
     thetas: list                  #: the rolls' angles about the bar axis [degrees]
-    v_push: float
+    v_push: float                 #: the pusher's speed until the grip
     facet_tags: object = None     #: the bar's facet tags (:data:`DRAWING_BAR_TAGS`)
+    roll_contact: object = None   #: one :class:`fxcontact.NodalContact` for the rolls
+    pusher_contact: object = None
     t_release: float = math.inf
 
     @property
@@ -373,8 +373,9 @@ def build(case: BarRollingCase, comm=None) -> BarRollingSetup:
                          friction=friction, slip_velocity=case.slip_velocity * v_R,
                          name="roll_contact", **penalty)
     A0 = math.pi * R0**2
-    setup = BarRollingSetup(case, sim, rc, None, rolls, mat, geo, L, omega, z_r, thetas,
-                            case.push_ratio * v_R * geo["A_pass"] / A0, facet_tags=ft)
+    setup = BarRollingSetup(case, sim, rolls, mat, geo, L, omega, z_r, thetas,
+                            case.push_ratio * v_R * geo["A_pass"] / A0, facet_tags=ft,
+                            roll_contact=rc)
     pusher = fx.Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0),
                       velocity=lambda t: (0.0, 0.0, setup.pusher_speed(t)), name="pusher")
     setup.pusher_contact = fx.NodalContact(

@@ -205,10 +205,6 @@ class FlatRollingSetup:
 
     case: FlatRollingCase
     sim: object                   #: the :class:`fxcontact.Simulation`
-    roll_contact: object          #: :class:`fxcontact.NodalContact` of the roll
-    pusher_contact: object        #: :class:`fxcontact.NodalContact` of the pusher
-    damper: object                #: the tail's :class:`fxcontact.NodalSprings` (or None)
-    tail: object                  #: the tail face's :class:`fxcontact.ContactBoundary`
     material: object
     theory: dict                  #: :func:`fxcontact.rolling.theory_band` of the pass
     sigma0: float                 #: flow stress at the bite's mean strain rate
@@ -216,8 +212,12 @@ class FlatRollingSetup:
     omega: float                  #: the roll's angular velocity
     x_entry: float                #: the entry plane (x < 0)
     x_front: float                #: the front at the start
-    v_push: float
-    facet_sag: float = 0.0             #: a faceted roll's sag [mm]
+    v_push: float                 #: the pusher's speed until the grip
+    facet_sag: float = 0.0        #: a faceted roll's sag
+    roll_contact: object = None   #: :class:`fxcontact.NodalContact` of the roll
+    pusher_contact: object = None  #: :class:`fxcontact.NodalContact` of the pusher
+    tail: object = None           #: the tail face's :class:`fxcontact.ContactBoundary`
+    damper: object = None         #: the tail's :class:`fxcontact.NodalSprings` (or None)
     t_release: float = math.inf   #: the time the pusher stopped (set at the grip)
 
     def pusher_speed(self, t: float) -> float:
@@ -267,8 +267,8 @@ def build(case: FlatRollingCase, comm=None, output_dir: Optional[str] = None,
     rc = fx.NodalContact(fx.ContactBoundary(sp, ft, fx.BLOCK_TAGS["zmax"]), roll,
                          scheme=case.scheme, friction=fx.Coulomb(case.mu, mbar=case.mbar),
                          slip_velocity=case.slip_ratio * v_R, name="roll_contact")
-    setup = FlatRollingSetup(case, sim, rc, None, None, None, mat, theory, sigma0, rate, omega,
-                             x_entry, x_front, case.push_ratio * v_R * h1 / h0, facet_sag=sag)
+    setup = FlatRollingSetup(case, sim, mat, theory, sigma0, rate, omega, x_entry, x_front,
+                             case.push_ratio * v_R * h1 / h0, facet_sag=sag, roll_contact=rc)
     pusher = fx.Plane((x_front - length, 0.0, 0.0), (1.0, 0.0, 0.0),
                       velocity=lambda t: (setup.pusher_speed(t), 0.0, 0.0), name="pusher")
     setup.pusher_contact = fx.NodalContact(
@@ -406,7 +406,7 @@ class FlatRollingResult(SteadyRun):
     h1: float = _NAN                   #: exit thickness [mm]
     contact_length_theory: float = _NAN  #: L = √(R Δh) [mm]
     bite_angle: float = _NAN           #: α [rad]
-    facet_sag: float = 0.0
+    facet_sag: float = 0.0             #: a faceted roll's sag [mm]
     force_per_width: float = _NAN      #: roll separating force per unit width [N/mm]
     torque_per_width: float = _NAN     #: driving torque of one roll per width [N mm/mm]
     forward_slip: float = _NAN         #: exit speed / roll speed − 1
