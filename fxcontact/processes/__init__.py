@@ -14,10 +14,10 @@ pictures, ``report()``).
 from fxcontact.processes import bar_rolling, flat_rolling
 from fxcontact.processes.bar_rolling import BarRollingCase, BarRollingResult, BarRollingSetup
 from fxcontact.processes.flat_rolling import FlatRollingCase, FlatRollingResult, FlatRollingSetup
-from fxcontact.processes.monitor import (STATUSES, SteadyMonitor, SteadyRun, StopRules,
-                                         window_increments)
+from fxcontact.processes.monitor import (STATUSES, RunNumerics, SteadyMonitor, SteadyRun,
+                                         StopRules, window_increments)
 
 __all__ = ["bar_rolling", "flat_rolling",
            "BarRollingCase", "BarRollingResult", "BarRollingSetup",
            "FlatRollingCase", "FlatRollingResult", "FlatRollingSetup",
-           "STATUSES", "SteadyMonitor", "SteadyRun", "StopRules", "window_increments"]
+           "STATUSES", "RunNumerics", "SteadyMonitor", "SteadyRun", "StopRules", "window_increments"]
