@@ -1,6 +1,6 @@
 """Flat rolling with fine and 5× coarser faceted rolls: the thesis's comparison (THEORY §12.3).
 
-The case of ``demos/demo_flat_rolling.py`` (strip 100 × 25 mm, 28 % reduction, R = 300 mm,
+The case of :mod:`fxcontact.processes.flat_rolling` (strip 100 × 25 mm, 28 % reduction, R = 300 mm,
 one quarter, Norton–Hoff K = 30 MPa, m = 0.3, Coulomb μ = 0.3 limited by Tresca m̄ = 1,
 v_R = 500 mm/s) run to steady state with the roll as
 
@@ -35,7 +35,7 @@ the strip passes the bite in updated Lagrangian, so the bite's element size is t
 stop at steady state, so their wall times are not comparable one for one with the thesis's CPU
 times; the ratios between variants are.
 
-``--size s`` scales the mesh: s = 1 is the thesis-size mesh of the demo (h_x = 3 mm along the
+``--size s`` scales the mesh: s = 1 is the thesis-size mesh of the case (h_x = 3 mm along the
 strip, 8 × 4 elements across the quarter section, dt = 0.75 ms); h_x = 3/s, ny = round(8 s),
 nz = round(4 s) (at least 2 each), dt = 0.75 ms/s (the roll travels the same fraction of an
 element per increment). The acceptance checks of the comparison (issue: the coarse Nagata roll's
@@ -65,8 +65,10 @@ from typing import Dict, List, Optional
 import numpy as np
 from mpi4py import MPI
 
+from fxcontact.processes import FlatRollingCase, flat_rolling
+
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import ROOT, load_demo  # noqa: E402
+from _common import ROOT  # noqa: E402
 
 #: The thesis's flat-rolling figures (THEORY §12.3; case in §12.2). Max equivalent strain at
 #: 0.45 s and CPU time (min:s) for 0.5 s of process. The mapping of the four coarse-roll maxima
@@ -94,8 +96,13 @@ COLUMNS = ("variant", "status", "increments", "t_end", "eps_t", "eps_end", "forc
            "contact_nodes", "newton_mean", "wall")
 
 
+#: what a run keeps for the table (and the pickles of ``--save``)
+KEEP = ("variant", "status", "history", "gripped_at", "steady_from", "newton_mean", "wall",
+        "increments")
+
+
 def size_parameters(size: float) -> dict:
-    """Demo parameters of the mesh scale ``size`` (1 = the thesis size)."""
+    """Case fields of the mesh scale ``size`` (1 = the thesis size)."""
     if not (math.isfinite(size) and size > 0):
         raise ValueError(f"size must be a finite number > 0, got {size!r}")
     return dict(h_x=3.0 / size, ny=max(2, int(round(8 * size))),
@@ -104,21 +111,20 @@ def size_parameters(size: float) -> dict:
 
 def run_variant(name: str, size: float, max_increments: Optional[int] = None,
                 output_dir: Optional[str] = None, comm=None, **extra) -> dict:
-    """Run one variant with the demo; returns the demo's result dict plus ``variant``."""
+    """Run one variant (:mod:`fxcontact.processes.flat_rolling`; ``extra``: more case fields);
+    returns the run's :data:`KEEP` values as a dict."""
     if name not in VARIANTS:
         raise ValueError(f"unknown variant {name!r}; known: {sorted(VARIANTS)}")
-    demo = load_demo("demo_flat_rolling")
     roll, coarse, scheme = VARIANTS[name]
-    kw = {**size_parameters(size), "roll": roll, "scheme": scheme, "pictures": False,
-          "output_dir": output_dir, "comm": comm, **extra}
+    kw = {**size_parameters(size), "roll": roll, "scheme": scheme, **extra}
     if roll != "analytic":
         fine = 0.5 * kw["h_x"]
         kw["facet_size"] = 5.0 * fine if coarse else fine
     if max_increments is not None:
         kw["max_increments"] = int(max_increments)
-    res = demo.run(**kw)
-    res["variant"] = name
-    return res
+    res = flat_rolling.run(FlatRollingCase(**kw), comm=comm, output_dir=output_dir,
+                           pictures=False)
+    return {"variant": name, **{k: getattr(res, k) for k in KEEP[1:]}}
 
 
 def _window(res) -> List[dict]:
@@ -233,7 +239,7 @@ def main(argv=None):
     ap.add_argument("--variants", default=",".join(VARIANTS),
                     help=f"comma-separated subset of {','.join(VARIANTS)}")
     ap.add_argument("--short", action="store_true",
-                    help="the short strip and steady-state windows of the demo's QUICK size")
+                    help="the short strip and steady-state windows of the case's quick() size")
     ap.add_argument("--dt", type=float, default=None, help="override the size's time step")
     ap.add_argument("--max-increments", type=int, default=None)
     ap.add_argument("--t-fix", type=float, default=None,
@@ -261,9 +267,9 @@ def main(argv=None):
         return _report(results, a, comm)
     extra = {}
     if a.short:
-        demo = load_demo("demo_flat_rolling")
-        extra = {k: v for k, v in demo.QUICK.items()
-                 if k in ("length_factor", "settle", "window", "steady_tol")}
+        quick = FlatRollingCase().quick()
+        extra = {k: getattr(quick, k) for k in ("length_factor", "settle", "window",
+                                                  "steady_tol")}
     if a.dt is not None:
         extra["dt"] = a.dt
     results = []
@@ -275,10 +281,8 @@ def main(argv=None):
                   f"{time.perf_counter() - t0:.0f} s", flush=True)
         results.append(res)
     if a.save and comm.rank == 0:
-        keep = ("variant", "status", "history", "gripped_at", "steady_from", "newton_mean",
-                "wall", "increments", "parameters")
         with open(a.save, "wb") as fh:
-            pickle.dump([{k: r.get(k) for k in keep} for r in results], fh)
+            pickle.dump(results, fh)
     return _report(results, a, comm)
 
 

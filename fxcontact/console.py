@@ -33,8 +33,8 @@ import sys
 
 from mpi4py import MPI
 
-__all__ = ["configure_logging", "add_verbosity_arguments", "progress_enabled", "ALL_RANKS",
-           "RankFilter", "auto_on_off"]
+__all__ = ["configure_logging", "add_verbosity_arguments", "case_parser", "parse_case",
+           "progress_enabled", "ALL_RANKS", "RankFilter", "auto_on_off"]
 
 #: ``extra=`` argument of a logging call whose message is rank-local (printed by every rank).
 ALL_RANKS = {"all_ranks": True}
@@ -158,3 +158,40 @@ def add_verbosity_arguments(parser):
     g.add_argument("-q", "--quiet", action="store_true",
                    help="warnings and errors only, no progress bar")
     return parser
+
+
+#: argparse types of the annotations of a process case's fields
+_CASE_TYPES = {"float": float, "Optional[float]": float, "int": int, "str": str}
+
+
+def case_parser(case_type, description: str, output_dir: str):
+    """An argparse parser for a process demo: ``--quick`` and one ``--<field>`` per field of
+    the case (a dataclass such as :class:`fxcontact.processes.FlatRollingCase`), typed from the
+    field's annotation (``auto|on|off`` for a field whose default is ``"auto"``),
+    ``--output-dir`` and ``--verbose``/``--quiet``. Add the demo's own options, then
+    :func:`parse_case`."""
+    import argparse
+    import dataclasses
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--quick", action="store_true",
+                        help="the reduced size of the tests (the case's quick())")
+    for f in dataclasses.fields(case_type):
+        conv = _CASE_TYPES.get(str(f.type), auto_on_off if f.default == "auto" else str)
+        parser.add_argument(f"--{f.name}", type=conv, help=f"default {f.default!r}")
+    parser.add_argument("--output-dir", dest="output_dir", default=output_dir,
+                        help=f"where the results go (default {output_dir})")
+    add_verbosity_arguments(parser)
+    return parser
+
+
+def parse_case(parser, case_type, argv=None):
+    """Parse the command line of :func:`case_parser`, configure the console
+    (:func:`configure_logging`) and return ``(case, args)``: the default case (its ``quick()``
+    with ``--quick``) with the fields given on the command line."""
+    import dataclasses
+    args = parser.parse_args(argv)
+    configure_logging(verbose=args.verbose, quiet=args.quiet)
+    case = case_type().quick() if args.quick else case_type()
+    given = {f.name: getattr(args, f.name) for f in dataclasses.fields(case_type)
+             if getattr(args, f.name) is not None}
+    return dataclasses.replace(case, **given), args

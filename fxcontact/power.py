@@ -10,6 +10,8 @@ for every pressure test function, the pressure itself included.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import ufl
 from mpi4py import MPI
@@ -18,8 +20,8 @@ import dolfinx
 
 from fxcontact import compat
 
-__all__ = ["PlasticDissipation", "PressurePower", "plastic_dissipation", "penalty_power",
-           "on_configuration"]
+__all__ = ["PlasticDissipation", "PressurePower", "PowerBalance", "plastic_dissipation",
+           "penalty_power", "on_configuration"]
 
 
 class PlasticDissipation:
@@ -98,3 +100,37 @@ def penalty_power(contact, v, t):
     else:
         P = 0.0
     return b.comm.allreduce(P, op=MPI.SUM)
+
+
+class PowerBalance:
+    """The power balance of a process, one row per increment (collective).
+
+    ``balance(row, tool_power, absorbed=0.0)``, called after each increment with its history row
+    (``sim.step(dt).row``), returns the columns ``dissipation`` (∫ s:D dV − ∫ p div v dV on the
+    configuration the increment was solved on, THEORY §1.5), ``friction_power`` (the contacts'
+    ``{name}_friction_power``), ``penalty_power`` (:func:`penalty_power` of the contacts),
+    ``power_balance = tool_power / (D + P_f + absorbed) − 1`` and ``power_balance_penalty``
+    (with the penalty work in the denominator: the discrete virtual-power identity, ≈ 1e-5).
+    ``tool_power`` is the power the tools deliver (roll torque × ω, pusher force × speed),
+    ``absorbed`` any other power taken by a contributor of the process (a dashpot)."""
+
+    def __init__(self, sim, contacts):
+        self.sim = sim
+        self.contacts = list(contacts)
+        self._dissipation = PlasticDissipation(sim)
+        self._pressure = PressurePower(sim)
+
+    def __call__(self, row: dict, tool_power: float, absorbed: float = 0.0) -> dict:
+        sim = self.sim
+        X = sim.vertex_positions()
+        v = sim.w.x.array[sim.space.vertex_dofs]
+        X0 = X - row["dt"] * v          # the increment's equations were written there
+        D = on_configuration(sim, X0, self._dissipation)
+        D -= on_configuration(sim, X0, self._pressure)
+        Pf = sum(row.get(f"{c.name}_friction_power", 0.0) for c in self.contacts)
+        P_pen = sum(penalty_power(c, v, sim.t) for c in self.contacts)
+        ok = D + Pf > 0
+        return dict(dissipation=D, friction_power=Pf, penalty_power=P_pen,
+                    power_balance=tool_power / (D + Pf + absorbed) - 1.0 if ok else math.nan,
+                    power_balance_penalty=tool_power / (D + Pf + absorbed + P_pen) - 1.0
+                    if ok else math.nan)

@@ -122,3 +122,47 @@ def assert_newton_counts_match(a: int, b: int, bitwise: bool = False):
         assert a == b, (a, b)
     else:
         assert abs(a - b) <= 1, (a, b)
+
+
+def run_demo(name, *args, nranks=1, timeout=HANG_TIMEOUT):
+    """Run ``demos/<name>.py`` with ``args`` as its own job (``mpirun -n nranks`` when more
+    than one) in a subprocess from the repository root; returns the ``CompletedProcess`` (its
+    output as text). A demo that hangs is killed after ``timeout``."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, PYTHONPATH=str(root) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+               OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OPENBLAS_NUM_THREADS="1")
+    for k in list(env):  # the child is its own MPI job
+        if k.startswith(("OMPI_COMM", "PMIX_", "OMPI_MCA_ess", "OMPI_MCA_orte")):
+            env.pop(k)
+    cmd = [sys.executable, str(root / "demos" / f"{name}.py"), *map(str, args)]
+    if nranks > 1:
+        cmd = ["mpirun", "-n", str(nranks), "--oversubscribe"] + cmd
+    return subprocess.run(cmd, env=env, cwd=str(root), capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def run_readme_block(title, replacements, max_lines=40):
+    """Run the python block of the README's section ``### <title>`` with ``replacements``
+    (old → new, each found exactly once: an example that no longer matches fails) in a
+    namespace holding ``dataclasses.replace`` as ``replace``; returns the namespace. The block
+    must stay within ``max_lines`` lines."""
+    import dataclasses
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    code = re.search(r"```python\n(.*?)```", text.split(f"### {title}\n", 1)[1],
+                     re.S).group(1)
+    assert len(code.splitlines()) <= max_lines, f"README {title}: more than {max_lines} lines"
+    for old, new in replacements.items():
+        assert code.count(old) == 1, f"README example {title} changed: {old!r} not found once"
+        code = code.replace(old, new)
+    ns = {"replace": dataclasses.replace}
+    exec(compile(code, "README.md", "exec"), ns)
+    return ns

@@ -1,4 +1,4 @@
-"""Three-roll bar rolling (demos/demo_bar_rolling.py) at a reduced size: the pass design
+"""Three-roll bar rolling (fxcontact.processes.bar_rolling) at a reduced size: the pass design
 (inscribed radius, opening area against an independent polygon area), the exact plane cut of
 the tetrahedra used for the exit section, the meshes of a mirror-symmetric third and of the
 whole bar made of its turned copies, the third with its inclined symmetry planes against the
@@ -6,12 +6,13 @@ whole model with three rolls (a few increments: within 1 % is the acceptance; on
 meshes the two discrete problems are the same and agree to the solver's tolerance), and 1 vs 2
 ranks. The steady-state items (volume, exit area against the pass, power balance) need ~80
 increments at the test size (7 min on a loaded 2-core machine; passed): they are checked by
-``test_steady_state``, marked ``slow`` and skipped unless ``FXC_SLOW=1``; the figures are in the
-demo's results table."""
+``test_steady_state``, marked ``slow`` and skipped unless ``FXC_SLOW=1``; the figures are in
+docs/validation.md. The case's checks; the demo and the README's example run."""
 
 import math
 import os
-import sys
+import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -23,13 +24,15 @@ import ufl
 
 from fxcontact import compat
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar
+from fxcontact.processes import BarRollingCase
+from fxcontact.processes import bar_rolling as bar
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(os.path.dirname(HERE), "demos"))
-import demo_bar_rolling as demo  # noqa: E402
+from helpers import run_readme_block, shared_tmpdir
 
+#: the reduced size of the tests
+QUICK = BarRollingCase().quick()
 #: a short bar, the test size: a few increments of the start
-SHORT = {**demo.QUICK, "output_dir": None, "pictures": False, "length_factor": 1.6}
+SHORT = replace(QUICK, length_factor=1.6)
 
 
 def _polygon_area(P):
@@ -42,22 +45,22 @@ def test_pass_design(beta_deg, R1, Rw):
     radius is R1 (the groove arcs are centred on the bar axis) and whose largest radius is the
     corner r_c on the planes between the rolls; the opening area formula equals the area of
     the finely sampled outline, and the outline lies on the rolls (projection gap 0)."""
-    geo = demo.pass_geometry(R1, beta_deg, Rw)
+    geo = bar.pass_geometry(R1, beta_deg, Rw)
     assert geo["R_b"] - geo["h_g"] == pytest.approx(Rw)
-    rolls = demo.make_rolls(geo, 0.0, 1.0, [60.0, 180.0, 300.0])
+    rolls = bar.make_rolls(geo, 0.0, 1.0, [60.0, 180.0, 300.0])
     th = np.radians(np.linspace(0.0, 360.0, 721))
-    r = demo.pass_radius(rolls, th, np.zeros_like(th), 2.0 * geo["r_c"], tol=1e-12)
+    r = bar.pass_radius(rolls, th, np.zeros_like(th), 2.0 * geo["r_c"], tol=1e-12)
     assert np.min(r) == pytest.approx(R1, rel=1e-9)
     assert np.max(r) == pytest.approx(geo["r_c"], rel=1e-9)
     assert r[0] == pytest.approx(geo["r_c"], rel=1e-9)             # θ = 0: a roll gap
     assert r[120] == pytest.approx(R1, rel=1e-9)                     # θ = 60°: groove bottom
-    P = demo.pass_outline(geo, n=4000)
+    P = bar.pass_outline(geo, n=4000)
     assert _polygon_area(P) == pytest.approx(geo["A_pass"], rel=1e-5)
     gaps = np.min([roll.project(np.c_[P, np.zeros(len(P))], 0.0).gap for roll in rolls],
                   axis=0)
     assert np.max(np.abs(gaps)) < 1e-9 * R1
     with pytest.raises(ValueError, match="groove_angle"):
-        demo.pass_geometry(R1, 61.0, Rw)
+        bar.pass_geometry(R1, 61.0, Rw)
 
 
 def test_section_area_of_a_box():
@@ -74,8 +77,8 @@ def test_section_area_of_a_box():
     geo_of_vertex = compat.entities_to_geometry(msh, 0, np.arange(len(X), dtype=np.int32))
     Xv = X[geo_of_vertex.ravel()]
     for z in (0.13, 0.5 + 1e-3, 0.77):
-        assert demo.section_area(Xv, cells, z) == pytest.approx(6.0, rel=1e-12)
-    assert demo.section_area(Xv, cells, 1.5) == 0.0
+        assert bar.section_area(Xv, cells, z) == pytest.approx(6.0, rel=1e-12)
+    assert bar.section_area(Xv, cells, 1.5) == 0.0
 
 
 def _volume(msh):
@@ -120,7 +123,7 @@ def third_and_full():
     # and cut back, so the two histories were at different times). Since the trust region
     # starts from rest with the full Newton step, the first increment at 10 ms takes 14
     # iterations in both models, on 1 and 2 ranks (25-29 before).
-    return demo.compare(2, **{**SHORT, "dt": 0.01})
+    return bar.compare(replace(SHORT, dt=0.01), 2)
 
 
 def test_third_equals_full_model(third_and_full):
@@ -129,16 +132,16 @@ def test_third_equals_full_model(third_and_full):
     increment (each of the whole model's rolls) agree to 1e-6 (the acceptance is 1 %), and so
     do the dissipation (× 3) and the volume change."""
     res = third_and_full
-    times = [[q["time"] for q in res[k]["history"]] for k in ("third", "full")]
+    times = [[q["time"] for q in res[k].history] for k in ("third", "full")]
     assert times[0] == times[1], f"the two models cut back differently: {times}"
     assert res["max_rel_diff"]["radial_force"] < 1e-6, res["max_rel_diff"]
     assert res["max_rel_diff"]["torque"] < 1e-6, res["max_rel_diff"]
-    for qa, qb in zip(res["third"]["history"], res["full"]["history"]):
+    for qa, qb in zip(res["third"].history, res["full"].history):
         assert qb["dissipation"] == pytest.approx(3.0 * qa["dissipation"], rel=1e-6)
         assert qb["contact_nodes"] == 3 * qa["contact_nodes"]
         assert abs(qa["volume_change"] - qb["volume_change"]) < 1e-9
         assert qa["roll_force"] > 0 and qa["roll_torque"] > 0     # the roll drives the bar
-    assert len(res["third"]["history"]) == len(res["full"]["history"]) == 2
+    assert len(res["third"].history) == len(res["full"].history) == 2
 
 
 def test_volume_quality_and_power_identity(third_and_full):
@@ -146,10 +149,10 @@ def test_volume_quality_and_power_identity(third_and_full):
     inverted or flat element, penetration ≪ the element size, and the discrete virtual-power
     identity (tool power = dissipation + friction + penalty work) to 1e-3."""
     for res in (third_and_full["third"], third_and_full["full"]):
-        assert res["max_volume_change"] < 1e-4
-        assert res["min_quality"] > 0.1
-        assert res["max_penetration"] < 0.02 * res["parameters"]["h"]
-        for q in res["history"]:
+        assert res.max_volume_change < 1e-4
+        assert res.min_quality > 0.1
+        assert res.max_penetration < 0.02 * res.case.h
+        for q in res.history:
             assert abs(q["power_balance_penalty"]) < 1e-3, q["power_balance_penalty"]
 
 
@@ -157,8 +160,8 @@ def test_one_and_two_ranks_agree():
     """Two increments of the third on all ranks and on COMM_SELF agree to 1e-8."""
     hs = []
     for comm in (MPI.COMM_WORLD, MPI.COMM_SELF):
-        res = demo.run(**{**SHORT, "max_increments": 2, "comm": comm})
-        hs.append(res["history"])
+        res = bar.run(replace(SHORT, max_increments=2), comm=comm, pictures=False)
+        hs.append(res.history)
     for a, b in zip(*hs):
         for k in ("roll_force", "roll_torque", "roll_force_axial", "dissipation",
                   "friction_power", "pusher_force"):
@@ -173,55 +176,40 @@ def test_steady_state(tmp_path):
     """The test size to steady state: volume conserved to 0.5 %, exit area within the pass
     (fill between the inscribed circle's share and 1 + the penetration's share: the bar fills
     the pass up to the penalty penetration), power balance within 3 %."""
-    res = demo.run(**{**demo.QUICK, "output_dir": str(tmp_path), "pictures": False})
-    assert res["status"] == "steady", res["message"]
-    assert res["max_volume_change"] < 5e-3
-    geo = res["pass_"]
-    P = geo["outline"] if "outline" in geo else demo.pass_outline(geo)
+    res = bar.run(QUICK, output_dir=str(tmp_path), pictures=False)
+    assert res.status == "steady", res.message
+    assert res.max_volume_change < 5e-3
+    geo = res.pass_geometry
+    P = geo["outline"] if "outline" in geo else bar.pass_outline(geo)
     per = float(np.sum(np.linalg.norm(np.diff(P, axis=0), axis=1)))
-    upper = 1.0 + per * res["max_penetration"] / geo["A_pass"]
-    assert geo["A_inscribed"] / geo["A_pass"] < res["fill"] < upper, (res["fill"], upper)
-    assert abs(res["power_balance"]) < 0.03
-    assert math.isfinite(res["radius_gap"]) and res["radius_gap"] < geo["r_c"]
+    upper = 1.0 + per * res.max_penetration / geo["A_pass"]
+    assert geo["A_inscribed"] / geo["A_pass"] < res.fill < upper, (res.fill, upper)
+    assert abs(res.power_balance) < 0.03
+    assert math.isfinite(res.radius_gap) and res.radius_gap < geo["r_c"]
 
 
-def test_bad_parameters():
-    with pytest.raises(ValueError, match="unknown parameter"):
-        demo.run(radius=3.0)
-    with pytest.raises(ValueError, match="R1"):
-        demo.run(R1=60.0)
-    with pytest.raises(ValueError, match="groove_angle"):
-        demo.run(groove_angle=70.0)
-    with pytest.raises(ValueError, match="model"):
-        demo.run(model="half")
-    with pytest.raises(ValueError, match="m_start"):
-        demo.run(m_start=2.0)
+@pytest.mark.parametrize("fields,words", [
+    (dict(R1=60.0), "need 0 < R1 < R0"),
+    (dict(groove_angle=70.0), "groove_angle must be in (0, 60) degrees"),
+    (dict(model="half"), "model must be 'third' or 'full'"),
+    (dict(mesh="delaunay"), "mesh must be 'symmetric' or 'gmsh'"),
+    (dict(m_start=2.0), "m_start must be in (0, 1]"),
+    (dict(edge_radius=-1.0), "edge_radius must be >= 0"),
+    (dict(h=0.0), "h must be a finite number > 0"),
+    (dict(R0=200.0, roll_radius=100.0), "the draft R0 - R1 must be smaller than the roll"),
+    (dict(max_increments=0), "max_increments must be an integer >= 1"),
+])
+def test_bad_case(fields, words):
+    """The case refuses a bad field when it is made, naming the field and its range."""
+    with pytest.raises(ValueError, match=re.escape(words)):
+        BarRollingCase(**fields)
+    with pytest.raises(TypeError, match="radius"):
+        BarRollingCase(radius=3.0)
 
 
-def test_rounded_groove_edges():
-    """``edge_radius``: the groove's edges become arcs tangent to the barrel and to the groove
-    (every junction of the profile is a tangent junction, no kink), the inscribed radius of the
-    pass stays R1, the pass opens by a few mm² (the outline sampled from the rolls), and the
-    sharp pass's outline from the rolls has the formula's area."""
-    import fxcontact as fx
-    geo = demo.pass_geometry(48.0, 50.0, 180.0)
-    roll = fx.RevolvedProfile.grooved_roll(geo["R_b"], 4 * geo["b"], geo["r_g"], geo["h_g"],
-                                           edge_radius=5.0)
-    assert "kink" not in " ".join(roll.feature_names.values())
-    assert sum("tangent junction" in v for v in roll.feature_names.values()) == 4
-    # the edge arcs' centres are r_g + r_e from the groove centre and r_e below the barrel
-    pts = roll.points
-    c_groove = np.array([0.0, geo["R_b"] - geo["h_g"] + geo["r_g"]])
-    c_edge = np.array([pts[1, 0], geo["R_b"] - 5.0])
-    assert np.linalg.norm(c_edge - c_groove) == pytest.approx(geo["r_g"] + 5.0, rel=1e-12)
-    assert np.linalg.norm(pts[2] - c_edge) == pytest.approx(5.0, rel=1e-12)
-    areas = []
-    for e in (0.0, 5.0):
-        rolls = demo.make_rolls(geo, 0.0, 0.0, [60.0, 180.0, 300.0], e)
-        P = demo.pass_outline_of_rolls(rolls, 0.0, 2.0 * geo["r_c"])
-        assert np.min(np.hypot(P[:, 0], P[:, 1])) == pytest.approx(48.0, rel=1e-9)
-        areas.append(demo.polygon_area(P))
-    assert areas[0] == pytest.approx(geo["A_pass"], rel=1e-5)
-    assert 0.0 < areas[1] - areas[0] < 0.01 * areas[0]
-    with pytest.raises(ValueError, match="edge_radius"):
-        fx.RevolvedProfile.grooved_roll(200.0, 100.0, edge_radius=2.0)
+def test_readme_example():
+    """The README's bar-rolling example, cut to one increment of a short bar, runs."""
+    ns = run_readme_block("Bar rolling", {
+        "case.quick()": "replace(case.quick(), length_factor=1.6, max_increments=1)",
+        '"results/bar_rolling"': repr(shared_tmpdir("fxc-bar-readme-"))})
+    assert ns["result"].increments == 1 and ns["result"].history[0]["roll_force"] > 0

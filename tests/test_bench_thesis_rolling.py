@@ -34,7 +34,7 @@ def smoke_rows():
     return bench.summarize([bench.run_variant(n, 0.4, max_increments=2) for n in NAMES])
 
 
-@pytest.mark.serial   # a dozen short runs; the demo's MPI path is tested in test_flat_rolling
+@pytest.mark.serial   # a dozen short runs; the process's MPI path is tested in test_flat_rolling
 def test_table_complete_and_finite(smoke_rows):
     names, rows = NAMES, smoke_rows
     assert [r["variant"] for r in rows] == names

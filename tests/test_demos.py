@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from helpers import load_demo, shared_tmpdir
+from helpers import load_demo, run_demo, shared_tmpdir
 
 @pytest.fixture
 def outdir():
@@ -44,3 +44,28 @@ def test_upsetting_sliding_is_homogeneous(outdir):
     assert abs(res["radius_mid"] - res["radius_end"]) < 1e-2 * expansion
     with pytest.raises(ValueError, match="dies"):
         demo.run(dies="glued", output_dir=None)
+
+
+#: the process demos (fxcontact.processes told as stories) at the reduced size, a few
+#: increments: their arguments, a line of their summary, the file of their rows
+PROCESS_DEMOS = {
+    "demo_flat_rolling": (("--quick", "--max_increments", 3), "max_increments = 3 reached",
+                          "theory P/w [N/mm]: slab 6299.6", "flat_rolling_diagnostics.csv"),
+    "demo_bar_rolling": (("--quick", "--length_factor", 1.6, "--max_increments", 2),
+                         "max_increments = 2 reached", "A_pass = 7579 mm2",
+                         "bar_rolling_third_diagnostics.csv"),
+}
+
+
+@pytest.mark.serial   # each demo is its own job, on 1 and 2 ranks
+@pytest.mark.parametrize("nranks", [1, 2])
+@pytest.mark.parametrize("name", sorted(PROCESS_DEMOS))
+def test_process_demo_runs_as_a_script(name, nranks, tmp_path):
+    """A process demo run as a script (a subprocess) for a few increments of the test size
+    prints its summary and writes its rows."""
+    args, *lines, rows = PROCESS_DEMOS[name]
+    p = run_demo(name, *args, "--output-dir", tmp_path, "--quiet", nranks=nranks)
+    assert p.returncode == 0, p.stderr[-3000:]
+    for line in lines:
+        assert line in p.stdout, p.stdout
+    assert os.path.getsize(tmp_path / rows) > 0

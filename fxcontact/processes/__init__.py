@@ -1,0 +1,23 @@
+"""Forming processes as a library: per process a case (a frozen dataclass: geometry, material,
+friction, kinematics, numerics; ``.quick()`` is the reduced size of the tests), a builder that
+returns the ready :class:`fxcontact.Simulation` with its handles, and ``run(case)`` returning a
+result (steady values over the detected steady window, the theory band, power balance,
+pictures, ``report()``).
+
+* :mod:`fxcontact.processes.flat_rolling` — flat rolling of a strip (one quarter);
+* :mod:`fxcontact.processes.bar_rolling` — three-roll rolling of a round bar (a third or the
+  whole bar);
+* :mod:`fxcontact.processes.monitor` — the run-until-steady loop and its stop rules, shared by
+  the processes.
+"""
+
+from fxcontact.processes import bar_rolling, flat_rolling
+from fxcontact.processes.bar_rolling import BarRollingCase, BarRollingResult, BarRollingSetup
+from fxcontact.processes.flat_rolling import FlatRollingCase, FlatRollingResult, FlatRollingSetup
+from fxcontact.processes.monitor import (STATUSES, RunNumerics, SteadyMonitor, SteadyRun,
+                                         StopRules, window_increments)
+
+__all__ = ["bar_rolling", "flat_rolling",
+           "BarRollingCase", "BarRollingResult", "BarRollingSetup",
+           "FlatRollingCase", "FlatRollingResult", "FlatRollingSetup",
+           "STATUSES", "RunNumerics", "SteadyMonitor", "SteadyRun", "StopRules", "window_increments"]
