@@ -70,7 +70,8 @@ MATERIALS = {
 def _solve_with(prob, A, b, linear_solver, prefix, factorisations=None):
     """The step A x = b with a fresh solver; ``factorisations`` (a dict) receives the
     condensed PC's count of set-ups per factorisation kind."""
-    ns = NewtonSolver(prob, SolverOptions(linear_solver=linear_solver, prefix=prefix))
+    ns = NewtonSolver(prob, SolverOptions(linear_solver=linear_solver, prefix=prefix,
+                                          element_condensation=False))
     ksp = ns.snes.getKSP()
     ksp.setOperators(A, A)
     x = A.createVecRight()
