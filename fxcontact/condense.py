@@ -512,6 +512,10 @@ class CondensedPC:
         """Lumped pressure mass weighted by the inverse viscosity, in the order of the
         retained non-velocity dofs."""
         lay = self.lay
+        return self._weighted_mass_at(lay.retained[lay.other_pos])
+
+    def _weighted_mass_at(self, wdofs: np.ndarray) -> np.ndarray:
+        """The lumped inverse-viscosity pressure mass at the local W dofs ``wdofs``."""
         if self.schur_weight is None:
             raise ValueError("the condensed field split needs the problem's schur_weight form")
         if self._wvec is None:
@@ -522,7 +526,7 @@ class CondensedPC:
         dolfinx.fem.petsc.assemble_vector(b, self.schur_weight)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         arr = b.getArray(readonly=True)
-        return np.abs(arr[lay.retained[lay.other_pos]])
+        return np.abs(arr[wdofs])
 
     def _apply(self, pc, x, y):
         lay = self.lay
@@ -540,9 +544,13 @@ class CondensedPC:
                           f"{self.ksp.getIterationNumber()} iterations; options under "
                           f"'{self.prefix}')")
             raise RuntimeError(self.error)
-        yl = y.getSubVector(lay.is_l)
+        self._write_solution(x, y)
+
+    def _write_solution(self, x, y):
+        """The full solution y from the condensed one (``_yl``) and the right-hand side x."""
+        yl = y.getSubVector(self.lay.is_l)
         self._yl.copy(yl)
-        y.restoreSubVector(lay.is_l, yl)
+        y.restoreSubVector(self.lay.is_l, yl)
         self._recover(x, y)
 
     def _condensed_rhs(self, x):

@@ -32,6 +32,7 @@ kernel where it is the same (checked on sample cells at the first assembly).
 
 from __future__ import annotations
 
+import copy
 import logging
 from typing import Optional
 
@@ -199,6 +200,48 @@ def bubble_product_numpy(x, u, w_l, w_b, X, Y, Abb, out_b, out_l):
     np.add.at(out_l, w_l, np.einsum("ciq,cq->ci", Y, t))
 
 
+@numba.njit(cache=True)
+def _project_cells(S, blocks, proj, flag):
+    """S_e ← D S_e D for every cell touching a projected vertex block (D = blockdiag of the
+    blocks' projectors ``proj``; ``flag``: the blocks with a projector)."""
+    nv = blocks.shape[1]
+    bs = proj.shape[1]
+    T = np.empty((nv * bs, nv * bs))
+    for n in range(blocks.shape[0]):
+        hit = False
+        for i in range(nv):
+            if flag[blocks[n, i]]:
+                hit = True
+        if not hit:
+            continue
+        # T = S D (columns), then S = D T (rows)
+        for r in range(nv * bs):
+            for j in range(nv):
+                P = proj[blocks[n, j]]
+                for b in range(bs):
+                    acc = 0.0
+                    for a in range(bs):
+                        acc += S[n, r, j * bs + a] * P[a, b]
+                    T[r, j * bs + b] = acc
+        for i in range(nv):
+            P = proj[blocks[n, i]]
+            for a in range(bs):
+                for c in range(nv * bs):
+                    acc = 0.0
+                    for b in range(bs):
+                        acc += P[a, b] * T[i * bs + b, c]
+                    S[n, i * bs + a, c] = acc
+
+
+def project_cells_numpy(S, blocks, proj, flag):
+    D = proj[blocks]                                           # (n, nv, bs, bs)
+    n, nv, bs, _ = D.shape
+    Sb = S.reshape(n, nv, bs, nv, bs)
+    out = np.einsum("niab,nibjc,njcd->niajd", D, Sb, D).reshape(S.shape)
+    hit = flag[blocks].any(axis=1)
+    S[hit] = out[hit]
+
+
 def element_condensation_supported(problem) -> Optional[str]:
     """None if the problem's Jacobian can be condensed element by element, else the reason: a
     MINI space (gdim + 1 dofs per vertex and cell-interior dofs only) and a Jacobian form with
@@ -220,7 +263,9 @@ def element_condensation_supported(problem) -> Optional[str]:
 
 
 class CondensedJacobian:
-    """The condensed Newton matrix of a MINI :class:`~fxcontact.petsc.NonlinearProblem`.
+    """The condensed Newton matrix of a MINI :class:`~fxcontact.petsc.NonlinearProblem`,
+    assembled on the P1/P1 layout (:class:`~fxcontact.element_condense.P1P1Layout`: one block
+    of gdim + 1 unknowns per vertex, a BAIJ matrix).
 
     Args:
         problem: the problem (its ``w``, ``a``, ``bcs``, ``bc_marker``, ``constraints``).
@@ -228,9 +273,15 @@ class CondensedJacobian:
             are the problem's Jacobian (default: :class:`~fxcontact.element_condense.FFCxElementTensors`
             of ``problem.a``).
         fast_tensors: optional callable ``(layout) -> source`` of a faster source of the same
-            matrices (the hand-written Norton–Hoff kernel): used if it matches ``tensors`` on sample cells at the first assembly
-            (relative ``KERNEL_MATCH_RTOL``), else dropped with a log message.
+            matrices (the hand-written Norton–Hoff kernel): used if it matches ``tensors`` on
+            sample cells at the first assembly (relative ``KERNEL_MATCH_RTOL``), else dropped
+            with a log message.
         chunk: cells condensed at once (bounds the memory of the element tensors).
+
+    Attributes:
+        S: the condensed matrix S' after :meth:`assemble` (P1/P1 layout, BAIJ: inserted by
+            vertex blocks), and ``S_aij`` its AIJ copy for the linear solvers.
+        kernel: ``"ffcx"`` or ``"hand"``, the element kernel in use.
     """
 
     def __init__(self, problem, tensors=None, fast_tensors=None, chunk: int = 8192):
@@ -242,7 +293,12 @@ class CondensedJacobian:
             tensors = FFCxElementTensors(lay, problem.a, problem.L)
         self.tensors = tensors
         self._tab = getattr(tensors, "tab_jacobian", tensors.tab)
-        self._fast = None if fast_tensors is None else fast_tensors(lay)
+        self._fast = None
+        if fast_tensors is not None:
+            try:
+                self._fast = fast_tensors(lay)
+            except ValueError as e:   # not for this space or material: the FFCx kernel
+                log.info("condensed Jacobian with the FFCx kernel: %s", e)
         self.kernel = "ffcx"
         self.chunk = max(int(chunk), 1)
         nl, k, nc = lay.lpos.size, lay.bpos.size, lay.num_cells
@@ -253,12 +309,58 @@ class CondensedJacobian:
         ndofs = W.element.space_dimension
         self._A = np.zeros((ndofs, ndofs))
         self._b = np.zeros(ndofs)
-        nown = W.dofmap.index_map.size_local
-        self._nown = nown
-        self._bubble_diag = np.ascontiguousarray(lay.w_b.reshape(-1, 1))
+        bs = lay.bs
+        imap = W.dofmap.index_map
+        nw = imap.size_local + imap.num_ghosts
+        #: local W dof -> local index of the P1/P1 layout (-1: a cell-interior dof)
+        self.w2c = np.full(nw, -1, dtype=np.int32)
+        self.w2c[lay.block_w.ravel()] = np.arange(lay.block_w.size, dtype=np.int32)
+        #: the owned W dofs in the order of the owned part of a P1/P1 vector
+        self.owned_w = np.ascontiguousarray(lay.owned_w_dofs().ravel())
+        self.S = lay.create_matrix("baij")
+        self.S_aij = None
+        self._setup_projection()
+        #: Dirichlet marker of the P1/P1 layout's local indices
+        self._bc_marker_c = np.zeros(lay.block_w.size, dtype=bool)
+        self._bc_marker_c[self.w2c[np.flatnonzero(problem.bc_marker & (self.w2c >= 0))]] = True
+        self.comm = lay.comm
+        self._bc_c = np.ascontiguousarray(
+            self.w2c[problem._bc_owned].astype(np.int32).reshape(-1, 1))
         self._work = [problem.create_vector() for _ in range(2)]   # ghosted W vectors
+        self._xc, self._yc = self.S.createVecs()
         #: number of assemblies
         self.assemblies = 0
+
+    def _setup_projection(self):
+        """The symmetry planes' projectors P = I − Q Qᵀ per vertex block (owned and ghost:
+        the element matrices are projected before the assembly, (P S P)_ij = P_i S_ij P_j),
+        and the Q Qᵀ blocks added at the owned constrained vertices (collective)."""
+        import dolfinx.la
+        lay = self.layout
+        bs, d = lay.bs, lay.bs - 1
+        cimap = lay.Vc.dofmap.index_map
+        nblocks = cimap.size_local + cimap.num_ghosts
+        vec = dolfinx.la.vector(cimap, bs=d * d)
+        arr = vec.array.reshape(-1, d, d)
+        own_blocks, own_qq = [], []
+        for c in self.problem.constraints:
+            if not c.active or not len(c.dofs):
+                continue
+            blocks = self.w2c[c.dofs[:, 0]] // bs
+            arr[blocks] += c._QQ
+            own_blocks.append(blocks)
+            own_qq.append(c._QQ)
+        vec.scatter_forward()
+        qq = arr.copy()
+        self._flag = np.any(qq != 0.0, axis=(1, 2))
+        self._proj = np.tile(np.eye(bs), (nblocks, 1, 1))
+        self._proj[:, :d, :d] -= qq
+        blocks = np.concatenate(own_blocks) if own_blocks else np.zeros(0, dtype=np.int64)
+        qqb = np.zeros((blocks.size, bs, bs))
+        if blocks.size:
+            qqb[:, :d, :d] = np.concatenate(own_qq)
+        self._qq_blocks = blocks.astype(np.int32).reshape(-1, 1)
+        self._qq_values = qqb.reshape(blocks.size, bs * bs)
 
     # -- the l-side operator M (Dirichlet zeroing, then the symmetry projection) -------------
     def apply_M(self, arr: np.ndarray):
@@ -276,11 +378,21 @@ class CondensedJacobian:
         u.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         return u
 
-    def _ghost_sum(self, k: int = 1) -> PETSc.Vec:
+    def _zeroed(self, k: int = 1) -> PETSc.Vec:
         v = self._work[k]
         with v.localForm() as loc:
             loc.set(0.0)
         return v
+
+    # -- between the W layout and the P1/P1 layout (owned entries) ----------------------------
+    def to_condensed(self, x: PETSc.Vec, xc: PETSc.Vec):
+        """xc = the vertex entries of the W vector x."""
+        xc.setArray(x.getArray(readonly=True)[self.owned_w])
+
+    def from_condensed(self, xc: PETSc.Vec, y: PETSc.Vec):
+        """The vertex entries of the W vector y = xc."""
+        ya = y.getArray(readonly=False)
+        ya[self.owned_w] = xc.getArray(readonly=True)
 
     # -- assembly -----------------------------------------------------------------------------
     def _choose_kernel(self):
@@ -291,13 +403,12 @@ class CondensedJacobian:
         lay = self.layout
         n = min(lay.num_cells, 64)
         cells = np.unique(np.linspace(0, max(lay.num_cells - 1, 0), n).astype(np.int32))
+        err = 0.0
         if cells.size and lay.num_cells:
             A_ref, _ = self.tensors.tensors(cells)
             A_fast, _ = self._fast.tensors(cells)
             scale = np.abs(A_ref).max(axis=(1, 2), keepdims=True)
             err = float(np.max(np.abs(A_fast - A_ref) / np.where(scale > 0, scale, 1.0)))
-        else:
-            err = 0.0
         err = lay.comm.allreduce(err, op=MPI.MAX)
         if err <= KERNEL_MATCH_RTOL:
             self.tensors, self._tab, self.kernel = self._fast, self._fast.tab, "hand"
@@ -306,10 +417,53 @@ class CondensedJacobian:
                      "(relative %.1e): the FFCx kernel is used", err)
         self._fast = None
 
-    def assemble(self, A: PETSc.Mat, bc_marker: np.ndarray):
-        """Add the condensed element matrices to the l–l block of the W matrix ``A`` (Dirichlet
-        rows and columns zeroed, unit diagonal on the owned Dirichlet dofs and the bubbles); not
-        finally assembled. Raises RuntimeError on every rank for a singular bubble block."""
+    def assemble(self, terms, timers):
+        """S' = M (S + K_c) M + E (collective): the condensed element matrices and the nodal
+        contributors' blocks ``terms`` (a list of :class:`~fxcontact.petsc.NodalTerms` of the W
+        layout) with the Dirichlet rows and columns zeroed, the unit Dirichlet diagonal, then
+        the symmetry projection. Raises RuntimeError on every rank for a singular bubble
+        block."""
+        from fxcontact.petsc import add_nodal_jacobian
+        S = self.S
+        bc_marker = self.problem.bc_marker
+        S.zeroEntries()
+        if terms:
+            with timers("contact"):
+                for t in terms:
+                    if t.jacobian is None or t.dofs.shape[0] == 0:
+                        continue
+                    mapped = copy.copy(t)
+                    mapped.dofs = np.where(t.dofs >= 0, self.w2c[np.maximum(t.dofs, 0)], -1)
+                    mapped.jacobian = self._project_nodal(mapped.dofs, t.jacobian)
+                    add_nodal_jacobian(S, mapped, self._bc_marker_c)
+        with timers("assembly", "assembly_jacobian"):
+            self._assemble_cells(bc_marker)
+            if self._bc_c.size:
+                S.setValuesLocalRCV(self._bc_c, self._bc_c, np.ones((self._bc_c.shape[0], 1)),
+                                    addv=PETSc.InsertMode.ADD_VALUES)
+            if self._qq_blocks.size:
+                S.setValuesBlockedLocalRCV(self._qq_blocks, self._qq_blocks, self._qq_values,
+                                           addv=PETSc.InsertMode.ADD_VALUES)
+            S.assemble()
+            # the linear solvers' copy: MUMPS's L D Lᵀ and the field split's sub-matrices
+            # need AIJ (a copy of the values once the pattern is known)
+            self.S_aij = S.convert(PETSc.Mat.Type.AIJ, self.S_aij)
+
+    def _project_nodal(self, cdofs: np.ndarray, K: np.ndarray) -> np.ndarray:
+        """Nodal gdim × gdim blocks at the P1/P1 indices ``cdofs`` projected, P K P (the
+        node's velocity components; Dirichlet components are not mixed by P)."""
+        d = self.layout.bs - 1
+        ok = cdofs[:, 0] >= 0
+        blocks = np.where(ok, cdofs[:, 0] // self.layout.bs, 0)
+        hit = ok & self._flag[blocks]
+        if not hit.any():
+            return K
+        K = K.copy()
+        P = self._proj[blocks[hit], :d, :d]
+        K[hit] = np.einsum("nab,nbc,ndc->nad", P, K[hit], P)
+        return K
+
+    def _assemble_cells(self, bc_marker):
         self._choose_kernel()
         lay = self.layout
         data = self.tensors.data()
@@ -320,56 +474,52 @@ class CondensedJacobian:
             S = np.empty((cells.size, nl, nl))
             bad += _jacobian_loop(self._tab, data, cells, lay.lpos, lay.bpos, self._A, self._b,
                                   S, self.X, self.Y, self.Binv, self.Abb)
-            rows = lay.w_l[cells]
-            bc = bc_marker[rows]
-            if bc.any():
-                # Dirichlet rows and columns zeroed but inserted (as dolfinx does): the
-                # matrix keeps their pattern, which the symmetry projection's product needs
+            bc = bc_marker[lay.w_l[cells]]
+            if bc.any():   # Dirichlet rows and columns zeroed (kept in the pattern)
                 keep = ~bc
                 S *= keep[:, :, None]
                 S *= keep[:, None, :]
-            A.setValuesLocalRCV(rows, rows, S.reshape(cells.size, -1),
-                                addv=PETSc.InsertMode.ADD_VALUES)
-        diag = np.concatenate([self.problem._bc_owned.astype(np.int32).reshape(-1, 1),
-                               self._bubble_diag])
-        if diag.size:
-            A.setValuesLocalRCV(diag, diag, np.ones((diag.shape[0], 1)),
-                                addv=PETSc.InsertMode.ADD_VALUES)
+            _project_cells(S, lay.cell_blocks[cells], self._proj, self._flag)
+            self.S.setValuesBlockedLocalRCV(lay.cell_blocks[cells], lay.cell_blocks[cells],
+                                            S.reshape(cells.size, -1),
+                                            addv=PETSc.InsertMode.ADD_VALUES)
         self.assemblies += 1
         if lay.comm.allreduce(bad):
             raise RuntimeError("singular interior (bubble) block in a cell: degenerate element")
 
     # -- products with J' and solves (vectors of the W layout) ------------------------------
-    def mult(self, A: PETSc.Mat, x: PETSc.Vec, y: PETSc.Vec):
-        """``y = J' x``: ``A`` the assembled matrix (S' in its l–l block, identity in b–b)."""
-        A.mult(x, y)                                   # y_l = S' x_l, y_b = x_b
+    def mult(self, x: PETSc.Vec, y: PETSc.Vec):
+        """``y = J' x``."""
+        self.to_condensed(x, self._xc)
+        self.S.mult(self._xc, self._yc)
         u = self._ghosted_M(x, 0)
-        g = self._ghost_sum(1)
+        g = self._zeroed(1)
         lay = self.layout
         ya = y.getArray(readonly=False)
         with u.localForm() as ul, g.localForm() as gl:
-            ga = gl.getArray()
-            _bubble_product(ul.getArray(readonly=True), ul.getArray(readonly=True), lay.w_l,
-                            lay.w_b, self.X, self.Y, self.Abb, ya, ga)
+            ua = ul.getArray(readonly=True)
+            _bubble_product(ua, ua, lay.w_l, lay.w_b, self.X, self.Y, self.Abb, ya, gl.getArray())
         del ya
         g.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        garr = g.getArray(readonly=False)
-        self.apply_M(garr)
-        y.axpy(1.0, g)   # b entries of g are zero
+        ga = g.getArray(readonly=False)
+        self.apply_M(ga)
+        ya = y.getArray(readonly=False)
+        ya[self.owned_w] = self._yc.getArray(readonly=True) + ga[self.owned_w]
 
-    def condensed_rhs(self, f: PETSc.Vec, r: PETSc.Vec):
-        """``r = f − M Y f_b`` on the l entries (b entries of r: those of f)."""
-        g = self._ghost_sum(1)
+    def condensed_rhs(self, f: PETSc.Vec, rc: PETSc.Vec):
+        """``rc = f_l − M Y f_b`` (P1/P1 layout)."""
+        g = self._zeroed(1)
         lay = self.layout
         with g.localForm() as gl:
             _add_Y(f.getArray(readonly=True), lay.w_l, lay.w_b, self.Y, gl.getArray())
         g.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        self.apply_M(g.getArray(readonly=False))
-        f.copy(r)
-        r.axpy(-1.0, g)
+        ga = g.getArray(readonly=False)
+        self.apply_M(ga)
+        rc.setArray(f.getArray(readonly=True)[self.owned_w] - ga[self.owned_w])
 
-    def recover(self, f: PETSc.Vec, y: PETSc.Vec):
-        """``y_b = A_bb⁻¹ f_b − X M y_l`` (y's l entries: the condensed solution)."""
+    def recover(self, f: PETSc.Vec, yc: PETSc.Vec, y: PETSc.Vec):
+        """y_l = yc, ``y_b = A_bb⁻¹ f_b − X M y_l``."""
+        self.from_condensed(yc, y)
         u = self._ghosted_M(y, 0)
         lay = self.layout
         ya = y.getArray(readonly=False)
@@ -378,8 +528,33 @@ class CondensedJacobian:
                           lay.w_b, self.X, self.Binv, ya)
         del ya
 
+    # -- the condensed system's layout for the field split (CondensedPC's interface) -----------
+    def split_is(self):
+        """(velocity IS, pressure IS) of the P1/P1 system (global indices)."""
+        lay = self.layout
+        bs, d = lay.bs, lay.bs - 1
+        nown = lay.Vc.dofmap.index_map.size_local
+        r0 = lay.Vc.dofmap.index_map.local_range[0] * bs
+        base = r0 + bs * np.arange(nown)
+        iu = PETSc.IS().createGeneral((base[:, None] + np.arange(d)).ravel().astype(
+            PETSc.IntType), comm=lay.comm)
+        iu.setBlockSize(d)
+        ip = PETSc.IS().createGeneral((base + d).astype(PETSc.IntType), comm=lay.comm)
+        return iu, ip
+
+    def node_coordinates(self) -> np.ndarray:
+        """(owned vertices, gdim) current positions, in the order of the P1/P1 blocks."""
+        lay = self.layout
+        nown = lay.Vc.dofmap.index_map.size_local
+        return lay.Vc.tabulate_dof_coordinates()[:nown, : lay.bs - 1].copy()
+
+    def pressure_w_dofs(self) -> np.ndarray:
+        """Local W dofs of the owned vertex pressures, in the order of the pressure split."""
+        return self.layout.owned_w_dofs()[:, -1]
+
     def destroy(self):
-        for v in self._work:
+        for v in self._work + [self._xc, self._yc, self.S] + (
+                [self.S_aij] if self.S_aij is not None else []):
             v.destroy()
         self._work = []
 
@@ -387,20 +562,23 @@ class CondensedJacobian:
 class _JacobianOperator:
     """petsc4py python Mat: the product with J' (:meth:`CondensedJacobian.mult`)."""
 
-    def __init__(self, element: CondensedJacobian, A: PETSc.Mat):
+    def __init__(self, element: CondensedJacobian, W_vector: PETSc.Vec):
         self.element = element
-        self.A = A
+        self._v = W_vector
 
     def mult(self, mat, x, y):
-        self.element.mult(self.A, x, y)
+        self.element.mult(x, y)
 
     def createVecs(self, mat):
-        return self.A.createVecs()
+        return self._v.duplicate(), self._v.duplicate()
 
 
-def jacobian_shell(element: CondensedJacobian, A: PETSc.Mat) -> PETSc.Mat:
-    """A python Mat of A's sizes whose product is J' (collective)."""
-    J = PETSc.Mat().createPython(A.getSizes(), _JacobianOperator(element, A), comm=A.comm)
+def jacobian_shell(element: CondensedJacobian) -> PETSc.Mat:
+    """A python Mat of the W layout whose product is J' (collective)."""
+    v = element._work[0]
+    n, N = v.getLocalSize(), v.getSize()
+    J = PETSc.Mat().createPython(((n, N), (n, N)), _JacobianOperator(element, v),
+                                 comm=element.layout.comm)
     J.setUp()
     return J
 
@@ -409,41 +587,40 @@ def _condensed_pc_class():
     from fxcontact.condense import CondensedPC
 
     class ElementCondensedPC(CondensedPC):
-        """:class:`~fxcontact.condense.CondensedPC` for a matrix assembled by
-        :class:`CondensedJacobian`: the condensed matrix is the l–l block as it stands (one
-        sub-matrix extraction), the right-hand side and the bubble from the kept cell
-        matrices."""
+        """:class:`~fxcontact.condense.CondensedPC` on the P1/P1 matrix of a
+        :class:`CondensedJacobian` (no matrix algebra at its set-up), the right-hand side and
+        the bubble from the kept cell matrices."""
 
-        def __init__(self, layout, prefix, element: CondensedJacobian, schur_weight=None,
+        def __init__(self, prefix, element: CondensedJacobian, schur_weight=None,
                      problem=None):
-            super().__init__(layout, prefix, schur_weight, problem)
+            super().__init__(element, prefix, schur_weight, problem)
             self.element = element
-            self._r = None
 
         def _condensed_matrix(self, P):
-            return self._sub(P, "S", self.lay.is_l, self.lay.is_l)
+            return self.element.S_aij
 
         def _condensed_rhs(self, x):
-            if self._r is None:
-                self._r = x.duplicate()
-            self.element.condensed_rhs(x, self._r)
-            rl = self._r.getSubVector(self.lay.is_l)
-            rl.copy(self._rl)
-            self._r.restoreSubVector(self.lay.is_l, rl)
+            self.element.condensed_rhs(x, self._rl)
+
+        def _write_solution(self, x, y):
+            self.element.recover(x, self._yl, y)
 
         def _recover(self, x, y):
-            self.element.recover(x, y)
+            pass
 
-        def destroy(self, pc=None):
-            if self._r is not None:
-                self._r.destroy()
-                self._r = None
-            super().destroy(pc)
+        def _weighted_mass(self) -> np.ndarray:
+            return self._weighted_mass_at(self.element.pressure_w_dofs())
+
+        def _augmented(self, S):
+            if PETSc.Options().getReal(self.prefix + "augment_scale", 0.0) != 0.0:
+                raise ValueError("augment_scale needs the algebraic condensation "
+                                 "(element_condensation=False)")
+            return None
 
     return ElementCondensedPC
 
 
-def ElementCondensedPC(layout, prefix, element, schur_weight=None, problem=None):
-    """The preconditioner (an exact solver with a direct inner solve) of a matrix assembled by
+def ElementCondensedPC(prefix, element, schur_weight=None, problem=None):
+    """The preconditioner (an exact solver with a direct inner solve) of the Newton matrix of a
     :class:`CondensedJacobian` (see :func:`_condensed_pc_class`)."""
-    return _condensed_pc_class()(layout, prefix, element, schur_weight, problem)
+    return _condensed_pc_class()(prefix, element, schur_weight, problem)

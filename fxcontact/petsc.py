@@ -169,18 +169,18 @@ def assemble_jacobian_with_terms(A: PETSc.Mat, a, bcs, terms, bc_marker, timers,
     """The Jacobian sequence (PLATFORM order): ``zeroEntries``, the nodal blocks, THEN the UFL
     matrix (which inserts the BC diagonal), THEN the final ``assemble()``; ``constraints``
     project the assembled matrix. ``element``: a
-    :class:`~fxcontact.element_jacobian.CondensedJacobian` that assembles the condensed element
-    matrices instead of the UFL matrix."""
+    :class:`~fxcontact.element_jacobian.CondensedJacobian`, which assembles the condensed
+    system in its own matrix instead (``A`` is not used)."""
+    if element is not None:
+        element.assemble(terms, timers)
+        return
     A.zeroEntries()
     if terms:
         with timers("contact"):
             for t in terms:
                 add_nodal_jacobian(A, t, bc_marker)
     with timers("assembly", "assembly_jacobian"):
-        if element is None:
-            dolfinx.fem.petsc.assemble_matrix(A, a, bcs=bcs)
-        else:
-            element.assemble(A, bc_marker)
+        dolfinx.fem.petsc.assemble_matrix(A, a, bcs=bcs)
         A.assemble()
         for c in constraints:
             c.apply_jacobian(A)

@@ -483,7 +483,8 @@ class NewtonSolver:
             from fxcontact.condense import CondensationLayout
             self._layout = CondensationLayout(problem.w.function_space)
         self._enable_element_condensation()
-        self.A = problem.create_matrix()
+        #: the assembled Newton matrix (None with the element condensation: its own matrix)
+        self.A = problem.create_matrix() if self.element is None else None
         self.b = None
         self.snes = None
         self._create_snes()
@@ -518,6 +519,9 @@ class NewtonSolver:
         if not (self.options.uses_condensation and want is not False):
             return
         why = element_condensation_supported(self.problem)
+        if why is None and float(self.options.linear_options().get(
+                "condensed_augment_scale", 0.0)) != 0.0:
+            why = "the preconditioner's augmentation (condensed_augment_scale) needs it"
         whys = [w for w in self.comm.allgather(why) if w is not None]
         if whys:
             if want is True:
@@ -555,24 +559,28 @@ class NewtonSolver:
             if M is not None:
                 M.destroy()
         self._J_shell = self._J_element = None
-        op = self.A
+        op = P = self.A
         if self.element is not None:
-            # the assembled matrix holds the condensed system: the product with the Newton
-            # matrix (line search slope, Krylov, border) from the kept cell matrices
+            # the condensed system in the element's matrix; the product with the Newton matrix
+            # (line search slope, Krylov, border) from the kept cell matrices
             from fxcontact.element_jacobian import jacobian_shell
-            op = self._J_element = jacobian_shell(self.element, self.A)
+            op = P = self._J_element = jacobian_shell(self.element)
         if self.border is not None:
-            m, n = self.A.getSizes()
+            m, n = op.getSizes()
             op = self._J_shell = PETSc.Mat().createPython(
                 (m, n), _BorderedOperator(op, self.border), comm=self.comm)
             op.setUp()
         if op is self.A:
             snes.setJacobian(self._jacobian, self.A, self.A)
         else:
-            def jacobian(snes_, x, J_, P):
-                self._jacobian(snes_, x, P, P)
+            def jacobian(snes_, x, J_, P_):
+                self._jacobian(snes_, x, P_, P_)
+                # a new state for each operator: a preconditioner is set up again only for a
+                # matrix whose state changed (a shell's changes at its assemble())
                 J_.assemble()
-            snes.setJacobian(jacobian, op, self.A)
+                if P_.handle != J_.handle:
+                    P_.assemble()
+            snes.setJacobian(jacobian, op, P)
         snes.setConvergenceTest(self._converged_timed)
         snes.setFromOptions()
         # the linear solve runs between the end of the Jacobian callback and the line search's
@@ -596,7 +604,7 @@ class NewtonSolver:
             if self.element is not None:
                 from fxcontact.element_jacobian import ElementCondensedPC
                 self._condensed_pc = ElementCondensedPC(
-                    self._layout, self.options.prefix + "condensed_", self.element,
+                    self.options.prefix + "condensed_", self.element,
                     getattr(self.problem, "schur_weight", None), problem=self.problem)
             else:
                 self._condensed_pc = CondensedPC(self._layout,
@@ -1007,10 +1015,11 @@ class NewtonSolver:
         if self._condensed_pc is not None:
             self._condensed_pc.destroy()
         self.snes.destroy()
-        for M in (self._J_shell, self._J_element):
+        for M in (self._J_shell, self._J_element, self.A):
             if M is not None:
                 M.destroy()
-        self.A.destroy()
+        if self.element is not None:
+            self.element.destroy()
         self.b.destroy()
 
 
