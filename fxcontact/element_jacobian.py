@@ -447,7 +447,9 @@ class CondensedJacobian:
             S.assemble()
             # the linear solvers' copy: MUMPS's L D Lᵀ and the field split's sub-matrices
             # need AIJ (a copy of the values once the pattern is known)
-            self.S_aij = S.convert(PETSc.Mat.Type.AIJ, self.S_aij)
+            # (petsc4py converts in place without an output matrix: an empty one first)
+            self.S_aij = S.convert(PETSc.Mat.Type.AIJ,
+                                   PETSc.Mat() if self.S_aij is None else self.S_aij)
 
     def _project_nodal(self, cdofs: np.ndarray, K: np.ndarray) -> np.ndarray:
         """Nodal gdim × gdim blocks at the P1/P1 indices ``cdofs`` projected, P K P (the
