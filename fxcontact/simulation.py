@@ -601,6 +601,7 @@ class Simulation:
         if _uses_dual_stress(self.material, self.solver_options.material_tangent):
             from fxcontact.dual import DualStress
             self.dual = DualStress(self.material, sp.W, sp.quadrature_degree)
+            self.dual.use_kernel(sp)
             log.debug("Newton with the primal-dual Norton-Hoff tangent (fxcontact.dual)")
             # the material's Jacobian written out (the primal-dual tangent and the bilinear
             # pressure terms) rather than ufl.derivative + correction: the same matrix at
