@@ -373,23 +373,7 @@ class CondensedPC:
         t0 = time.perf_counter()
         self.setups += 1
         _, P = pc.getOperators()
-        lay = self.lay
-        Abb = self._sub(P, "bb", lay.is_b, lay.is_b)
-        D = self._block_inverse(Abb)
-        Alb = self._sub(P, "lb", lay.is_l, lay.is_b)
-        Abl = self._sub(P, "bl", lay.is_b, lay.is_l)
-        # S = A_ll − A_lb D A_bl (A_ll extracted afresh: it is overwritten by S)
-        T = Alb.matMatMult(D, Abl, result=self._mats.get("T"))
-        self._mats["T"] = T
-        S = self._sub(P, "S", lay.is_l, lay.is_l)
-        if self._same_pattern is None:
-            self._same_pattern = same_nonzero_pattern(S, T)
-        # the same pattern (the usual case: the cell-wise sparsity of a mixed space couples
-        # all the vertex dofs of a cell, as T does) makes the update a plain axpy on the
-        # values; PETSc's subset-pattern update goes row by row, ~30x slower
-        S.axpy(-1.0, T, structure=(PETSc.Mat.Structure.SAME_NONZERO_PATTERN
-                                   if self._same_pattern else
-                                   PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN))
+        S = self._condensed_matrix(P)
         self.times["condense"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         first = self.ksp is None
@@ -411,12 +395,33 @@ class CondensedPC:
                 self.ksp.setOperators(S, Sa)
         self.ksp.setUp()
         self.times["inner_setup"] += time.perf_counter() - t0
-        self._xb = self._xb or Abb.createVecRight()
-        self._tb = self._tb or Abb.createVecRight()
         self._rl = self._rl or S.createVecRight()
         self._yl = self._yl or S.createVecRight()
 
     _xb = _tb = _rl = _yl = None
+
+    def _condensed_matrix(self, P):
+        """The condensed matrix S of the preconditioning matrix P (its work data kept)."""
+        lay = self.lay
+        Abb = self._sub(P, "bb", lay.is_b, lay.is_b)
+        D = self._block_inverse(Abb)
+        Alb = self._sub(P, "lb", lay.is_l, lay.is_b)
+        Abl = self._sub(P, "bl", lay.is_b, lay.is_l)
+        # S = A_ll − A_lb D A_bl (A_ll extracted afresh: it is overwritten by S)
+        T = Alb.matMatMult(D, Abl, result=self._mats.get("T"))
+        self._mats["T"] = T
+        S = self._sub(P, "S", lay.is_l, lay.is_l)
+        if self._same_pattern is None:
+            self._same_pattern = same_nonzero_pattern(S, T)
+        # the same pattern (the usual case: the cell-wise sparsity of a mixed space couples
+        # all the vertex dofs of a cell, as T does) makes the update a plain axpy on the
+        # values; PETSc's subset-pattern update goes row by row, ~30x slower
+        S.axpy(-1.0, T, structure=(PETSc.Mat.Structure.SAME_NONZERO_PATTERN
+                                   if self._same_pattern else
+                                   PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN))
+        self._xb = self._xb or Abb.createVecRight()
+        self._tb = self._tb or Abb.createVecRight()
+        return S
 
     def _choose_factorisation(self, S):
         """With ``<prefix>factor_symmetric``: L D Lᵀ when S is symmetric, LU otherwise (only
@@ -507,6 +512,10 @@ class CondensedPC:
         """Lumped pressure mass weighted by the inverse viscosity, in the order of the
         retained non-velocity dofs."""
         lay = self.lay
+        return self._weighted_mass_at(lay.retained[lay.other_pos])
+
+    def _weighted_mass_at(self, wdofs: np.ndarray) -> np.ndarray:
+        """The lumped inverse-viscosity pressure mass at the local W dofs ``wdofs``."""
         if self.schur_weight is None:
             raise ValueError("the condensed field split needs the problem's schur_weight form")
         if self._wvec is None:
@@ -517,18 +526,11 @@ class CondensedPC:
         dolfinx.fem.petsc.assemble_vector(b, self.schur_weight)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         arr = b.getArray(readonly=True)
-        return np.abs(arr[lay.retained[lay.other_pos]])
+        return np.abs(arr[wdofs])
 
     def _apply(self, pc, x, y):
         lay = self.lay
-        Alb, Abl, D = self._mats["lb"], self._mats["bl"], self._mats["Dinv"]
-        xb = x.getSubVector(lay.is_b)
-        xl = x.getSubVector(lay.is_l)
-        D.mult(xb, self._tb)                  # A_bb⁻¹ r_b
-        Alb.mult(self._tb, self._rl)
-        self._rl.aypx(-1.0, xl)               # r_l − A_lb A_bb⁻¹ r_b
-        x.restoreSubVector(lay.is_b, xb)
-        x.restoreSubVector(lay.is_l, xl)
+        self._condensed_rhs(x)
         if self.follow_rtol_of is not None:
             self.ksp.setTolerances(rtol=self.follow_rtol_of.getTolerances()[0])
         self.ksp.solve(self._rl, self._yl)
@@ -542,9 +544,31 @@ class CondensedPC:
                           f"{self.ksp.getIterationNumber()} iterations; options under "
                           f"'{self.prefix}')")
             raise RuntimeError(self.error)
-        yl = y.getSubVector(lay.is_l)
+        self._write_solution(x, y)
+
+    def _write_solution(self, x, y):
+        """The full solution y from the condensed one (``_yl``) and the right-hand side x."""
+        yl = y.getSubVector(self.lay.is_l)
         self._yl.copy(yl)
-        y.restoreSubVector(lay.is_l, yl)
+        y.restoreSubVector(self.lay.is_l, yl)
+        self._recover(x, y)
+
+    def _condensed_rhs(self, x):
+        """``_rl`` = r_l − A_lb A_bb⁻¹ r_b for the full right-hand side x."""
+        lay = self.lay
+        Alb, D = self._mats["lb"], self._mats["Dinv"]
+        xb = x.getSubVector(lay.is_b)
+        xl = x.getSubVector(lay.is_l)
+        D.mult(xb, self._tb)                  # A_bb⁻¹ r_b
+        Alb.mult(self._tb, self._rl)
+        self._rl.aypx(-1.0, xl)               # r_l − A_lb A_bb⁻¹ r_b
+        x.restoreSubVector(lay.is_b, xb)
+        x.restoreSubVector(lay.is_l, xl)
+
+    def _recover(self, x, y):
+        """y_b = A_bb⁻¹ (r_b − A_bl y_l), y's l entries holding the condensed solution."""
+        lay = self.lay
+        Abl, D = self._mats["bl"], self._mats["Dinv"]
         xb = x.getSubVector(lay.is_b)
         Abl.mult(self._yl, self._xb)
         self._xb.aypx(-1.0, xb)               # r_b − A_bl x_l

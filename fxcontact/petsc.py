@@ -165,10 +165,15 @@ def assemble_residual_with_terms(b: PETSc.Vec, L, a, bcs, x0: PETSc.Vec, terms, 
 
 
 def assemble_jacobian_with_terms(A: PETSc.Mat, a, bcs, terms, bc_marker, timers,
-                                 constraints=()):
+                                 constraints=(), element=None):
     """The Jacobian sequence (PLATFORM order): ``zeroEntries``, the nodal blocks, THEN the UFL
     matrix (which inserts the BC diagonal), THEN the final ``assemble()``; ``constraints``
-    project the assembled matrix."""
+    project the assembled matrix. ``element``: a
+    :class:`~fxcontact.element_jacobian.CondensedJacobian`, which assembles the condensed
+    system in its own matrix instead (``A`` is not used)."""
+    if element is not None:
+        element.assemble(terms, timers)
+        return
     A.zeroEntries()
     if terms:
         with timers("contact"):
@@ -249,6 +254,10 @@ class NonlinearProblem:
         #: of each accepted iterate, ``accept(x)``, by :class:`~fxcontact.solver.NewtonSolver`
         #: (e.g. :class:`~fxcontact.dual.DualStress`)
         self.iterate_hooks: list = []
+        #: optional callable ``(layout) -> element-tensor source`` of this problem's Jacobian
+        #: faster than its FFCx kernel (:class:`~fxcontact.element_jacobian.CondensedJacobian`;
+        #: e.g. the hand-written Norton–Hoff kernel), or None
+        self.element_tensors = None
 
     @property
     def augment(self):
@@ -329,12 +338,14 @@ class NonlinearProblem:
         assemble_residual_with_terms(b, self.L, self.a, self.bcs, self.w.vector, terms,
                                      self.timers, self.constraints, self.w, lift=self._lift())
 
-    def jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat):
-        """SNES Jacobian callback."""
+    def jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat, element=None):
+        """SNES Jacobian callback; ``element``: a
+        :class:`~fxcontact.element_jacobian.CondensedJacobian` of this problem, which assembles
+        the condensed system instead of the MINI matrix."""
         self._update(x)
         terms = self._evaluate_contributors(jacobian=True) if self.contributors else []
         assemble_jacobian_with_terms(A, self.a, self.bcs, terms, self.bc_marker, self.timers,
-                                     self.constraints)
+                                     self.constraints, element)
         if terms is None:
             raise ContributorError(self.error)
 

@@ -601,6 +601,7 @@ class Simulation:
         if _uses_dual_stress(self.material, self.solver_options.material_tangent):
             from fxcontact.dual import DualStress
             self.dual = DualStress(self.material, sp.W, sp.quadrature_degree)
+            self.dual.use_kernel(sp)
             log.debug("Newton with the primal-dual Norton-Hoff tangent (fxcontact.dual)")
             # the material's Jacobian written out (the primal-dual tangent and the bilinear
             # pressure terms) rather than ufl.derivative + correction: the same matrix at
@@ -622,6 +623,12 @@ class Simulation:
                                                                         sp.W, wt, sp.dx))
         if self.dual is not None:
             self.problem.iterate_hooks.append(self.dual)
+        if _standard_norton_hoff(self.material):
+            # the hand-written kernel of the condensed Jacobian (fxcontact.element_jacobian
+            # checks it against the problem's own Jacobian before using it)
+            from fxcontact.element_condense import NortonHoffElementTensors
+            self.problem.element_tensors = lambda layout: NortonHoffElementTensors(
+                layout, sp, self.material, self.w, self.dual)
         fs_is = self.fieldsplit_is() if self.solver_options.uses_fieldsplit else None
         self.solver = NewtonSolver(self.problem, self.solver_options, fs_is)
         # start-up problem: the linearised material without contributors gives the first guess

@@ -225,6 +225,12 @@ class SolverOptions:
             :class:`~fxcontact.simulation.Simulation` (a problem of your own adds
             :meth:`fxcontact.dual.DualStress.jacobian_correction` to its Jacobian and the
             :class:`~fxcontact.dual.DualStress` to ``NonlinearProblem.iterate_hooks``).
+        element_condensation: with a condensed linear solver, condense the bubble in the
+            element matrices before they are assembled (:mod:`fxcontact.element_jacobian`:
+            the same Newton step at a fraction of the assembly and condensation cost) instead
+            of condensing the assembled MINI matrix (:class:`~fxcontact.condense.CondensedPC`).
+            ``"auto"`` (default): wherever the Jacobian allows it (cell integrals over the whole
+            mesh); True: required (ValueError otherwise); False: the algebraic condensation.
         prefix: PETSc options prefix.
         petsc_options: extra PETSc options (without prefix) that override the presets.
     """
@@ -241,6 +247,7 @@ class SolverOptions:
     active_set_prediction: object = "auto"
     prediction_max_nodes: int = 200
     material_tangent: str = "auto"
+    element_condensation: object = "auto"
     prefix: str = "fxc_"
     petsc_options: Dict[str, object] = field(default_factory=dict)
 
@@ -279,6 +286,10 @@ class SolverOptions:
         if self.material_tangent not in MATERIAL_TANGENTS:
             raise ValueError(f"unknown material tangent {self.material_tangent!r}; choose one "
                              f"of {MATERIAL_TANGENTS}")
+        if not (isinstance(self.element_condensation, (bool, np.bool_))
+                or self.element_condensation == "auto"):
+            raise ValueError(f"element_condensation must be 'auto', True or False, got "
+                             f"{self.element_condensation!r}")
         if not (np.isfinite(self.continuation_rtol) and 0.0 < self.continuation_rtol < 1.0):
             raise ValueError(f"continuation_rtol must be in (0, 1), got "
                              f"{self.continuation_rtol!r}")
@@ -461,13 +472,19 @@ class NewtonSolver:
         self._fieldsplit_is = fieldsplit_is
         self._layout = None
         self._condensed_pc = None
+        #: the Jacobian's bubble condensed element by element
+        #: (:class:`~fxcontact.element_jacobian.CondensedJacobian`, ``element_condensation``),
+        #: or None
+        self.element = None
         #: border of the Newton matrix (:meth:`set_border`), or None
         self.border = None
-        self._J_shell = None
+        self._J_shell = self._J_element = None
         if self.options.uses_condensation:
             from fxcontact.condense import CondensationLayout
             self._layout = CondensationLayout(problem.w.function_space)
-        self.A = problem.create_matrix()
+        self._enable_element_condensation()
+        #: the assembled Newton matrix (None with the element condensation: its own matrix)
+        self.A = problem.create_matrix() if self.element is None else None
         self.b = None
         self.snes = None
         self._create_snes()
@@ -493,6 +510,27 @@ class NewtonSolver:
         self._set_prediction()
         PETSc.Log.begin()   # PETSc's event log on (benchmarks read its events)
 
+    def _enable_element_condensation(self):
+        """The element condensation of the Jacobian when the options ask for it (sets
+        :attr:`element`; collective)."""
+        from fxcontact.element_jacobian import CondensedJacobian, element_condensation_supported
+        self.element = None
+        want = self.options.element_condensation
+        if not (self.options.uses_condensation and want is not False):
+            return
+        why = element_condensation_supported(self.problem)
+        if why is None and float(self.options.linear_options().get(
+                "condensed_augment_scale", 0.0)) != 0.0:
+            why = "the preconditioner's augmentation (condensed_augment_scale) needs it"
+        whys = [w for w in self.comm.allgather(why) if w is not None]
+        if whys:
+            if want is True:
+                raise ValueError(f"element_condensation=True: {whys[0]}")
+            log.info("bubble condensed after the assembly (%s)", whys[0])
+            return
+        self.element = CondensedJacobian(self.problem, fast_tensors=getattr(
+            self.problem, "element_tensors", None))
+
     def _write_options(self):
         """Write this solver's options under its prefix (those of an earlier solver under the
         same prefix that this one does not set are removed: e.g. a field-split option left over
@@ -517,21 +555,32 @@ class NewtonSolver:
         snes = PETSc.SNES().create(self.comm)
         snes.setOptionsPrefix(self.options.prefix)
         snes.setFunction(self._residual, self.b)
-        if self.border is None:
+        for M in (self._J_shell, self._J_element):
+            if M is not None:
+                M.destroy()
+        self._J_shell = self._J_element = None
+        op = P = self.A
+        if self.element is not None:
+            # the condensed system in the element's matrix; the product with the Newton matrix
+            # (line search slope, Krylov, border) from the kept cell matrices
+            from fxcontact.element_jacobian import jacobian_shell
+            op = P = self._J_element = jacobian_shell(self.element)
+        if self.border is not None:
+            m, n = op.getSizes()
+            op = self._J_shell = PETSc.Mat().createPython(
+                (m, n), _BorderedOperator(op, self.border), comm=self.comm)
+            op.setUp()
+        if op is self.A:
             snes.setJacobian(self._jacobian, self.A, self.A)
         else:
-            if self._J_shell is not None:
-                self._J_shell.destroy()
-            m, n = self.A.getSizes()
-            J = PETSc.Mat().createPython((m, n), _BorderedOperator(self.A, self.border),
-                                         comm=self.comm)
-            J.setUp()
-            self._J_shell = J
-
-            def jacobian(snes_, x, J_, P):
-                self._jacobian(snes_, x, P, P)
+            def jacobian(snes_, x, J_, P_):
+                self._jacobian(snes_, x, P_, P_)
+                # a new state for each operator: a preconditioner is set up again only for a
+                # matrix whose state changed (a shell's changes at its assemble())
                 J_.assemble()
-            snes.setJacobian(jacobian, J, self.A)
+                if P_.handle != J_.handle:
+                    P_.assemble()
+            snes.setJacobian(jacobian, op, P)
         snes.setConvergenceTest(self._converged_timed)
         snes.setFromOptions()
         # the linear solve runs between the end of the Jacobian callback and the line search's
@@ -552,9 +601,16 @@ class NewtonSolver:
             from fxcontact.condense import CondensedPC
             if self._condensed_pc is not None:
                 self._condensed_pc.destroy()
-            self._condensed_pc = CondensedPC(self._layout, self.options.prefix + "condensed_",
-                                             getattr(self.problem, "schur_weight", None),
-                                             problem=self.problem)
+            if self.element is not None:
+                from fxcontact.element_jacobian import ElementCondensedPC
+                self._condensed_pc = ElementCondensedPC(
+                    self.options.prefix + "condensed_", self.element,
+                    getattr(self.problem, "schur_weight", None), problem=self.problem)
+            else:
+                self._condensed_pc = CondensedPC(self._layout,
+                                                 self.options.prefix + "condensed_",
+                                                 getattr(self.problem, "schur_weight", None),
+                                                 problem=self.problem)
             if snes.getUseEW():   # Eisenstat–Walker: the inner solve follows the forcing term
                 self._condensed_pc.follow_rtol_of = ksp
             pc = pc_fs
@@ -608,7 +664,10 @@ class NewtonSolver:
 
     def _jacobian(self, snes, x, A, P):
         try:
-            self._timed("jacobian", self.problem.jacobian, snes, x, A, P)
+            if self.element is None:
+                self._timed("jacobian", self.problem.jacobian, snes, x, A, P)
+            else:
+                self._timed("jacobian", self.problem.jacobian, snes, x, A, P, self.element)
         finally:
             self._linear_start = time.perf_counter()
 
@@ -956,9 +1015,11 @@ class NewtonSolver:
         if self._condensed_pc is not None:
             self._condensed_pc.destroy()
         self.snes.destroy()
-        if self._J_shell is not None:
-            self._J_shell.destroy()
-        self.A.destroy()
+        for M in (self._J_shell, self._J_element, self.A):
+            if M is not None:
+                M.destroy()
+        if self.element is not None:
+            self.element.destroy()
         self.b.destroy()
 
 

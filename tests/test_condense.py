@@ -26,7 +26,7 @@ ROT = np.array([[np.cos(ANGLE), -np.sin(ANGLE), 0], [np.sin(ANGLE), np.cos(ANGLE
 
 
 def pressed_block(material, n=4, beta=100.0, solver="mumps", prefix="fxc_", petsc_options=None,
-                  contact=True):
+                  contact=True, friction=None):
     """A unit cube rotated by 30° about z (its faces x'=0, y'=0 are inclined symmetry planes),
     fixed vertically at the bottom, pressed by a descending rigid plane (implicit contact).
     ``contact=False``: the top face is moved down at the die's speed instead (a velocity
@@ -57,7 +57,7 @@ def pressed_block(material, n=4, beta=100.0, solver="mumps", prefix="fxc_", pets
     sim.add_velocity_bc(sim.facets(ft, 3), 0.0, 2)
     die = fx.Plane((0, 0, 1.0), (0, 0, -1), velocity=(0, 0, -0.1), name="die")
     sim.add_contributor(fx.NodalContact(fx.ContactBoundary(space, ft, 4), die, beta=beta,
-                                        scheme="implicit"))
+                                        scheme="implicit", friction=friction))
     return sim
 
 
@@ -70,7 +70,8 @@ MATERIALS = {
 def _solve_with(prob, A, b, linear_solver, prefix, factorisations=None):
     """The step A x = b with a fresh solver; ``factorisations`` (a dict) receives the
     condensed PC's count of set-ups per factorisation kind."""
-    ns = NewtonSolver(prob, SolverOptions(linear_solver=linear_solver, prefix=prefix))
+    ns = NewtonSolver(prob, SolverOptions(linear_solver=linear_solver, prefix=prefix,
+                                          element_condensation=False))
     ksp = ns.snes.getKSP()
     ksp.setOperators(A, A)
     x = A.createVecRight()

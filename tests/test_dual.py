@@ -265,3 +265,56 @@ def test_written_out_jacobian_only_for_the_plain_norton_hoff_residual():
     a = float(expand_derivatives(ref)(()))   # constant expressions: evaluated in Python
     b = float(val(()))
     assert abs(a - b) <= 1e-12 * abs(a)
+
+
+@pytest.mark.parametrize("m", [0.016, 0.3])
+def test_dual_kernel_equals_the_expressions_and_the_numpy_twin(m):
+    """The numba dual update (fxcontact.dual_kernel) against dolfinx's evaluation of the UFL
+    expressions, on a distorted mesh with a nonlinear velocity field and bubbles, over a
+    primal start and three updates (each with another field), and against its numpy twin; the
+    cap of the update is reached on some points."""
+    import dolfinx
+    from fxcontact import MixedSpace
+    from fxcontact.dual import DualStress
+    from fxcontact.dual_kernel import dual_update_numpy
+    from fxcontact.element_condense import P1P1Layout
+    from helpers import box_mesh
+    from test_element_condense import set_state
+    sp = MixedSpace(box_mesh(MPI.COMM_WORLD, n=(3, 3, 3), perturb=0.25))
+    mat = _material(m=m, reg=1e-2)
+    lay = P1P1Layout(sp.W)
+    w = dolfinx.fem.Function(sp.W)
+    ref = DualStress(mat, sp.W, sp.quadrature_degree)
+    fast = DualStress(mat, sp.W, sp.quadrature_degree)
+    assert fast.use_kernel(sp)
+    kern = fast.kernel
+    ncell = lay.num_cells
+    capped = 0
+    for k, phase in enumerate([0.0, 0.4, 1.1, -0.7]):
+        set_state(lay, w, phase)
+        s_before = fast.s.x.array.copy()
+        w_before = fast._w_new.x.array.copy()
+        for ds in (ref, fast):
+            (ds.begin if k == 0 else ds.accept)(w.vector)
+        a = fast.s.x.array.reshape(-1, 3, 3)
+        b = ref.s.x.array.reshape(-1, 3, 3)
+        scale = np.abs(b).max()
+        assert np.abs(a - b).max() <= 1e-11 * scale
+        # numpy twin on the owned cells
+        cells = np.arange(ncell)
+        coords = kern._x[kern._xdofs[cells]]
+        blocks = kern._sdofs[cells]
+        tw = dual_update_numpy(coords, w_before[kern._wdofs[cells]],
+                               w.x.array[kern._wdofs[cells]],
+                               s_before.reshape(-1, 3, 3)[blocks], mat.K, mat.m,
+                               mat.regularization, kern.g1, kern.gb, kern.share,
+                               0 if k == 0 else 1)
+        assert np.abs(tw - a[blocks]).max() <= 1e-11 * scale
+        if k:
+            sp_new = dual_update_numpy(coords, w_before[kern._wdofs[cells]],
+                                       w.x.array[kern._wdofs[cells]], None, mat.K, mat.m,
+                                       mat.regularization, kern.g1, kern.gb, kern.share, 0)
+            capped += int(np.count_nonzero(np.isclose(
+                np.linalg.norm(a[blocks], axis=(2, 3)), np.linalg.norm(sp_new, axis=(2, 3)),
+                rtol=1e-12)))
+    assert MPI.COMM_WORLD.allreduce(capped) > 0

@@ -1,0 +1,180 @@
+"""The Newton matrix with the MINI bubble condensed element by element
+(fxcontact.element_jacobian) against the plain MINI system.
+
+* the numba cell kernels equal their numpy twins;
+* at a perturbed iterate with active contact (with and without Tresca friction), inclined
+  symmetry planes and a Dirichlet face, the exact product J' x from the condensed matrix and the
+  kept cell matrices equals the product with the assembled MINI Jacobian, and the Newton step of
+  the element condensation equals the step of MUMPS on the MINI system, both to 1e-10;
+* whole increments (Simulation) give the same solution with the element condensation and with
+  the algebraic one, also with an idle tool eliminated by the bordered Newton matrix (ring
+  rolling) — serially and on 2 ranks.
+"""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import fxcontact as fx
+from fxcontact import element_jacobian as ej
+from fxcontact.element_jacobian import CondensedJacobian, condense_cell_numpy
+from fxcontact.solver import NewtonSolver, SolverOptions
+from helpers import assert_newton_counts_match
+from test_condense import MATERIALS, pressed_block
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "demos"))
+
+
+def test_cell_condensation_equals_numpy():
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(19, 19)) + 19 * np.eye(19)
+    lpos = np.array([[3 * i, 3 * i + 1, 3 * i + 2, 15 + i] for i in range(4)]).ravel()
+    bpos = np.array([12, 13, 14])
+    out = (np.zeros((16, 16)), np.zeros((3, 16)), np.zeros((16, 3)), np.zeros((3, 3)),
+           np.zeros((3, 3)))
+    assert ej._condense_cell(A, lpos, bpos, *out)
+    for got, ref in zip(out, condense_cell_numpy(A, lpos, bpos)):
+        assert np.allclose(got, ref, rtol=1e-13, atol=1e-13)
+    A[np.ix_(bpos, bpos)] = 0.0                     # singular bubble block: reported
+    assert not ej._condense_cell(A, lpos, bpos, *out)
+
+
+def test_vector_kernels_equal_numpy():
+    rng = np.random.default_rng(1)
+    nc, nl, k = 7, 16, 3
+    n = 40 + nc * k
+    w_l = rng.integers(0, 40, size=(nc, nl)).astype(np.int32)
+    w_b = (40 + np.arange(nc * k).reshape(nc, k)).astype(np.int32)
+    X, Y = rng.normal(size=(nc, k, nl)), rng.normal(size=(nc, nl, k))
+    B, Abb = rng.normal(size=(nc, k, k)), rng.normal(size=(nc, k, k))
+    f, u = rng.normal(size=n), rng.normal(size=n)
+    a, b = np.zeros(n), np.zeros(n)
+    ej._add_Y(f, w_l, w_b, Y, a)
+    ej.add_Y_numpy(f, w_l, w_b, Y, b)
+    assert np.allclose(a, b, rtol=1e-13, atol=1e-13)
+    a, b = f.copy(), f.copy()
+    ej._bubble_solve(f, u, w_l, w_b, X, B, a)
+    ej.bubble_solve_numpy(f, u, w_l, w_b, X, B, b)
+    assert np.allclose(a, b, rtol=1e-13, atol=1e-13)
+    a_b, a_l, b_b, b_l = f.copy(), np.zeros(n), f.copy(), np.zeros(n)
+    ej._bubble_product(f, u, w_l, w_b, X, Y, Abb, a_b, a_l)
+    ej.bubble_product_numpy(f, u, w_l, w_b, X, Y, Abb, b_b, b_l)
+    assert np.allclose(a_b, b_b, rtol=1e-13, atol=1e-13)
+    assert np.allclose(a_l, b_l, rtol=1e-13, atol=1e-13)
+
+
+@pytest.fixture(scope="module", params=["norton-hoff", "elastic", "norton-hoff-friction"])
+def iterate(request):
+    """A pressed block after one increment, its iterate perturbed (same on any partition up
+    to the random perturbation, which is per rank)."""
+    name = request.param
+    material = MATERIALS[name.replace("-friction", "")]()
+    friction = fx.Tresca(mbar=0.5) if name.endswith("friction") else None
+    sim = pressed_block(material, solver="condensed-mumps", prefix=f"tej_{name}_",
+                        friction=friction)
+    sim.run(0.1, 0.1)
+    comm = sim.comm
+    rng = np.random.default_rng(comm.rank + 7)
+    nown = sim.space.num_owned_dofs
+    scale = comm.allreduce(np.abs(sim.w.x.array[:nown]).max(initial=0.0), op=MPI.MAX)
+    sim.w.x.array[:nown] += 1e-2 * scale * rng.normal(size=nown)
+    sim.w.x.scatter_forward()
+    return sim
+
+
+def test_element_newton_is_used(iterate):
+    assert iterate.solver.element is not None
+    assert iterate.solver.element.kernel in ("ffcx", "hand")
+
+
+def test_product_equals_assembled_jacobian(iterate):
+    prob = iterate.problem
+    A_full = prob.assemble_jacobian()
+    el = CondensedJacobian(prob)
+    prob.jacobian(None, prob.w.vector, None, None, element=el)
+    x = A_full.createVecRight()
+    rng = np.random.default_rng(3 + iterate.comm.rank)
+    x.setArray(rng.normal(size=x.getLocalSize()))
+    y_full, y_el = x.duplicate(), x.duplicate()
+    A_full.mult(x, y_full)
+    el.mult(x, y_el)
+    y_el.axpy(-1.0, y_full)
+    assert y_el.norm() <= 1e-10 * y_full.norm()
+
+
+def test_step_equals_full_mumps_step(iterate):
+    """The element-condensed Newton step (its own solver: shell J', ElementCondensedPC) equals
+    MUMPS on the MINI Jacobian, and solves the full system."""
+    prob = iterate.problem
+    A_full = prob.assemble_jacobian()
+    b = prob.assemble_residual()
+    ksp = PETSc.KSP().create(iterate.comm)
+    ksp.setOperators(A_full)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    x_full = b.duplicate()
+    ksp.solve(b, x_full)
+    ns = NewtonSolver(prob, SolverOptions(linear_solver="condensed-mumps", prefix="tej_step_"))
+    assert ns.element is not None
+    assert ns.A is None                     # no MINI matrix: the P1/P1 one only
+    ns._jacobian(ns.snes, prob.w.vector, None, None)
+    J, P = ns.snes.getKSP().getOperators()
+    ns.snes.getKSP().setOperators(J, P)
+    x_el = b.duplicate()
+    ns.snes.getKSP().solve(b, x_el)
+    assert ns.snes.getKSP().getConvergedReason() > 0
+    r = b.duplicate()
+    A_full.mult(x_el, r)
+    r.axpy(-1.0, b)
+    assert r.norm() <= 1e-10 * b.norm()
+    x_el.axpy(-1.0, x_full)
+    assert x_el.norm() <= 1e-10 * x_full.norm()
+    ns.destroy()
+    ksp.destroy()
+
+
+@pytest.mark.parametrize("material", ["norton-hoff", "elastic"])
+def test_increments_equal_algebraic_condensation(material):
+    """Two increments with the element condensation and with the algebraic one: the same
+    velocity to 1e-8 and the same Newton iteration counts (within one)."""
+    runs = {}
+    for flag in (True, False):
+        sim = pressed_block(MATERIALS[material](), solver="condensed-mumps",
+                            prefix=f"tej_inc_{flag}_")
+        sim.solver_options.element_condensation = flag
+        sim.run(0.2, 0.1)
+        assert (sim.solver.element is not None) == flag
+        runs[flag] = (sim.w.x.array[: sim.space.num_owned_dofs].copy(),
+                      [r["newton_iterations"] for r in sim.history])
+    a, b = runs[True][0], runs[False][0]
+    comm = MPI.COMM_WORLD
+    diff = comm.allreduce(float(np.linalg.norm(a - b)) ** 2) ** 0.5
+    ref = comm.allreduce(float(np.linalg.norm(b)) ** 2) ** 0.5
+    assert diff <= 1e-8 * ref
+    assert len(runs[True][1]) == len(runs[False][1])
+    for n_el, n_alg in zip(runs[True][1], runs[False][1]):
+        assert_newton_counts_match(n_el, n_alg, bitwise=False)
+
+
+def test_ring_idle_tool_bordered_equals_algebraic(monkeypatch):
+    """One ring-rolling increment with the idle mandrel eliminated by the bordered Newton
+    matrix (friction on both rolls): element and algebraic condensation agree to 1e-8."""
+    import demo_ring_rolling as demo
+    one = {**demo.QUICK, "case": 2, "revolutions": 1.0 / demo.QUICK["increments_per_rev"],
+           "output_dir": None, "pictures": False, "idle_method": "bordered"}
+    res = {}
+    for flag in (True, False):
+        def options(*a, _flag=flag, **k):
+            return SolverOptions(*a, linear_solver="condensed-mumps",
+                                 element_condensation=_flag, prefix=f"tej_ring_{_flag}_", **k)
+        monkeypatch.setattr(fx, "SolverOptions", options)
+        res[flag] = demo.run(**one)["history"][0]
+    a, b = res[True], res[False]
+    for k in ("main_force_x", "main_torque", "mandrel_force_x", "mandrel_omega", "ring_omega"):
+        assert abs(a[k] - b[k]) <= 1e-8 * abs(b[k]), (k, a[k], b[k])
+    assert abs(a["newton_iterations"] - b["newton_iterations"]) <= 1
