@@ -54,7 +54,13 @@ _API = {
     "Coulomb": ("contact.friction", "Coulomb friction limited by Tresca (§9.2)"),
     "Tresca": ("contact.friction", "Tresca friction factor law tau = mbar k (§9.2)"),
     "Norton": ("contact.friction", "viscoplastic (Norton) friction (§9.2)"),
+    "ShearLimit": ("contact.friction", "which shear flow stress k a Tresca limit uses: local "
+                   "nodal rate, a given rate or a given k"),
+    "Penalty": ("contact.penalty", "the penalty of a contact: rho, beta or a gap stiffness "
+                "(§2.5)"),
     "NodalSprings": ("springs", "nodal springs/dashpots: the smallest nodal contributor"),
+    "Contributor": ("protocols", "what add_contributor takes: evaluate(w, jacobian), stable()"),
+    "Controller": ("protocols", "what add_controller takes: optional hooks only"),
     # tools and their motions
     "Tool": ("tools.base", "base class of rigid tools (projection, motion)"),
     "Projection": ("tools.base", "result of a projection: gap, normal, point, Hessian, flags"),

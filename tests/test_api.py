@@ -33,3 +33,22 @@ def test_star_import_and_help():
     with pytest.raises(AttributeError, match="no attribute 'Nonexistent'"):
         fx.Nonexistent
     assert set(fx._API) <= set(dir(fx))
+
+
+def test_contributors_and_controllers_satisfy_their_protocols():
+    """The library's contributors are ``Contributor``s with the hooks the simulation calls;
+    the bordered idle rotation's stand-in for the contact (a ``__getattr__`` proxy) declares
+    the protocol's methods itself; the ring-mill controllers' optional hooks are protocols too."""
+    from fxcontact import mill, protocols as pr
+
+    for cls in (fx.NodalContact, fx.NodalSprings, mill._EliminatedContact):
+        assert issubclass(cls, pr.Contributor), cls
+    for proto in (pr.BeginsIncrement, pr.EndsIncrement, pr.HasDiagnostics, pr.HasOutputFields,
+                  pr.UpdatesOutputFields, pr.SavesState, pr.RestoresState,
+                  pr.HasSetupSignature, pr.HasSummary, pr.SolverHooks):
+        assert issubclass(fx.NodalContact, proto), proto
+    assert issubclass(fx.IdleRotation, pr.SolvesIncrement)
+    assert not issubclass(fx.RingCentring, pr.SolvesIncrement)
+    for cls in (fx.IdleRotation, fx.RingCentring, fx.RingAxisUpdate):
+        assert issubclass(cls, pr.SavesState) and issubclass(cls, pr.RestoresState), cls
+    assert not isinstance(object(), pr.Contributor)
