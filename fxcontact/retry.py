@@ -6,7 +6,7 @@
 1. **fall-backs at the same dt**, each taken once and in this order:
 
    * the linear solver that ``linear_solver="auto"`` chose iteratively (condensed-amg) failed:
-     the direct condensed solver from now on (``NewtonSolver.fall_back_to_direct``);
+     the direct condensed solver from now on (``ContactNewtonSolver.fall_back_to_direct``);
    * the primal–dual Norton–Hoff tangent failed (:mod:`fxcontact.dual`): the consistent tangent
      for the attempts at this dt;
    * the line search failed: ``SolverOptions.line_search_fallback`` for one attempt;

@@ -23,6 +23,24 @@ def test_all_names_importable_and_documented():
             assert (obj.__doc__ or "").strip(), f"{name} has no docstring"
 
 
+def test_api_is_imported_explicitly():
+    """Every public name is imported by ``fxcontact/__init__.py`` itself (no lazy look-up), the
+    names that clash with dolfinx have their own names, the old ones are aliases."""
+    import ast
+    from pathlib import Path
+
+    tree = ast.parse(Path(fx.__file__).read_text(encoding="utf-8"))
+    imported = {a.asname or a.name for node in tree.body if isinstance(node, ast.ImportFrom)
+                for a in node.names}
+    assert set(fx._API) <= imported, set(fx._API) - imported
+    assert set(fx.__all__) == {"__version__", *fx._API}
+    assert not hasattr(fx, "__getattr__")
+    assert fx.NonlinearProblem is fx.NodalNonlinearProblem
+    assert fx.NewtonSolver is fx.ContactNewtonSolver
+    assert fx.NodalNonlinearProblem.__name__ == "NodalNonlinearProblem"
+    assert fx.ContactNewtonSolver.__name__ == "ContactNewtonSolver"
+
+
 def test_star_import_and_help():
     ns = {}
     exec("from fxcontact import *", ns)
