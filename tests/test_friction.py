@@ -9,8 +9,8 @@ from mpi4py import MPI
 from fxcontact.contact.friction import (LAW_COULOMB, LAW_NORTON, LAW_TRESCA, Coulomb,
                                         Frictionless, Norton, ShearLimit, Tresca,
                                         friction_kernel, friction_kernel_numpy)
-from fxcontact.forming import flow_stress
 from fxcontact.contact.nodal import NodalContact
+from fxcontact.forming import flow_stress
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic, NortonHoff
 from fxcontact.tools.analytic import Cylinder, Plane, Sphere
