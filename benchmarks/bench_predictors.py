@@ -41,7 +41,7 @@ from drawing_case import drawing_simulation  # noqa: E402
 
 import dolfinx.geometry  # noqa: E402
 
-from fxcontact.solver import NewtonSolver, SolverOptions  # noqa: E402
+from fxcontact.solver import ContactNewtonSolver, SolverOptions  # noqa: E402
 
 CASE = dict(R0=5.0, reduction=0.15, half_angle_deg=10.0, h=2.5, h_die=1.25, K=445.0,
             m=0.016, speed=10.0)
@@ -89,7 +89,7 @@ def _projected(sim, die, contact, dt):
 def run(variant: str, n_inc: int):
     opts = SolverOptions(max_it=30, line_search="basic" if variant == "basic" else "bt")
     sim, die, contact = drawing_simulation(MPI.COMM_WORLD, solver_options=opts, **CASE)
-    original = NewtonSolver._converged
+    original = ContactNewtonSolver._converged
     if variant == "consistent-end":
         def converged(self, snes, it, norms):
             if sim.dual is not None:
@@ -98,7 +98,7 @@ def run(variant: str, n_inc: int):
                 elif norms[2] < 1e-3 * self._f0 and self._last_stable:
                     sim.dual.active = False
             return original(self, snes, it, norms)
-        NewtonSolver._converged = converged
+        ContactNewtonSolver._converged = converged
     old = None
     try:
         for _ in range(n_inc):
@@ -112,7 +112,7 @@ def run(variant: str, n_inc: int):
                 _projected(sim, die, contact, DT)
             old = cur
     finally:
-        NewtonSolver._converged = original
+        ContactNewtonSolver._converged = original
     its = [r["newton_iterations_all"] for r in sim.history]
     return its, 4.0 * sim.history[-1]["front_z"]
 

@@ -141,7 +141,7 @@ def run(driver: str = "newton", n: int = 12, n_steps: int = 6, depth: float = 0.
         comm=MPI.COMM_WORLD, linear_solver=None) -> dict:
     """Press the ball in ``n_steps`` load steps with ``driver``: ``"newton"`` (dolfinx's
     NewtonSolver), ``"snes"`` (a petsc4py SNES with ContactProblem's callbacks) or
-    ``"fxcontact"`` (fxcontact's NewtonSolver on a fxcontact NonlinearProblem).
+    ``"fxcontact"`` (fxcontact's ContactNewtonSolver on a NodalNonlinearProblem).
     ``linear_solver``: None (the user's MUMPS LU) or a kind of
     :meth:`fxcontact.ContactProblem.use_linear_solver` (``"newton"`` and ``"snes"``)."""
     t0 = time.perf_counter()
@@ -187,9 +187,9 @@ def run(driver: str = "newton", n: int = 12, n_steps: int = 6, depth: float = 0.
             x.destroy()
             return snes.getIterationNumber()
     elif driver == "fxcontact":
-        fprob = fx.NonlinearProblem(F, u, bcs, contributors=[contact])
-        fsolver = fx.NewtonSolver(fprob, fx.SolverOptions(rtol=1e-10, atol=1e-12, stol=1e-10,
-                                                          max_it=50, prefix="hyper_fx_"))
+        fprob = fx.NodalNonlinearProblem(F, u, bcs, contributors=[contact])
+        fsolver = fx.ContactNewtonSolver(fprob, fx.SolverOptions(
+            rtol=1e-10, atol=1e-12, stol=1e-10, max_it=50, prefix="hyper_fx_"))
 
         def solve():
             info = fsolver.solve()

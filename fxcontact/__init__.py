@@ -15,21 +15,58 @@ Public API (name, its submodule, what it is):
 {api}
 """
 
-from importlib import import_module as _import_module
+# The public API, imported explicitly (a new name: its import here and its line in _API)
+from fxcontact.simulation import VOLUME_CORRECTIONS, IncrementResult, Simulation
+from fxcontact.retry import IncrementError, MeshInversionError
+from fxcontact.outputs import OutputError
+from fxcontact.checkpoint import CheckpointError, PerVertex, latest_checkpoint
+from fxcontact.mesh_health import simplex_measures
+from fxcontact.symmetry import SymmetryPlanes
+from fxcontact.spaces import MixedSpace, facets_with_tags
+from fxcontact.materials import LinearElastic, Material, NortonHoff
+from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.nodal import FORMULATIONS, FRICTION_MODES, SCHEMES, NodalContact
+from fxcontact.contact.penalty import Penalty, penalty_from_beta
+from fxcontact.contact.friction import Coulomb, Frictionless, Norton, ShearLimit, Tresca
+from fxcontact.springs import NodalSprings
+from fxcontact.protocols import Contributor, Controller
+from fxcontact.tools.base import MovedTool, Projection, RigidMotion, StagedMotion, Tool
+from fxcontact.tools.analytic import Cone, Cylinder, Plane, Sphere
+from fxcontact.tools.revolved import (RevolvedProfile, die_profile, faceted_revolved,
+                                      grooved_roll_profile)
+from fxcontact.tools.faceted import FacetedTool, check_surface, read_surface
+from fxcontact.kinematics import CartesianUpdate, CylindricalUpdate
+from fxcontact.meshing import (BILLET_TAGS, BLOCK_TAGS, DRAWING_BAR_TAGS, RING_TAGS, block,
+                               cylinder_billet, drawing_bar, gmsh_session, ring,
+                               sector_plane_normals, structured_ring)
+from fxcontact.power import (PlasticDissipation, on_configuration, penalty_power,
+                             plastic_dissipation)
+from fxcontact.steady import steady_window
+from fxcontact.forming import (avitzur_f, drawing_ideal_stress, drawing_mean_strain_rate,
+                               drawing_optimal_angle, drawing_sachs_stress, drawing_theory,
+                               drawing_upper_bound, flow_stress, ring_compression_upper_bound,
+                               ring_rolling_feed_window, ring_rolling_force,
+                               upsetting_slab_coulomb, upsetting_upper_bound)
+from fxcontact.mill import ControlledMotion, IdleRotation, RingAxisUpdate, RingCentring
+from fxcontact.solver import (LINE_SEARCHES, MATERIAL_TANGENTS, ContactNewtonSolver, NewtonSolver,
+                              SolveInfo, SolverOptions)
+from fxcontact.dual import DualStress
+from fxcontact.petsc import (ContactProblem, ContributorError, NodalNonlinearProblem, NodalTerms,
+                             NonlinearProblem)
+from fxcontact.io import render_png
+from fxcontact.console import add_verbosity_arguments, configure_logging
 
 __version__ = "0.1.0"
 
-# One line per public name: name -> (submodule, one-line description). The names are loaded on
-# first access (PEP 562), so ``import fxcontact`` stays light and adding a name (e.g. a friction
-# law of ``fxcontact.contact.friction``) is one line here.
+# One line per public name: name -> (submodule, one-line description), for help(fxcontact)
 _API = {
     # time stepping and spaces
     "Simulation": ("simulation", "increment loop: BCs, contributors, cut-back, outputs (§1.5)"),
-    "IncrementError": ("simulation", "raised when an increment fails after its cut-backs"),
+    "IncrementError": ("retry", "raised when an increment fails after its cut-backs"),
     "IncrementResult": ("simulation", "outcome of one accepted increment (history row + info)"),
-    "MeshInversionError": ("simulation", "raised when an element would turn inside out even "
+    "MeshInversionError": ("retry", "raised when an element would turn inside out even "
                            "after the cut-backs"),
-    "OutputError": ("simulation", "raised when writing the history or the VTK series fails"),
+    "OutputError": ("outputs", "raised when writing the history or the VTK series fails"),
     "CheckpointError": ("checkpoint", "a checkpoint that is missing, incomplete, of another "
                         "version, mesh or set-up"),
     "PerVertex": ("checkpoint", "per-vertex contributor state saved in a checkpoint"),
@@ -47,14 +84,20 @@ _API = {
     "ContactBoundary": ("contact.boundary", "contact nodes and their lumped areas S_n (§1.3)"),
     "NodalContact": ("contact.nodal", "nodal penalty contact, four schemes (§2-§3)"),
     "SCHEMES": ("contact.nodal", "names of the contact time-integration schemes (§3)"),
-    "penalty_from_beta": ("contact.nodal", "penalty rho from the dimensionless beta (§2.5)"),
+    "penalty_from_beta": ("contact.penalty", "penalty rho from the dimensionless beta (§2.5)"),
     "FRICTION_MODES": ("contact.nodal", "implicit or explicit friction (§9.4)"),
     "FORMULATIONS": ("contact.nodal", "contact in velocities (Simulation) or displacements"),
     "Frictionless": ("contact.friction", "no tangential stress (the default law, §9)"),
     "Coulomb": ("contact.friction", "Coulomb friction limited by Tresca (§9.2)"),
     "Tresca": ("contact.friction", "Tresca friction factor law tau = mbar k (§9.2)"),
     "Norton": ("contact.friction", "viscoplastic (Norton) friction (§9.2)"),
+    "ShearLimit": ("contact.friction", "which shear flow stress k a Tresca limit uses: local "
+                   "nodal rate, a given rate or a given k"),
+    "Penalty": ("contact.penalty", "the penalty of a contact: rho, beta or a gap stiffness "
+                "(§2.5)"),
     "NodalSprings": ("springs", "nodal springs/dashpots: the smallest nodal contributor"),
+    "Contributor": ("protocols", "what add_contributor takes: evaluate(w, jacobian), stable()"),
+    "Controller": ("protocols", "what add_controller takes: optional hooks only"),
     # tools and their motions
     "Tool": ("tools.base", "base class of rigid tools (projection, motion)"),
     "Projection": ("tools.base", "result of a projection: gap, normal, point, Hessian, flags"),
@@ -126,16 +169,18 @@ _API = {
     "drawing_theory": ("forming", "drawing-stress band of a Norton-Hoff material (§14.2)"),
     # solver and assembly
     "SolverOptions": ("solver", "Newton and linear solver settings"),
-    "NewtonSolver": ("solver", "SNES Newton with a stable-active-set test (§3.6)"),
+    "ContactNewtonSolver": ("solver", "SNES Newton with a stable-active-set test (§3.6)"),
+    "NewtonSolver": ("solver", "former name of ContactNewtonSolver (the same class)"),
     "SolveInfo": ("solver", "outcome of a Newton solve"),
     "LINE_SEARCHES": ("solver", "globalisations of Newton: PETSc line searches and "
                       "'trust-region'"),
     "MATERIAL_TANGENTS": ("solver", "Norton-Hoff tangents of Newton: 'auto', 'consistent', "
                           "'primal-dual'"),
     "DualStress": ("dual", "dual stress of the primal-dual Norton-Hoff Newton (§3.6)"),
-    "NonlinearProblem": ("petsc", "UFL residual/Jacobian plus nodal terms, MPI-safe"),
-    "ContactProblem": ("petsc", "dolfinx NonlinearProblem plus nodal contact: your own "
-                       "NewtonSolver or SNES"),
+    "NodalNonlinearProblem": ("petsc", "UFL residual/Jacobian plus nodal terms, MPI-safe"),
+    "NonlinearProblem": ("petsc", "former name of NodalNonlinearProblem (the same class)"),
+    "ContactProblem": ("petsc", "dolfinx's NonlinearProblem plus nodal contact: your own "
+                       "dolfinx NewtonSolver or SNES"),
     "NodalTerms": ("petsc", "per-vertex residual entries and 3x3 Jacobian blocks"),
     "ContributorError": ("petsc", "error raised by a nodal contributor on any rank"),
     # outputs and console
@@ -144,21 +189,8 @@ _API = {
     "add_verbosity_arguments": ("console", "add --verbose/--quiet to an argparse parser"),
 }
 
-__all__ = ["__version__", *_API]
+__all__ = ["__version__", *_API]   # tests/test_api.py: every name imported above
 
 __doc__ = __doc__.format(api="\n".join(
     f"* {name} ({mod}): {text}" for name, (mod, text) in _API.items()))
 
-
-def __getattr__(name):
-    try:
-        mod, _ = _API[name]
-    except KeyError:
-        raise AttributeError(f"module 'fxcontact' has no attribute {name!r}") from None
-    value = getattr(_import_module(f"fxcontact.{mod}"), name)
-    globals()[name] = value  # cache: later look-ups do not come here
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_API))

@@ -14,15 +14,17 @@ are in different calls.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import importlib
 import inspect
+import math
 from contextlib import contextmanager
 from typing import Optional
 
 import numpy as np
 
-__all__ = ["check_together", "together", "digest"]
+__all__ = ["check_together", "together", "digest", "describe", "digest_parameters"]
 
 #: values longer than this are shown shortened (around their first difference) in messages
 _SHOWN = 120
@@ -141,28 +143,87 @@ def _is_function(obj) -> bool:
     return inspect.isroutine(obj) or type(obj).__name__.endswith("Dispatcher")   # numba
 
 
-def digest(obj, depth: int = 3) -> str:
-    """A description of ``obj`` that is the same on every rank for the same parameters:
-    numbers (floats to 12 digits), strings, arrays (by a hash), sequences, dicts and the
-    public attributes of objects (nested up to ``depth``); callables and private attributes
-    (caches, rank-local data) are left out."""
+def _walk(obj, depth: float, text: bool):
+    """The one traversal behind :func:`describe` (``text=False``: plain JSON values) and
+    :func:`digest` (``text=True``: one string). Numbers, strings, arrays, sequences and dicts
+    are walked alike. They differ where their uses differ:
+
+    * floats: in full (``describe``) or to 12 digits (``digest``: not the last bits, which
+      depend on the order of a reduction between ranks);
+    * arrays: as lists (``describe``) or by shape and hash (``digest``: one short string to
+      gather);
+    * objects: ``describe`` (a checkpoint's set-up signature, compared with a later run) takes a
+      dataclass's fields and any other object by its type only (its attributes may hold the
+      run's state, e.g. the rates a :class:`~fxcontact.mill.ControlledMotion` was set to), a
+      function by its name; ``digest`` (compared between ranks in one run) takes the public
+      attributes of any object, nested up to ``depth``, and leaves functions out.
+    """
+    if not text and dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        out = {"type": type(obj).__name__}
+        out.update({f.name: _walk(getattr(obj, f.name), depth - 1, text)
+                    for f in dataclasses.fields(obj) if f.repr})
+        return out
     if isinstance(obj, (float, np.floating)):
-        return f"{float(obj):.12g}"   # not the last bits: sums reduced in another order
+        return f"{float(obj):.12g}" if text else float(obj)
     if obj is None or isinstance(obj, (bool, int, str, np.integer)):
-        return repr(obj.item() if isinstance(obj, np.generic) else obj)
+        value = obj.item() if isinstance(obj, np.generic) else obj
+        return repr(value) if text else value
     if isinstance(obj, np.ndarray):
+        if not text:
+            return _walk(obj.tolist(), depth, text)
         a = np.ascontiguousarray(obj)
         return f"array{a.shape}:{hashlib.sha1(a.tobytes()).hexdigest()[:10]}"
     if depth <= 0:
         return type(obj).__name__
     if isinstance(obj, (list, tuple)):
-        return "[" + ", ".join(digest(o, depth - 1) for o in obj) + "]"
+        items = [_walk(o, depth - 1, text) for o in obj]
+        return "[" + ", ".join(items) + "]" if text else items
     if isinstance(obj, dict):
-        return "{" + ", ".join(f"{k}: {digest(v, depth - 1)}"
+        if not text:
+            return {str(k): _walk(v, depth - 1, text) for k, v in obj.items()}
+        return "{" + ", ".join(f"{k}: {_walk(v, depth - 1, text)}"
                                for k, v in sorted(obj.items(), key=lambda kv: str(kv[0]))) + "}"
+    if not text:
+        if callable(obj):
+            return f"function {getattr(obj, '__qualname__', type(obj).__name__)}"
+        return type(obj).__name__
     if _is_function(obj):
         return type(obj).__name__
     attrs = {k: v for k, v in sorted(getattr(obj, "__dict__", {}).items())
              if not k.startswith("_") and not _is_function(v)}
-    return type(obj).__name__ + "(" + ", ".join(f"{k}={digest(v, depth - 1)}"
+    return type(obj).__name__ + "(" + ", ".join(f"{k}={_walk(v, depth - 1, text)}"
                                                 for k, v in attrs.items()) + ")"
+
+
+def describe(obj):
+    """Plain (JSON) description of a set-up object for the set-up signature of a checkpoint:
+    the fields of a dataclass (materials, friction laws, motions) with its type, numbers,
+    strings, sequences; a function by its name (its code is not compared); any other object by
+    its type."""
+    return _walk(obj, math.inf, text=False)
+
+
+def digest(obj, depth: int = 3) -> str:
+    """A description of ``obj`` that is the same on every rank for the same parameters:
+    numbers (floats to 12 digits), strings, arrays (by a hash), sequences, dicts and the
+    public attributes of objects (nested up to ``depth``); callables and private attributes
+    (caches, rank-local data) are left out."""
+    return _walk(obj, depth, text=True)
+
+
+def digest_parameters(obj) -> str:
+    """A contributor, controller or kinematics as compared between ranks: its type, its scalar
+    parameters and its tools (:func:`digest`), not its rank-local data."""
+    from fxcontact.tools import Tool
+    if not hasattr(obj, "__dict__"):
+        return type(obj).__name__
+    out = {}
+    for k, v in sorted(vars(obj).items()):
+        if k.startswith("_"):
+            continue
+        if v is None or isinstance(v, (bool, int, float, str, np.integer, np.floating)):
+            out[k] = v
+        elif isinstance(v, Tool) or (isinstance(v, (list, tuple)) and v
+                                     and all(isinstance(t, Tool) for t in v)):
+            out[k] = v
+    return type(obj).__name__ + digest(out, depth=6)

@@ -306,13 +306,16 @@ class _EliminatedContact:
     def evaluate(self, w, jacobian: bool):
         return self._idle._eliminate(w, jacobian)
 
-    def __getattr__(self, name):     # stable(), fingerprint(), begin_solve(), ...
+    def stable(self) -> bool:        # with evaluate(): a fxcontact.protocols.Contributor
+        return self._idle.contact.stable()
+
+    def __getattr__(self, name):     # fingerprint(), begin_solve(), ...
         return getattr(self._idle.contact, name)
 
 
 class _Border:
     """The border (U, G, D) of the Newton matrix, filled at the Jacobian evaluations
-    (:meth:`fxcontact.solver.NewtonSolver.set_border`)."""
+    (:meth:`fxcontact.solver.ContactNewtonSolver.set_border`)."""
 
     def __init__(self):
         self.current = None

@@ -29,8 +29,9 @@ import dolfinx.fem.petsc
 from fxcontact import compat
 from fxcontact.collective import together
 
-__all__ = ["NodalTerms", "NonlinearProblem", "ContactProblem", "Timers", "add_nodal_residual",
-           "add_nodal_jacobian", "ContributorError", "lifting_needed", "LINEAR_SOLVERS"]
+__all__ = ["NodalTerms", "NodalNonlinearProblem", "NonlinearProblem", "ContactProblem", "Timers",
+           "add_nodal_residual", "add_nodal_jacobian", "ContributorError", "lifting_needed",
+           "LINEAR_SOLVERS"]
 
 log = logging.getLogger(__name__)
 
@@ -186,8 +187,10 @@ def assemble_jacobian_with_terms(A: PETSc.Mat, a, bcs, terms, bc_marker, timers,
             c.apply_jacobian(A)
 
 
-class NonlinearProblem:
+class NodalNonlinearProblem:
     """Residual/Jacobian callbacks for SNES: a UFL problem plus nodal contributors.
+
+    (Named apart from dolfinx's ``NonlinearProblem``; ``NonlinearProblem`` stays an alias.)
 
     Args:
         F: UFL residual form in ``w``.
@@ -410,6 +413,10 @@ def _pc_null_pivots(pc: PETSc.PC, depth: int) -> Optional[int]:
 
 def owned_sum(comm: MPI.Comm, value) -> float:
     return comm.allreduce(value, op=MPI.SUM)
+
+
+#: the former name of :class:`NodalNonlinearProblem` (the same class)
+NonlinearProblem = NodalNonlinearProblem
 
 
 #: kinds of :meth:`ContactProblem.use_linear_solver`

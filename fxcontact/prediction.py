@@ -56,7 +56,7 @@ class ActiveSetPrediction:
     """Corrects a Newton step for the contact status changes it predicts (module docstring).
 
     Args:
-        problem: the :class:`~fxcontact.petsc.NonlinearProblem` (its contributors with
+        problem: the :class:`~fxcontact.petsc.NodalNonlinearProblem` (its contributors with
             ``active_set_prediction``, Dirichlet marker and constraints).
         comm: the communicator.
         rounds: maximum number of prediction rounds per Newton step.

@@ -9,14 +9,20 @@ stays on disk. A converged increment whose geometry update would invert a cell i
 failed one (:class:`MeshInversionError` if it persists); the mesh quality is a history column.
 Checkpoints (every n increments and at a failed increment) let a killed run be resumed
 (:meth:`Simulation.resume`, :mod:`fxcontact.checkpoint`).
+
+:class:`Simulation` keeps the set-up (conditions, contributors, forms), one increment (``step``:
+predictor, Newton, commit) and ``run``; it composes one object per other concern, each in its
+own module: :class:`~fxcontact.retry.RetryLadder` (fall-backs and cut-backs),
+:class:`~fxcontact.outputs.Outputs` (CSV history, VTK series),
+:class:`~fxcontact.mesh_health.MeshHealth` (initial mesh, quality, inversion) and
+:class:`~fxcontact.checkpoint.Checkpoints`. The contracts of contributors and controllers are the
+protocols of :mod:`fxcontact.protocols`.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import os
-import shutil
 import time
 from dataclasses import dataclass
 from typing import Callable, Dict, List, Optional
@@ -31,11 +37,22 @@ import dolfinx.fem
 import dolfinx.fem.petsc
 
 from fxcontact import compat, console
-from fxcontact.collective import check_together, digest, together
+from fxcontact.checkpoint import Checkpoints, plain_state as _plain_state
+from fxcontact.collective import check_together, digest, digest_parameters, together
+from fxcontact.forms import (equivalent_strain_rate_ufl, primal_dual_jacobian,
+                             shear_viscosity_ufl, volumetric_augment_ufl)
+from fxcontact.forms import standard_norton_hoff as _standard_norton_hoff  # noqa: F401
+from fxcontact.forms import uses_dual_stress as _uses_dual_stress
 from fxcontact.kinematics import CartesianUpdate
-from fxcontact.materials import LinearElastic, Material, NortonHoff
-from fxcontact.petsc import NonlinearProblem
-from fxcontact.solver import NewtonSolver, SolveInfo, SolverOptions
+from fxcontact.materials import Material
+from fxcontact.mesh_health import MeshHealth
+from fxcontact.outputs import (OutputError, Outputs, format_wall_split, output_dir_problem,
+                               wall_split)
+from fxcontact.petsc import NodalNonlinearProblem
+from fxcontact.protocols import (BeginsIncrement, Contributor, EndsIncrement, HasDiagnostics,
+                                 HasSummary, SolvesIncrement)
+from fxcontact.retry import IncrementError, MeshInversionError, RetryLadder
+from fxcontact.solver import ContactNewtonSolver, SolveInfo, SolverOptions
 from fxcontact.spaces import (MixedSpace, checked_facets, facets_with_tags, set_function_value,
                               velocity_bc)
 
@@ -48,60 +65,12 @@ VOLUME_CORRECTIONS = ("global", "none")
 log = logging.getLogger(__name__)
 
 
-class IncrementError(RuntimeError):
-    """Newton failed at some time even after the allowed cut-backs."""
-
-    def __init__(self, t: float, dt: float, message: str):
-        super().__init__(f"increment starting at t = {t:.6g} failed (last dt = {dt:.3g}): "
-                         f"{message}. Results up to t = {t:.6g} are written.")
-        self.t = t
-        self.dt = dt
-
-
-class MeshInversionError(IncrementError):
-    """An element would invert (signed volume ≤ 0) even after the allowed cut-backs."""
-
-
-class OutputError(OSError):
-    """Writing the outputs (CSV history, VTK series) failed, e.g. on a full disk."""
-
-
-#: message prefix of an increment rejected because an element would invert
-_INVERSION = "element inverted"
-
-
 @dataclass
 class IncrementResult:
     """Outcome of one accepted increment (also one row of the history)."""
 
     row: Dict[str, float]
     info: SolveInfo
-
-
-#: parts of an increment's wall time measured by the solver (``wall_<part>`` in the history)
-WALL_PARTS = ("assembly", "linear_solve", "contact")
-
-
-def wall_split(rows) -> dict:
-    """Wall time of a run by part, summed over its increments.
-
-    ``rows``: :attr:`Simulation.history` or a demo's per-increment rows with the keys
-    ``wall_assembly``, ``wall_linear_solve``, ``wall_contact`` and the increment's whole wall time
-    (``wall_increment_all``, or ``wall``). Returns ``{"assembly", "linear_solve", "contact",
-    "other", "total"}`` in seconds; ``other`` is the rest of the increments (geometry update,
-    outputs, the failed attempts of cut-backs and fall-backs)."""
-    rows = list(rows)
-    out = {k: float(sum(q.get(f"wall_{k}", 0.0) for q in rows)) for k in WALL_PARTS}
-    out["total"] = float(sum(q.get("wall_increment_all", q.get("wall", 0.0)) for q in rows))
-    out["other"] = max(out["total"] - sum(out[k] for k in WALL_PARTS), 0.0)
-    return out
-
-
-def format_wall_split(split: dict) -> str:
-    """``"assembly 120 s (41 %), linear solve ..., contact ..., other ..."`` of :func:`wall_split`."""
-    tot = split["total"] or float("nan")
-    return ", ".join(f"{k.replace('_', ' ')} {split[k]:.0f} s ({100 * split[k] / tot:.1f} %)"
-                     for k in WALL_PARTS + ("other",))
 
 
 @dataclass
@@ -123,24 +92,6 @@ def _bc_label(sim, k: int, facets, component) -> str:
     return f"velocity boundary condition #{k} ({comp}, on {n} facets)"
 
 
-def _describe(obj) -> str:
-    """A contributor or controller as compared between ranks: its type, its scalar
-    parameters and its tools (:func:`fxcontact.collective.digest`), not its rank-local data."""
-    from fxcontact.tools import Tool
-    if not hasattr(obj, "__dict__"):
-        return type(obj).__name__
-    out = {}
-    for k, v in sorted(vars(obj).items()):
-        if k.startswith("_"):
-            continue
-        if v is None or isinstance(v, (bool, int, float, str, np.integer, np.floating)):
-            out[k] = v
-        elif isinstance(v, Tool) or (isinstance(v, (list, tuple)) and v
-                                     and all(isinstance(t, Tool) for t in v)):
-            out[k] = v
-    return type(obj).__name__ + digest(out, depth=6)
-
-
 def _time_value(value, t):
     """A BC value at time t: constants pass through, f(t) is called, f(x) (vectorised) too."""
     if callable(value):
@@ -157,47 +108,6 @@ def _time_value(value, t):
     return value
 
 
-def _attempts(msgs) -> str:
-    """The reasons of the failed attempts at one dt (fall-backs, then the last), each once."""
-    msgs = list(dict.fromkeys(msgs))
-    if len(msgs) == 1:
-        return msgs[0]
-    return f"{len(msgs)} attempts: " + " | ".join(msgs)
-
-
-def _plain_state(value):
-    """A controller's state as plain JSON values (numpy arrays and scalars to lists/numbers)."""
-    if isinstance(value, dict):
-        return {str(k): _plain_state(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain_state(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    raise ValueError(f"a controller's checkpoint_state() must hold plain numbers, strings, "
-                     f"lists, dicts or numpy arrays, got {type(value).__name__}")
-
-
-def _output_dir_problem(path) -> Optional[str]:
-    """Why ``path`` cannot be the output directory (a file is in the way, not writable), or
-    None (None also for ``path=None``: no outputs)."""
-    if path is None:
-        return None
-    p = os.path.abspath(str(path))
-    if os.path.exists(p) and not os.path.isdir(p):
-        return "is a file, not a directory"
-    while not os.path.exists(p):
-        p = os.path.dirname(p)
-    if not os.path.isdir(p):
-        return f"cannot be created: {p!r} is a file"
-    if not os.access(p, os.W_OK | os.X_OK):
-        return f"cannot be written: no write permission in {p!r}"
-    return None
-
-
 def _label(obj) -> str:
     """``NodalContact 'die'``: a registered object in messages."""
     name = getattr(obj, "name", None)
@@ -211,8 +121,8 @@ def _column_labels(contributor) -> Dict[str, str]:
     for tool in getattr(contributor, "tools", None) or []:
         if isinstance(getattr(tool, "name", None), str):
             out[tool.name] = f"tool '{tool.name}' of {_label(contributor)}"
-    if hasattr(contributor, "diagnostics") and isinstance(getattr(contributor, "name", None),
-                                                           str):
+    if isinstance(contributor, HasDiagnostics) and isinstance(getattr(contributor, "name", None),
+                                                               str):
         out[contributor.name] = _label(contributor)
     return out
 
@@ -234,80 +144,6 @@ def _merge_columns(row: dict, columns: dict, owner):
                          f"by another contributor, reaction or symmetry plane: pass a distinct "
                          f"name= to one of them")
     row.update(columns)
-
-
-def _initial_mesh_error(msh, X, c2v_owned, vol0, q0) -> Optional[str]:
-    """What is wrong with the initial mesh, or None (collective; the message is local):
-    degenerate cells (:func:`~fxcontact.mesh_health.degenerate_cells`) or a tangled mesh
-    (cells turned inside out, overlapping a neighbour: :func:`~fxcontact.mesh_health.
-    overlapping_facets`)."""
-    from fxcontact.mesh_health import (DEGENERATE_QUALITY, DEGENERATE_VOLUME, degenerate_cells,
-                                       overlapping_facets)
-    comm = msh.comm
-    tdim = msh.topology.dim
-    msh.topology.create_connectivity(tdim - 1, tdim)   # collective: before any local return
-    msh.topology.create_connectivity(tdim - 1, 0)
-    n = comm.allreduce(len(vol0), op=MPI.SUM)
-    mean = comm.allreduce(float(np.sum(np.abs(vol0))), op=MPI.SUM) / max(n, 1)
-    bad = np.flatnonzero(degenerate_cells(vol0, q0, mean))
-    if len(bad):
-        c = X[c2v_owned[bad[0]]].mean(axis=0)
-        return (f"the mesh has {len(bad)} degenerate (zero-volume) cell(s) (volume below "
-                f"{DEGENERATE_VOLUME:g} x the mean cell volume or shape quality below "
-                f"{DEGENERATE_QUALITY:g}), e.g. with centroid {np.array2string(c, precision=4)}: "
-                f"remesh")
-    f2c = msh.topology.connectivity(tdim - 1, tdim)
-    nf = msh.topology.index_map(tdim - 1).size_local
-    inner = np.flatnonzero(np.diff(f2c.offsets)[:nf] == 2)
-    fc = f2c.array[f2c.offsets[inner][:, None] + np.arange(2)]
-    fv = msh.topology.connectivity(tdim - 1, 0).array.reshape(-1, tdim)[inner]
-    over = overlapping_facets(X, compat.cell_vertices(msh), fv, fc)
-    if np.any(over):
-        c = X[fv[np.argmax(over)]].mean(axis=0)
-        return (f"the mesh is tangled: {int(np.sum(over))} facet(s) have both their cells on "
-                f"the same side (cells turned inside out, overlapping their neighbour), e.g. the "
-                f"facet with centroid {np.array2string(c, precision=4)}: fix or remesh the mesh "
-                f"(check the node order of its cells)")
-    return None
-
-
-def _shear_viscosity_ufl(material, v, dt):
-    """Secant shear viscosity of the velocity tangent (UFL) for the Schur preconditioner of
-    the condensed iterative solver (:mod:`fxcontact.condense`), or None if unknown:
-    ``K z^(m-1)`` for Norton–Hoff, ``μ dt`` for the velocity form of linear elasticity."""
-    if isinstance(material, NortonHoff):
-        return material.K * material.z_ufl(ufl.sym(ufl.grad(v))) ** (material.m - 1.0)
-    if isinstance(material, LinearElastic):
-        return material.mu * dt
-    return None
-
-
-def _uses_dual_stress(material, material_tangent: str) -> bool:
-    """Whether ``SolverOptions.material_tangent`` asks for the primal–dual Newton with this
-    material (``"auto"``: a material that has it, nonlinear)."""
-    if material_tangent == "primal-dual":
-        return True
-    return (material_tangent == "auto" and hasattr(material, "dual_update_ufl")
-            and getattr(material, "m", 1.0) < 1.0)
-
-
-def _standard_norton_hoff(material) -> bool:
-    """Whether the material's residual is NortonHoff's own (stress, z and residual not
-    redefined by a subclass), so that its primal–dual Jacobian can be written out."""
-    return isinstance(material, NortonHoff) and all(
-        getattr(type(material), name) is getattr(NortonHoff, name)
-        for name in ("stress_ufl", "z_ufl", "residual", "incompressibility_ufl"))
-
-
-def _volumetric_augment_ufl(material, eta, W, wt, dx):
-    """``(2/3) η div(δv) div(w) dx`` (η the secant viscosity of :func:`_shear_viscosity_ufl`)
-    for a material whose velocity tangent sees only the strain-rate deviator (Norton–Hoff):
-    with it the velocity block of the condensed iterative solver's preconditioner is that of
-    the full strain rate (``NonlinearProblem(augment=)``); None for the other materials."""
-    if not isinstance(material, NortonHoff):
-        return None
-    du, _ = ufl.split(ufl.TrialFunction(W))
-    return (2.0 / 3.0) * eta * ufl.div(du) * ufl.div(wt) * dx
 
 
 class Simulation:
@@ -373,7 +209,7 @@ class Simulation:
             if volume_correction not in VOLUME_CORRECTIONS:
                 raise ValueError(f"unknown volume_correction {volume_correction!r}; choose one of "
                                  f"{VOLUME_CORRECTIONS}")
-            problem = _output_dir_problem(output_dir)
+            problem = output_dir_problem(output_dir)
             if problem:
                 raise ValueError(f"output_dir {output_dir!r} {problem}: give a directory path")
         self.space = space
@@ -407,34 +243,24 @@ class Simulation:
         self.strain_rate = dolfinx.fem.Function(space.DG0, name="equivalent_strain_rate")
         self.displacement_out = dolfinx.fem.Function(space.P1, name="displacement") \
             if material.small_strain else None
-        self._p1_vertex = self._p1_vertex_dofs()
         self._x_ref = self.mesh.geometry.x.copy()
-        self._writer = None
-        self._history_writer = None
+        self._w2v = None   # W dof -> V dof (small strain), made on first use
         self.overwrite = bool(overwrite)
-        self._outputs_opened = False
         self._reactions: Dict[str, np.ndarray] = {}
         self._labels: Dict[str, str] = {}   # history-column labels -> what they label
         self.checkpoint_every = int(checkpoint_every)
         self.checkpoint_keep = int(checkpoint_keep)
         self.check_inversion = bool(check_inversion)
-        self._resumed: Optional[dict] = None
-        self._resumed_from: Optional[str] = None   # the directory of the resumed checkpoint
-        self._resume_step: Optional[float] = None
-        self._ckpt_keys = None
-        self._init_mesh_health()
         self._symmetry = None
         self._plane_bcs: List = []
         self.controllers: List = []
+        # the other concerns, one object each
+        self._mesh_health = MeshHealth(self)   # checks the initial mesh (on every rank)
+        self._outputs = Outputs(self)
+        self._checkpoints = Checkpoints(self)
+        self._retry = RetryLadder(self)
 
     # ------------------------------------------------------------------------ set-up
-    def _p1_vertex_dofs(self) -> np.ndarray:
-        c2v = compat.cell_vertices(self.mesh)
-        d = compat.dofmap_array(self.space.P1)
-        out = np.empty(self.space.vertex_dofs.shape[0], dtype=np.int32)
-        out[c2v.ravel()] = d[:, : c2v.shape[1]].ravel()
-        return out
-
     def facets(self, facet_tags, tags) -> np.ndarray:
         """Local indices of the facets carrying any of ``tags`` in this mesh's ``facet_tags``
         (ValueError on every rank for an empty tag list, a missing tag or the facet tags of
@@ -495,10 +321,17 @@ class Simulation:
             self._symmetry.add(name, facets, n)
 
     def add_contributor(self, contributor):
-        """Register a nodal contributor (``evaluate``, ``stable``; optional ``begin_increment``,
-        ``end_increment``, ``diagnostics``, ``output_fields``)."""
+        """Register a nodal contributor: a :class:`~fxcontact.protocols.Contributor`
+        (``evaluate``, ``stable``) with the optional hooks of :mod:`fxcontact.protocols`
+        (``begin_increment``, ``end_increment``, ``diagnostics``, ``output_fields``, …)."""
         self._check_not_built()
-        with together(self.comm, "add_contributor()", contributor=_describe(contributor)):
+        with together(self.comm, "add_contributor()", contributor=digest_parameters(contributor)):
+            if not isinstance(contributor, Contributor):
+                raise ValueError(f"add_contributor(contributor): {_label(contributor)} is not a "
+                                 f"contributor: it needs the methods evaluate(w, jacobian) -> "
+                                 f"NodalTerms and stable() -> bool (fxcontact.protocols."
+                                 f"Contributor); a controller of the tools goes to "
+                                 f"add_controller()")
             _check_added_once(contributor, self.contributors, "contributor")
             self._claim_labels(_column_labels(contributor))
         self.contributors.append(contributor)
@@ -517,10 +350,10 @@ class Simulation:
         (e.g. :class:`~fxcontact.mill.RingAxisUpdate`) may have the same two methods. A
         checkpoint is resumed only with the same controllers (number, types, order)."""
         self._check_not_built()
-        with together(self.comm, "add_controller()", controller=_describe(controller)):
+        with together(self.comm, "add_controller()", controller=digest_parameters(controller)):
             _check_added_once(controller, self.controllers, "controller")
-            if hasattr(controller, "solve") and any(hasattr(c, "solve")
-                                                    for c in self.controllers):
+            if isinstance(controller, SolvesIncrement) and any(
+                    isinstance(c, SolvesIncrement) for c in self.controllers):
                 raise ValueError("only one controller may take over the Newton solve (solve()); "
                                  "several idle tools go to one IdleRotation(contact, [tool1, "
                                  "tool2, ...])")
@@ -537,7 +370,7 @@ class Simulation:
         that one rank never reaches."""
         items = {"material": digest(self.material),
                  "solver_options": digest(self.solver_options),
-                 "kinematics": _describe(self.kinematics),
+                 "kinematics": digest_parameters(self.kinematics),
                  "the number of velocity conditions (add_velocity_bc)": len(self._bcs),
                  "the reactions (add_reaction)": tuple(self._reactions),
                  "the symmetry planes (add_symmetry_plane)":
@@ -548,9 +381,9 @@ class Simulation:
             items[f"velocity condition #{k}"] = (
                 f"{b.label}, value {'function' if callable(b.value) else digest(b.value)}")
         for k, c in enumerate(self.contributors):
-            items[f"contributor #{k}"] = _describe(c)
+            items[f"contributor #{k}"] = digest_parameters(c)
         for k, c in enumerate(self.controllers):
-            items[f"controller #{k}"] = _describe(c)
+            items[f"controller #{k}"] = digest_parameters(c)
         check_together(self.comm, "the set-up of the first increment (Simulation.run/step)",
                        None, **items)
 
@@ -593,7 +426,7 @@ class Simulation:
                 if not any(b.bc is pb for pb in self._plane_bcs):
                     other[b.bc.dof_indices()[0]] = True
             self._symmetry.set_prescribed(other)
-        eta = _shear_viscosity_ufl(self.material, v, self.dt_c)
+        eta = shear_viscosity_ufl(self.material, v, self.dt_c)
         schur_weight = None if eta is None else q / eta * sp.dx
         J = None
         #: the dual stress of the primal–dual Newton (``material_tangent``), or None
@@ -603,24 +436,12 @@ class Simulation:
             self.dual = DualStress(self.material, sp.W, sp.quadrature_degree)
             self.dual.use_kernel(sp)
             log.debug("Newton with the primal-dual Norton-Hoff tangent (fxcontact.dual)")
-            # the material's Jacobian written out (the primal-dual tangent and the bilinear
-            # pressure terms) rather than ufl.derivative + correction: the same matrix at
-            # about 60 % of the kernel cost; the other terms by ufl.derivative
-            # (a subclass that redefines the stress or the residual gets the derivative)
-            dw = ufl.TrialFunction(sp.W)
-            dv, dp = ufl.split(dw)
-            if _standard_norton_hoff(self.material):
-                J = sum((ufl.derivative(f, self.w, dw) for f in extras),
-                        self.dual.tangent_form(v, dv, wt, sp.dx)
-                        + self.material.incompressibility_ufl(dv, dp, wt, q, sp.dx))
-            else:
-                J = ufl.derivative(F, self.w, dw) + self.dual.jacobian_correction(
-                    v, dv, wt, sp.dx)
-        self.problem = NonlinearProblem(F, self.w, [b.bc for b in self._bcs], J=J,
-                                        contributors=self.contributors, constraints=cons,
-                                        schur_weight=schur_weight,
-                                        augment=_volumetric_augment_ufl(self.material, eta,
-                                                                        sp.W, wt, sp.dx))
+            J = primal_dual_jacobian(self.material, self.dual, F, extras, self.w, v, wt, q, sp.dx)
+        self.problem = NodalNonlinearProblem(F, self.w, [b.bc for b in self._bcs], J=J,
+                                             contributors=self.contributors, constraints=cons,
+                                             schur_weight=schur_weight,
+                                             augment=volumetric_augment_ufl(self.material, eta,
+                                                                            sp.W, wt, sp.dx))
         if self.dual is not None:
             self.problem.iterate_hooks.append(self.dual)
         if _standard_norton_hoff(self.material):
@@ -630,7 +451,7 @@ class Simulation:
             self.problem.element_tensors = lambda layout: NortonHoffElementTensors(
                 layout, sp, self.material, self.w, self.dual)
         fs_is = self.fieldsplit_is() if self.solver_options.uses_fieldsplit else None
-        self.solver = NewtonSolver(self.problem, self.solver_options, fs_is)
+        self.solver = ContactNewtonSolver(self.problem, self.solver_options, fs_is)
         # start-up problem: the linearised material without contributors gives the first guess
         # when there is no previous velocity (a power law from v = 0 converges badly)
         lin_mat = self.material.linearized()
@@ -639,14 +460,14 @@ class Simulation:
             F0 = sum(extras, lin_mat.residual(v, p, wt, q, sp.dx, self.dt_c, self.u))
             opts = SolverOptions(**{**self.solver_options.__dict__, "prefix":
                                     self.solver_options.prefix + "startup_"})
-            eta0 = _shear_viscosity_ufl(lin_mat, v, self.dt_c)
-            self._startup = NewtonSolver(NonlinearProblem(
+            eta0 = shear_viscosity_ufl(lin_mat, v, self.dt_c)
+            self._startup = ContactNewtonSolver(NodalNonlinearProblem(
                 F0, self.w, [b.bc for b in self._bcs], constraints=cons,
                 schur_weight=None if eta0 is None else q / eta0 * sp.dx,
-                augment=_volumetric_augment_ufl(lin_mat, eta0, sp.W, wt, sp.dx)), opts, fs_is)
+                augment=volumetric_augment_ufl(lin_mat, eta0, sp.W, wt, sp.dx)), opts, fs_is)
         # cell averages of the strain rate, volume
         q0 = ufl.TestFunction(sp.DG0)
-        epsd = self._strain_rate_expr(v)
+        epsd = equivalent_strain_rate_ufl(v, sp.gdim)
         self._rate_form = compat.form(epsd * q0 * sp.dx)
         self._cellvol_form = compat.form(q0 * sp.dx)
         self._volume_form = compat.form(dolfinx.fem.Constant(self.mesh, 1.0) * sp.dx)
@@ -657,7 +478,7 @@ class Simulation:
         self._built = True
         self._volume_initial = self.volume()
         if self.output_dir is not None:
-            self._open_writers()
+            self._outputs.open()
 
     def _volume_correction_term(self, q):
         """``-q ln(V/V⁰)/dt dx`` added to the incompressibility equation ``-q div v dx``
@@ -671,12 +492,6 @@ class Simulation:
     def _update_volume_correction(self):
         if self._log_volume is not None:
             self._log_volume.value = math.log(self.volume() / self._volume_initial)
-
-    def _strain_rate_expr(self, v):
-        e = ufl.sym(ufl.grad(v))
-        d = self.space.gdim
-        de = e - ufl.tr(e) / d * ufl.Identity(d)
-        return ufl.sqrt(2.0 / 3.0 * ufl.inner(de, de))
 
     def fieldsplit_is(self):
         sp = self.space
@@ -705,7 +520,7 @@ class Simulation:
         return self.u.x.array[W_to_V[vd]]
 
     def _W_to_V(self) -> np.ndarray:
-        if not hasattr(self, "_w2v"):
+        if self._w2v is None:
             sp = self.space
             n = sp.W.dofmap.index_map.size_local + sp.W.dofmap.index_map.num_ghosts
             m = np.full(n, -1, dtype=np.int64)
@@ -794,11 +609,11 @@ class Simulation:
 
         def begin():
             for c in self.controllers + self.contributors:
-                if hasattr(c, "begin_increment"):
+                if isinstance(c, BeginsIncrement):
                     c.begin_increment(self, self.t, dt, x_t)
         begin()
         for c in self.controllers:
-            if hasattr(c, "solve"):
+            if isinstance(c, SolvesIncrement):
                 return c.solve(self, begin)
         return self.solver.solve()
 
@@ -847,9 +662,9 @@ class Simulation:
             for k, c in enumerate("xyz"[: sp.gdim]):
                 row[f"{name}_{c}"] = F[k]
         for c in self.contributors + self.controllers:
-            if hasattr(c, "end_increment"):
+            if isinstance(c, EndsIncrement):
                 c.end_increment(self, dt)
-            if hasattr(c, "diagnostics"):
+            if isinstance(c, HasDiagnostics):
                 _merge_columns(row, c.diagnostics(), c)
         return row
 
@@ -875,113 +690,22 @@ class Simulation:
             if max_cutbacks < 0:
                 raise ValueError("max_cutbacks must be >= 0")
         self._build()
-        self._reopen_outputs()
-        trial = float(dt)
-        msg = ""
-        msgs: List[str] = []
-        failed_its = 0
-        t_first = time.perf_counter()
-        for k in range(max_cutbacks + 1):
-            if k > 0 and trial < min_dt * (1.0 - 1e-12):
-                msg += f"; dt would fall below the smallest allowed {min_dt:.3g}"
-                break
-            t0 = time.perf_counter()
-            first = len(msgs)   # the attempts at this dt, for the cut-back warning
-            info = self._try_increment(trial)
-            if not info.converged and "condensed linear solve failed" in info.message \
-                    and self.solver.fall_back_to_direct():
-                # "auto" chose the iterative solver and it failed: the direct one from now on,
-                # the same dt again
-                log.warning("t = %.6g: %s; the linear solver chosen by 'auto' is switched from "
-                            "condensed-amg to condensed-mumps", self.t, info.message)
-                if self._startup is not None:
-                    self._startup.fall_back_to_direct()
-                failed_its += info.iterations
-                msgs.append(info.message)
-                info = self._try_increment(trial)
-            dual_off = False
-            if not info.converged and self.dual is not None and self.dual.active \
-                    and not self.problem.error:
-                # second attempt at the same dt with the consistent tangent (the primal-dual
-                # direction is not always a descent direction of the residual norm), and the
-                # line-search fallback below with it too
-                log.info("t = %.6g: Newton failed with the primal-dual tangent (%s); retrying "
-                         "dt = %.3g with the consistent tangent", self.t, info.message, trial)
-                failed_its += info.iterations
-                msgs.append(info.message)
-                self.dual.active, dual_off = False, True
-            try:
-                if dual_off:
-                    info = self._try_increment(trial)
-                fb = self.solver_options.line_search_fallback
-                if not info.converged and fb and fb != self.solver_options.line_search \
-                        and not self.problem.error:
-                    # another attempt at the same dt with the fallback line search
-                    log.info("t = %.6g: Newton failed with the %s line search (%s); retrying "
-                             "dt = %.3g with the %s line search", self.t,
-                             self.solver_options.line_search, info.message, trial, fb)
-                    failed_its += info.iterations
-                    msgs.append(info.message)
-                    self.solver.set_line_search(fb)
-                    try:
-                        info = self._try_increment(trial)
-                    finally:
-                        self.solver.set_line_search(self.solver_options.line_search)
-            finally:
-                if dual_off:
-                    self.dual.active = True
-            if info.converged and self._accept_geometry(trial, info):
-                row = self._commit(trial, info)
-                row["cutbacks"] = k
-                # Newton iterations of the accepted attempt plus those of the failed attempts
-                row["newton_iterations_all"] = info.iterations + failed_its
-                row["wall_increment"] = time.perf_counter() - t0
-                row["wall_increment_all"] = time.perf_counter() - t_first
-                self._record(row)
-                return IncrementResult(row, info)
-            msg = info.message
-            msgs.append(msg)
-            failed_its += info.iterations
-            log.warning("t = %.6g: Newton failed with dt = %.3g (%s); retrying with dt/2",
-                        self.t, trial, _attempts(msgs[first:]))
-            trial *= 0.5
-        earlier = [m for m in dict.fromkeys(msgs[:-1]) if m != msgs[-1]] if msgs else []
-        if earlier:
-            msg += f" (earlier attempts: {' | '.join(earlier)})"
-        raise self._increment_failure(trial * 2, msg)
+        self._outputs.reopen()
+        row, info = self._retry.step(dt, max_cutbacks, min_dt)
+        return IncrementResult(row, info)
 
     def _record(self, row):
+        """An accepted increment's row: mesh health, history, outputs, checkpoint."""
         row.update(self.mesh_health())
         self.history.append(row)
-        self._write_outputs(row)
+        self._outputs.write(row)
         if self.checkpoint_every and self.increment % self.checkpoint_every == 0:
             self.write_checkpoint()
 
-    def _update_output_fields(self):
-        sp = self.space
-        gd = sp.gdim
-        varr = self.velocity.x.array.reshape(-1, gd)
-        varr[self._p1_vertex] = self.w.x.array[sp.vertex_dofs]
-        self.pressure.x.array[:] = self.w.x.array[sp.Q_to_W]
-        if self.u is not None:
-            self.displacement_out.x.array.reshape(-1, gd)[self._p1_vertex] = \
-                self._vertex_displacement()
-
     def output_functions(self) -> list:
-        fields = [self.velocity, self.pressure, self.strain, self.strain_rate]
-        if self.displacement_out is not None:
-            fields.append(self.displacement_out)
-        for c in self.contributors:
-            if hasattr(c, "output_fields"):
-                fields.extend(c.output_fields())
-        return fields
-
-    def _write_fields(self):
-        self._update_output_fields()
-        for c in self.contributors:
-            if hasattr(c, "update_output_fields"):
-                c.update_output_fields()
-        self._writer.write(self.output_functions(), self.t)
+        """The functions of each VTK step (:meth:`Outputs.functions
+        <fxcontact.outputs.Outputs.functions>`)."""
+        return self._outputs.functions()
 
     def run(self, t_end: float, dt: float, max_cutbacks: int = 5,
             callback: Optional[Callable] = None, close: bool = True) -> List[Dict[str, float]]:
@@ -1010,9 +734,9 @@ class Simulation:
                                   "[{elapsed}<{remaining}{postfix}]")
         n0, t0, wall0 = len(self.history), self.t, time.perf_counter()
         cur = dt
-        if self._resume_step is not None:  # the step a resumed run would have taken next
-            cur = min(dt, self._resume_step)
-            self._resume_step = None
+        if self._checkpoints.resume_step is not None:   # the step a resumed run takes next
+            cur = min(dt, self._checkpoints.resume_step)
+            self._checkpoints.resume_step = None
         eps = 1e-9 * dt
         try:
             while self.t < t_end - eps:
@@ -1033,224 +757,29 @@ class Simulation:
                 bar.close()
         rows = self.history[n0:]
         log.info("%s: t = %.4g -> %.4g in %d increments (%d cut-backs), %d Newton iterations, "
-                 "%.1f s", self.name, t0, self.t, len(rows), sum(r["cutbacks"] for r in rows),
-                 sum(r["newton_iterations_all"] for r in rows), time.perf_counter() - wall0)
+                 "%.1f s%s", self.name, t0, self.t, len(rows), sum(r["cutbacks"] for r in rows),
+                 sum(r["newton_iterations_all"] for r in rows), time.perf_counter() - wall0,
+                 "".join(f"\n  {c.summary()}" for c in self.contributors
+                         if isinstance(c, HasSummary)))
         if close:
             self.close()
         return self.history
 
     def close(self):
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
-        if self._history_writer is not None:
-            self._history_writer.close()
-            self._history_writer = None
-
-    # ------------------------------------------------------------------------ outputs
-    def _open_writers(self):
-        from fxcontact.io import HistoryWriter, SeriesWriter
-        if self._resumed is not None and not self._outputs_opened:
-            self._drop_later_checkpoints()
-        elif self._resumed is None and not self._outputs_opened:
-            self._claim_output_dir()
-        # a resumed run, or a run whose outputs an earlier run() closed: continue the outputs
-        resumed = self._resumed is not None or self._outputs_opened
-        self._outputs_opened = True
-        self._writer = SeriesWriter(self.comm, self.output_dir, self.name,
-                                    resume_time=self.t if resumed else None)
-        self._history_writer = HistoryWriter(self.comm, self.output_dir, self.name,
-                                             rows=self.history if resumed else None)
-        if not resumed:
-            self._write_fields()
-
-    def _reopen_outputs(self):
-        """Continue the CSV history and the VTK series that an earlier :meth:`run` closed (a
-        second ``run()`` to a later ``t_end``)."""
-        if self._outputs_opened and self._writer is None and self._history_writer is None:
-            log.info("%s: continuing the outputs in %s from t = %.6g", self.name,
-                     self.output_dir, self.t)
-            self._open_writers()
-
-    def _claim_output_dir(self):
-        """Before a new run writes anything: the checkpoints of another run of the same name in
-        ``output_dir`` are refused (CheckpointError on every rank), or removed with
-        ``overwrite=True``."""
-        from fxcontact.checkpoint import CheckpointError, list_checkpoints
-        old = list_checkpoints(self.checkpoint_dir, self.name) if self.comm.rank == 0 else None
-        old = self.comm.bcast(old, root=0)
-        if not old:
-            return
-        if not self.overwrite:
-            raise CheckpointError(
-                f"{self.checkpoint_dir} holds checkpoints of another run named '{self.name}' "
-                f"({', '.join(os.path.basename(p) for p in old)}): a new run would mix its outputs "
-                f"and checkpoints with them. Continue that run with resume(), or start this one "
-                f"in another output_dir or with another name, or pass overwrite=True to remove "
-                f"them")
-        log.warning("%s: overwrite=True: removing the checkpoints of the previous run %s",
-                    self.name, ", ".join(os.path.basename(p) for p in old))
-        self._remove_checkpoints(old)
-
-    def _drop_later_checkpoints(self):
-        """A run resumed from a checkpoint older than the newest: the later checkpoints (of
-        the run that was then killed) are removed, with a warning, as its later CSV rows and VTK
-        steps are dropped; otherwise the next resume() would take one of them."""
-        from fxcontact.checkpoint import list_checkpoints
-        if self._resumed_from != os.path.abspath(self.checkpoint_dir):
-            return
-        later = [p for p in list_checkpoints(self.checkpoint_dir, self.name)
-                 if int(p.rsplit("_", 1)[1]) > self.increment] if self.comm.rank == 0 else None
-        later = self.comm.bcast(later, root=0)
-        if later:
-            log.warning("%s: resumed at increment %d: removing the later checkpoints %s",
-                        self.name, self.increment, ", ".join(os.path.basename(p) for p in later))
-            self._remove_checkpoints(later)
-
-    def _remove_checkpoints(self, paths):
-        if self.comm.rank == 0:
-            for p in paths:
-                shutil.rmtree(p, ignore_errors=True)
-        self.comm.barrier()
-
-    def _write_outputs(self, row):
-        """CSV row and VTK step of an accepted increment; a failed write (full disk…) stops the
-        run on every rank with an :class:`OutputError`, the files written so far untouched."""
-        err = None
-        try:
-            if self._history_writer is not None:
-                self._history_writer.write(row)
-            if self._writer is not None and self.increment % self.output_every == 0:
-                self._write_fields()
-        except OSError as e:
-            err = f"{type(e).__name__}: {e}"
-        errs = [e for e in self.comm.allgather(err) if e]
-        if errs:
-            where = os.path.join(self.output_dir, self.name) if self.output_dir else self.name
-            raise OutputError(
-                f"writing the outputs of increment {self.increment} (t = {self.t:.6g}) failed "
-                f"({errs[0]}); what was written before is intact ({where}_history.csv, "
-                f"{where}.pvd). Free disk space and resume from the last checkpoint")
-
-    # ------------------------------------------------------------------------ mesh health
-    def _init_mesh_health(self):
-        """Owned cells' vertices and their signed measures on the initial geometry."""
-        tdim = self.mesh.topology.dim
-        nown = self.mesh.topology.index_map(tdim).size_local
-        self._c2v_owned = compat.cell_vertices(self.mesh)[:nown]
-        X = self.space.vertex_positions()
-        vol0, q0 = self._cell_measures(X)
-        msg = _initial_mesh_error(self.mesh, X, self._c2v_owned, vol0, q0)
-        msgs = [m for m in self.comm.allgather(msg) if m]   # raised on every rank
-        if msgs:
-            raise ValueError(msgs[0])
-        self._vol0 = vol0
-
-    def _cell_measures(self, X: np.ndarray):
-        """Signed measure and shape quality of the owned cells for the vertex positions X
-        (:func:`fxcontact.mesh_health.simplex_measures`)."""
-        from fxcontact.mesh_health import simplex_measures
-        return simplex_measures(X[self._c2v_owned])
-
-    def _health(self, X: np.ndarray):
-        """(min signed quality, min volume ratio, local index of the worst cell) (local)."""
-        vol, q = self._cell_measures(X)
-        ratio = vol / self._vol0
-        qs = np.sign(ratio) * q
-        if len(ratio) == 0:
-            return math.inf, math.inf, -1
-        i = int(np.argmin(ratio))
-        return float(np.min(qs)), float(ratio[i]), i
+        """Close the CSV history and the VTK series (a later ``run()`` continues them)."""
+        self._outputs.close()
 
     def mesh_health(self) -> Dict[str, float]:
         """Mesh quality of the current configuration (collective): ``min_quality`` (shape
         quality, negative for an inverted cell) and ``min_volume_ratio`` (signed cell volume
         over its initial volume) — history columns of every increment."""
-        q, r, _ = self._health(self.vertex_positions())
-        q = self.comm.allreduce(q, op=MPI.MIN)
-        r = self.comm.allreduce(r, op=MPI.MIN)
-        return {"min_quality": q, "min_volume_ratio": r}
-
-    def _accept_geometry(self, dt: float, info: SolveInfo) -> bool:
-        """Check the geometry the converged increment would give before accepting it: an
-        inverted cell marks the attempt failed (cut-back) with a message saying where and when."""
-        if not self.check_inversion or self.u is not None:
-            return True
-        sp = self.space
-        self.w.x.scatter_forward()
-        x_t = self.vertex_positions()
-        X = self.kinematics.positions(x_t, self.w.x.array[sp.vertex_dofs], dt)
-        _, r, i = self._health(X)
-        # the cell is located by its centroid at the start of the increment (the last output)
-        worst = self.comm.allgather((r, None if i < 0 else x_t[self._c2v_owned[i]].mean(axis=0)))
-        r_min, c = min(worst, key=lambda a: a[0])
-        if r_min > 0.0:
-            return True
-        info.converged = False
-        info.message = (f"{_INVERSION}: the cell with centroid {np.array2string(c, precision=4)} "
-                        f"would turn inside out (signed volume / initial volume = {r_min:.3g}) at "
-                        f"t = {self.t + dt:.6g} (increment {self.increment + 1}, dt = {dt:.3g}); "
-                        f"the velocity field is too distorted for this step: reduce dt or remesh")
-        log.warning("t = %.6g: %s", self.t, info.message)
-        return False
-
-    def _increment_failure(self, dt: float, msg: str) -> IncrementError:
-        """The error of an increment that failed for good; a checkpoint of the last accepted
-        state is written first (when checkpoints are on) so the run can be resumed from it."""
-        if self.checkpoint_every:
-            path = self._checkpoint_path()
-            try:
-                if not os.path.isdir(path):
-                    self.write_checkpoint()
-            except OSError as e:
-                log.warning("checkpoint at the failed increment not written: %s", e)
-        cls = MeshInversionError if msg.startswith(_INVERSION) else IncrementError
-        return cls(self.t, dt, msg)
+        return self._mesh_health.columns()
 
     # ------------------------------------------------------------------------ checkpoints
     @property
     def checkpoint_dir(self) -> str:
-        if self.output_dir is None:
-            raise ValueError("checkpoints need an output_dir")
-        return os.path.join(self.output_dir, "checkpoints")
-
-    def _checkpoint_path(self, increment: Optional[int] = None) -> str:
-        inc = self.increment if increment is None else increment
-        return os.path.join(self.checkpoint_dir, f"{self.name}_{inc:06d}")
-
-    def _checkpoint_keys(self):
-        """Partition-independent keys of the saved arrays (computed once)."""
-        if self._ckpt_keys is None:
-            from fxcontact.checkpoint import dof_keys, vertex_keys
-            sp, msh = self.space, self.mesh
-            n = len(self.w.x.array)
-            leaves = [(k, sp.W.sub(0).sub(k)) for k in range(sp.gdim)] + [(sp.gdim, sp.W.sub(1))]
-            wk = dof_keys(msh, leaves, n)
-            ck = dof_keys(msh, [(0, sp.DG0)], len(self.strain.x.array))
-            xk = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)[:, None]
-            tdim = msh.topology.dim
-            own = (sp.num_owned_dofs, msh.topology.index_map(tdim).size_local,
-                   msh.geometry.index_map().size_local)
-            self._ckpt_keys = dict(w=wk, c=ck, x=xk, own=own, v=vertex_keys(msh))
-        return self._ckpt_keys
-
-    def _setup_signature(self) -> dict:
-        """What a checkpoint is resumed only with (as read back from JSON): the space, the
-        material and its parameters, the velocity conditions, the contributors and their
-        parameters (``setup_signature()``, e.g. a contact's penalty, friction and tools)."""
-        import json
-        from fxcontact.checkpoint import _json_default, describe
-        sp = self.space
-        sig = {"element": sp.element, "gdim": sp.gdim, "dofs": sp.global_dofs(),
-               "material": type(self.material).__name__,
-               "small_strain": bool(self.material.small_strain),
-               "contributors": [type(c).__name__ for c in self.contributors],
-               "material_parameters": describe(self.material),
-               "volume_correction": self.volume_correction,
-               "velocity_bcs": [describe(b.value) for b in self._bcs],
-               "contributor_parameters": [c.setup_signature() if hasattr(c, "setup_signature")
-                                          else None for c in self.contributors]}
-        return json.loads(json.dumps(sig, default=_json_default))
+        """``output_dir/checkpoints`` (ValueError without an ``output_dir``)."""
+        return self._checkpoints.directory
 
     def write_checkpoint(self, path: Optional[str] = None) -> str:
         """Write a checkpoint of the current (accepted) state (collective); returns its path.
@@ -1258,67 +787,7 @@ class Simulation:
         Default path: ``output_dir/checkpoints/<name>_<increment>``; older ones beyond
         ``checkpoint_keep`` are removed.
         """
-        from fxcontact import __version__
-        from fxcontact import checkpoint as ck
-        self._build()
-        keys = self._checkpoint_keys()
-        now, ncown, nxown = keys["own"]
-        sp = self.space
-        arrays = {"w_key": keys["w"][:now], "w_prev": self.w_prev.x.array[:now],
-                  "c_key": keys["c"][:ncown], "strain": self.strain.x.array[:ncown],
-                  "strain_rate": self.strain_rate.x.array[:ncown],
-                  "x_key": keys["x"][:nxown], "x": self.mesh.geometry.x[:nxown]}
-        if self.u is not None:
-            uW = np.zeros(len(self.w.x.array))
-            uW[sp.V_to_W] = self.u.x.array
-            arrays["u"] = uW[:now]
-        states = []
-        for i, c in enumerate(self.contributors):
-            st = {}
-            if hasattr(c, "checkpoint_state"):
-                for k, val in c.checkpoint_state().items():
-                    if isinstance(val, ck.PerVertex):
-                        arrays[f"c{i}.{k}.key"] = keys["v"][np.asarray(val.vertices)][:, None]
-                        arrays[f"c{i}.{k}.val"] = np.asarray(val.values)
-                        st[k] = {"per_vertex": True}
-                    else:
-                        st[k] = {"value": val.tolist() if isinstance(val, np.ndarray) else val,
-                                 "array": isinstance(val, np.ndarray)}
-            elif not getattr(self, "_warned_stateless", False):
-                log.warning("contributor %s has no checkpoint_state(): it is assumed to keep "
-                            "no state between increments", type(c).__name__)
-            states.append(st)
-        self._warned_stateless = True
-        controllers = [{"type": type(c).__name__,
-                        "state": _plain_state(c.checkpoint_state())
-                        if hasattr(c, "checkpoint_state") else None}
-                       for c in self.controllers]
-        kin = self.kinematics
-        last = self.history[-1] if self.history else None
-        manifest = {"format": ck.FORMAT_VERSION, "fxcontact": __version__, "name": self.name,
-                    "t": self.t, "increment": self.increment, "history": self.history,
-                    "next_step": (2.0 * last["dt"] if last is not None and last.get("cutbacks")
-                                  else None),
-                    "mesh": ck.mesh_fingerprint(self.mesh, self._x_ref),
-                    "setup": self._setup_signature(), "contributors": states,
-                    "controllers": controllers,
-                    "kinematics": (_plain_state(kin.checkpoint_state())
-                                   if hasattr(kin, "checkpoint_state") else None),
-                    "volume_initial": self._volume_initial}
-        path = path or self._checkpoint_path()
-        if self.comm.rank == 0:
-            os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-        try:
-            ck.write(self.comm, path, manifest, arrays)
-        except OSError as e:
-            prev = ck.latest_checkpoint(os.path.dirname(os.path.abspath(path)), self.name)
-            raise OutputError(f"{e} (increment {self.increment}, t = {self.t:.6g}); the previous "
-                              f"checkpoint {prev} is intact") from e
-        if self.output_dir is not None and path == self._checkpoint_path():
-            ck.prune(self.comm, self.checkpoint_dir, self.name, self.checkpoint_keep)
-        self.comm.barrier()
-        log.info("checkpoint written: %s", path)
-        return path
+        return self._checkpoints.write(path)
 
     def resume(self, path: Optional[str] = None) -> str:
         """Restore the state of a checkpoint, before :meth:`run` (collective).
@@ -1336,107 +805,4 @@ class Simulation:
         an older checkpoint by itself; the message names the newest intact one, to resume
         from with ``resume(path=...)``.
         """
-        from fxcontact import __version__
-        from fxcontact import checkpoint as ck
-        from fxcontact.checkpoint import CheckpointError
-        if self._built:
-            raise RuntimeError("resume() must be called after the set-up and before the first "
-                               "step()/run()")
-        if path is None:
-            path = ck.latest_checkpoint(self.checkpoint_dir, self.name)
-            if path is None:
-                raise CheckpointError(f"no checkpoint of run '{self.name}' in "
-                                      f"{self.checkpoint_dir}")
-        elif not os.path.isfile(os.path.join(path, "manifest.json")) and \
-                ck.latest_checkpoint(path) is not None:
-            path = ck.latest_checkpoint(path)
-        # a truncated or altered file: refused, naming the newest intact checkpoint
-        ck.check_intact(self.comm, path, self.name)
-        man = ck.read_manifest(path)
-        if man.get("format") != ck.FORMAT_VERSION or man.get("fxcontact") != __version__:
-            raise CheckpointError(
-                f"checkpoint {path} was written by another version (checkpoint format "
-                f"{man.get('format')}, fxcontact {man.get('fxcontact')}; this is format "
-                f"{ck.FORMAT_VERSION}, fxcontact {__version__}): restart the run from t = 0")
-        fp = ck.mesh_fingerprint(self.mesh, self._x_ref)
-        if man.get("mesh") != fp:
-            raise CheckpointError(
-                f"checkpoint {path} was written for a different mesh ({man.get('mesh')}; this "
-                f"mesh: {fp}): build the same initial mesh as the checkpointed run")
-        saved = [c["type"] for c in man.get("controllers", [])]
-        mine = [type(c).__name__ for c in self.controllers]
-        if saved != mine:
-            raise CheckpointError(f"checkpoint {path} was written with the controllers {saved}; "
-                                  f"this simulation has {mine}: register the same controllers "
-                                  f"(add_controller), in the same order, as the checkpointed run")
-        for i, (c, e) in enumerate(zip(self.controllers, man.get("controllers", []))):
-            if e["state"] is not None and not hasattr(c, "restore_state"):
-                raise CheckpointError(f"checkpoint {path} holds a state for controller "
-                                      f"{type(c).__name__} #{i}, which cannot restore it")
-            if e["state"] is None and hasattr(c, "restore_state"):
-                raise CheckpointError(f"checkpoint {path} holds no state for controller "
-                                      f"{type(c).__name__} #{i}")
-        # after the controllers: their message is the more specific
-        sig = self._setup_signature()
-        if man.get("setup") != sig:
-            diff = ck.signature_differences(man.get("setup") or {}, sig)
-            raise CheckpointError(f"checkpoint {path} was written for a different set-up: "
-                                  f"{'; '.join(diff)}. Resume with the set-up of the "
-                                  f"checkpointed run, or start a new run (another output_dir "
-                                  f"or name, or overwrite=True)")
-        arrays = ck.read_arrays(path, int(man["nranks"]))
-        keys = self._checkpoint_keys()
-        sp = self.space
-        tw = ck.KeyTable(arrays["w_key"], arrays["w_prev"])
-        self.w_prev.x.array[:] = tw.lookup(keys["w"], "the solution")
-        self.w.x.array[:] = self.w_prev.x.array
-        tc = ck.KeyTable(arrays["c_key"], np.c_[arrays["strain"], arrays["strain_rate"]])
-        sc = tc.lookup(keys["c"], "the strain")
-        self.strain.x.array[:] = sc[:, 0]
-        self.strain_rate.x.array[:] = sc[:, 1]
-        tx = ck.KeyTable(arrays["x_key"], arrays["x"])
-        self.mesh.geometry.x[:] = tx.lookup(keys["x"], "the geometry")
-        if self.u is not None:
-            tu = ck.KeyTable(arrays["w_key"], arrays["u"])
-            self.u.x.array[:] = tu.lookup(keys["w"], "the displacement")[sp.V_to_W]
-        for i, (c, st) in enumerate(zip(self.contributors, man["contributors"])):
-            if not st:
-                continue
-            if not hasattr(c, "restore_state"):
-                raise CheckpointError(f"checkpoint {path} holds a state for contributor "
-                                      f"{type(c).__name__} #{i}, which cannot restore it")
-            state = {}
-            for k, e in st.items():
-                if e.get("per_vertex"):
-                    table = ck.KeyTable(arrays[f"c{i}.{k}.key"], arrays[f"c{i}.{k}.val"])
-                    state[k] = ck.VertexLookup(table, keys["v"][:, None],
-                                               f"{type(c).__name__}.{k}")
-                else:
-                    state[k] = np.asarray(e["value"]) if e.get("array") else e["value"]
-            c.restore_state(state)
-        for i, (c, e) in enumerate(zip(self.controllers, man.get("controllers", []))):
-            if e["state"] is not None:
-                try:
-                    c.restore_state(e["state"])
-                except (KeyError, TypeError, ValueError) as err:
-                    raise CheckpointError(f"checkpoint {path}: the state of controller "
-                                          f"{type(c).__name__} #{i} does not fit this one: "
-                                          f"{err}") from None
-        kin = man.get("kinematics")
-        if kin is not None and hasattr(self.kinematics, "restore_state"):
-            self.kinematics.restore_state(kin)
-        self.t = float(man["t"])
-        self.increment = int(man["increment"])
-        self.history = [dict(r) for r in man["history"]]
-        self._resume_step = man.get("next_step")
-        self._resumed = man
-        self._resumed_from = os.path.dirname(os.path.abspath(path))
-        self._build()
-        # the volume correction is relative to the initial volume of the body, not to the
-        # volume at the checkpoint
-        if man.get("volume_initial") is not None:
-            self._volume_initial = float(man["volume_initial"])
-            self._update_volume_correction()
-        log.info("resumed %s from %s: t = %.6g, increment %d", self.name, path, self.t,
-                 self.increment)
-        return path
+        return self._checkpoints.resume(path)

@@ -43,8 +43,8 @@ from petsc4py import PETSc
 
 from fxcontact.petsc import NonlinearProblem, mumps_null_pivots
 
-__all__ = ["NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS", "choose_linear_solver",
-           "BorderedPC", "MATERIAL_TANGENTS"]
+__all__ = ["ContactNewtonSolver", "NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS",
+           "choose_linear_solver", "BorderedPC", "MATERIAL_TANGENTS"]
 
 log = logging.getLogger(__name__)
 
@@ -445,8 +445,10 @@ class _BorderedOperator:
         return self.A.createVecs()
 
 
-class NewtonSolver:
+class ContactNewtonSolver:
     """SNES Newton with line search, prefixed options and a contributor-aware convergence test.
+
+    (Named apart from dolfinx's ``NewtonSolver``; ``NewtonSolver`` stays an alias.)
 
     Args:
         problem: the :class:`~fxcontact.petsc.NonlinearProblem`.
@@ -1021,6 +1023,10 @@ class NewtonSolver:
         if self.element is not None:
             self.element.destroy()
         self.b.destroy()
+
+
+#: the former name of :class:`ContactNewtonSolver` (the same class)
+NewtonSolver = ContactNewtonSolver
 
 
 def _globalization_options(kind: str) -> Dict[str, str]:

@@ -52,7 +52,7 @@ class SymmetryPlanes:
     """The inclined symmetry planes of a problem (``v·n = 0`` on each), imposed exactly.
 
     Built by :meth:`fxcontact.simulation.Simulation.add_symmetry_plane`; usable with
-    :class:`~fxcontact.petsc.NonlinearProblem` directly (``constraints=[planes]``): call
+    :class:`~fxcontact.petsc.NodalNonlinearProblem` directly (``constraints=[planes]``): call
     :meth:`add` for each plane, then the problem calls :meth:`setup` with its Dirichlet marker.
 
     Args:

@@ -1,7 +1,7 @@
 """Contact on any P1 vector field of a dolfinx problem: displacement-form nodal contact
 (finite-difference checks of every scheme, numba = numpy twin), ContactBoundary on plain and
 sub-spaces (areas, dof maps, clear error for P2), ContactProblem with dolfinx's NewtonSolver,
-with a petsc4py SNES and with fxcontact's NewtonSolver (same answer), 1 vs 2 ranks."""
+with a petsc4py SNES and with fxcontact's ContactNewtonSolver (same answer), 1 vs 2 ranks."""
 
 import numpy as np
 import pytest
@@ -310,11 +310,11 @@ def _run(comm, driver, steps=3, linear_solver=None):
             x.copy(u.vector)
             u.x.scatter_forward()
             return snes.getIterationNumber(), True
-    else:  # fxcontact's own NewtonSolver on a fxcontact NonlinearProblem
-        fprob = fx.NonlinearProblem(F, u, [bc], contributors=[contact])
-        fsolver = fx.NewtonSolver(fprob, fx.SolverOptions(rtol=1e-10, atol=1e-12, stol=0.0,
-                                                          line_search="basic",
-                                                          prefix="anyfem_fx_"))
+    else:  # fxcontact's own ContactNewtonSolver on a NodalNonlinearProblem
+        fprob = fx.NodalNonlinearProblem(F, u, [bc], contributors=[contact])
+        fsolver = fx.ContactNewtonSolver(
+            fprob, fx.SolverOptions(rtol=1e-10, atol=1e-12, stol=0.0, line_search="basic",
+                                    prefix="anyfem_fx_"))
 
         def solve():
             info = fsolver.solve()
@@ -334,7 +334,7 @@ def _run(comm, driver, steps=3, linear_solver=None):
 
 
 def test_user_newton_snes_and_fxcontact_agree():
-    """dolfinx's NewtonSolver, a petsc4py SNES and fxcontact's NewtonSolver give the same
+    """dolfinx's NewtonSolver, a petsc4py SNES and fxcontact's ContactNewtonSolver give the same
     contact forces and nodal displacements (to the Newton tolerance); large deformation:
     the ball pushes the top 15 % of the cube's height down."""
     comm = MPI.COMM_WORLD

@@ -23,6 +23,24 @@ def test_all_names_importable_and_documented():
             assert (obj.__doc__ or "").strip(), f"{name} has no docstring"
 
 
+def test_api_is_imported_explicitly():
+    """Every public name is imported by ``fxcontact/__init__.py`` itself (no lazy look-up), the
+    names that clash with dolfinx have their own names, the old ones are aliases."""
+    import ast
+    from pathlib import Path
+
+    tree = ast.parse(Path(fx.__file__).read_text(encoding="utf-8"))
+    imported = {a.asname or a.name for node in tree.body if isinstance(node, ast.ImportFrom)
+                for a in node.names}
+    assert set(fx._API) <= imported, set(fx._API) - imported
+    assert set(fx.__all__) == {"__version__", *fx._API}
+    assert not hasattr(fx, "__getattr__")
+    assert fx.NonlinearProblem is fx.NodalNonlinearProblem
+    assert fx.NewtonSolver is fx.ContactNewtonSolver
+    assert fx.NodalNonlinearProblem.__name__ == "NodalNonlinearProblem"
+    assert fx.ContactNewtonSolver.__name__ == "ContactNewtonSolver"
+
+
 def test_star_import_and_help():
     ns = {}
     exec("from fxcontact import *", ns)
@@ -33,3 +51,22 @@ def test_star_import_and_help():
     with pytest.raises(AttributeError, match="no attribute 'Nonexistent'"):
         fx.Nonexistent
     assert set(fx._API) <= set(dir(fx))
+
+
+def test_contributors_and_controllers_satisfy_their_protocols():
+    """The library's contributors are ``Contributor``s with the hooks the simulation calls;
+    the bordered idle rotation's stand-in for the contact (a ``__getattr__`` proxy) declares
+    the protocol's methods itself; the ring-mill controllers' optional hooks are protocols too."""
+    from fxcontact import mill, protocols as pr
+
+    for cls in (fx.NodalContact, fx.NodalSprings, mill._EliminatedContact):
+        assert issubclass(cls, pr.Contributor), cls
+    for proto in (pr.BeginsIncrement, pr.EndsIncrement, pr.HasDiagnostics, pr.HasOutputFields,
+                  pr.UpdatesOutputFields, pr.SavesState, pr.RestoresState,
+                  pr.HasSetupSignature, pr.HasSummary, pr.SolverHooks):
+        assert issubclass(fx.NodalContact, proto), proto
+    assert issubclass(fx.IdleRotation, pr.SolvesIncrement)
+    assert not issubclass(fx.RingCentring, pr.SolvesIncrement)
+    for cls in (fx.IdleRotation, fx.RingCentring, fx.RingAxisUpdate):
+        assert issubclass(cls, pr.SavesState) and issubclass(cls, pr.RestoresState), cls
+    assert not isinstance(object(), pr.Contributor)

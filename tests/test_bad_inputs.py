@@ -272,6 +272,9 @@ CASES = [
      r"contributor NodalContact 'contact' is already added.*added twice.*add it once"),
     ("simulation-controller-added-twice", lambda c: _add_twice(c, "controller"), ValueError,
      r"controller object is already added.*add it once"),
+    ("simulation-contributor-not-a-contributor", lambda c: _sim(c).add_contributor(object()),
+     ValueError, r"add_contributor\(contributor\): object is not a contributor.*evaluate\(w, "
+                 r"jacobian\).*stable\(\).*add_controller"),
     ("contact-tools-same-name", lambda c: fx.NodalContact(
         c["top"], [fx.Plane((0, 0, 1), (0, 0, -1)), fx.Plane((0, 0, 0), (0, 0, 1))]),
      ValueError, r"distinct names.*named \['plane'\].*pass a distinct name= to each tool"),
@@ -327,6 +330,10 @@ CASES = [
      "non-empty sequence of Tools"),
     ("friction-coulomb-mu<0", lambda c: fx.Coulomb(-0.1), ValueError, "mu"),
     ("friction-tresca-mbar>1", lambda c: fx.Tresca(1.5), ValueError, "mbar"),
+    ("friction-shear-limit-value-and-rate", lambda c: fx.ShearLimit(value=10.0, strain_rate=1.0),
+     ValueError, r"ShearLimit: give the shear limit k \(value=\) or the strain rate"),
+    ("friction-shear-limit-rate<=0", lambda c: fx.Tresca(0.5, fx.ShearLimit.at_strain_rate(0.0)),
+     ValueError, r"ShearLimit strain_rate must be finite and in \(0"),
     ("friction-unknown-tool", lambda c: fx.NodalContact(
         c["top"], _die(), penalty=1.0, friction={"roll": fx.Coulomb(0.3)}), ValueError,
      "friction given for tool 'roll'"),

@@ -7,9 +7,10 @@ import pytest
 from mpi4py import MPI
 
 from fxcontact.contact.friction import (LAW_COULOMB, LAW_NORTON, LAW_TRESCA, Coulomb,
-                                        Frictionless, Norton, Tresca, friction_kernel,
-                                        friction_kernel_numpy)
+                                        Frictionless, Norton, ShearLimit, Tresca,
+                                        friction_kernel, friction_kernel_numpy)
 from fxcontact.contact.nodal import NodalContact
+from fxcontact.forming import flow_stress
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic, NortonHoff
 from fxcontact.tools.analytic import Cylinder, Plane, Sphere
@@ -287,3 +288,61 @@ def test_slip_velocity_needs_a_speed():
     x = np.array([[0.0, 0.0, 0.5], [0.3, 0.0, 0.5], [0.0, 0.3, 0.5]])
     with pytest.raises(ValueError, match="slip_velocity"):
         c.begin_increment(_FakeSim(NortonHoff(1.0, 0.2), np.zeros(9)), 0.0, 0.1, x)
+
+
+def test_shear_limit_sources():
+    """A law says which k its Tresca limit uses: the local nodal rate (default), the material at
+    a given strain rate (the same k at every node, the material's k at that rate), or a given
+    k (a number and ShearLimit.given are the same law)."""
+    mat = NortonHoff(K=2.0, m=0.2, regularization=1e-9)
+    assert Tresca(0.5).k_source.kind == "local rate"
+    assert Tresca(0.5, shear_limit=1.5) == Tresca(0.5, ShearLimit.given(1.5))
+    assert Tresca(0.5, ShearLimit.local_rate()) == Tresca(0.5)
+    at = ShearLimit.at_strain_rate(0.3)
+    assert Coulomb(0.3, 0.5, shear_limit=at).k_source.kind == "strain rate"
+    assert at.k(mat) == pytest.approx(flow_stress(2.0, 0.2, 0.3) / np.sqrt(3.0), rel=1e-9)
+    # through the contact: the Tresca threshold m̄ k of every node is the material's k at the
+    # rate, and the terms equal those of the same k given as a number
+    die = Plane((0, 0, 1), (0, 0, -1), velocity=(0.5, 0, -0.2), name="die")
+    x = np.array([[0.0, 0.0, 0.98], [0.3, 0.0, 0.99], [0.0, 0.3, 1.02]])
+    v = np.array([0.1, 0.0, -0.3, 0.0, 0.2, -0.1, 0.0, 0.0, 0.0])
+    terms = []
+    for law in (Tresca(0.5, at), Tresca(0.5, shear_limit=float(at.k(mat)))):
+        c = NodalContact(_FakeBoundary(3), die, penalty=1.0, friction=law, slip_velocity=0.05)
+        c.begin_increment(_FakeSim(mat, v), 0.0, 0.1, x)
+        c.begin_solve()
+        t = c.evaluate(v.reshape(-1, 3), True)
+        terms.append((t.residual, t.jacobian))
+        h, g, _, tool, _, _ = c._constraint(v.reshape(-1, 3), False)
+        assert np.all(c.friction_arguments(h, g, tool)["tau_max"] == 0.5 * at.k(mat))
+    assert np.array_equal(terms[0][0], terms[1][0]) and np.array_equal(terms[0][1], terms[1][1])
+    assert "k of the material at the strain rate 0.3 1/s" in \
+        NodalContact(_FakeBoundary(3), die, penalty=1.0, friction=Tresca(0.5, at)).summary()
+
+
+def test_run_summary_names_the_penalty_and_the_shear_limit(caplog):
+    """The run's summary line gives each contact's penalty as resolved (β at the estimated
+    strain rate) and, per tool with friction, the law and the k it uses."""
+    import logging
+
+    from fxcontact.contact.boundary import ContactBoundary
+    from fxcontact.meshing import BLOCK_TAGS, block
+    from fxcontact.simulation import Simulation
+    from fxcontact.spaces import MixedSpace
+
+    msh, _, ft = block(MPI.COMM_WORLD, (0, 0, 0), (1, 1, 1), 0.5)
+    sp = MixedSpace(msh)
+    sim = Simulation(sp, NortonHoff(K=10.0, m=0.2), progress=False)
+    f = {k: sim.facets(ft, v) for k, v in BLOCK_TAGS.items()}
+    for key, comp in (("xmin", 0), ("ymin", 1), ("zmin", 2)):
+        sim.add_velocity_bc(f[key], 0.0, comp)
+    die = Plane((0, 0, 1.0), (0, 0, -1), velocity=(0, 0, -1.0), name="die")
+    sim.add_contributor(NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["zmax"]), die,
+                                     friction=Tresca(0.3)))
+    with caplog.at_level(logging.INFO, logger="fxcontact.simulation"):
+        sim.run(0.02, 0.02)
+    text = caplog.text
+    assert "contact 'contact': implicit, penalty rho = " in text
+    assert "beta = 1000 at the representative strain rate" in text
+    assert "friction 'die' Tresca(mbar=0.3), k of the material at each node's local strain " \
+           "rate" in text

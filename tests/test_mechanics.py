@@ -373,11 +373,11 @@ class _State:
 def _cycle_detector():
     from types import SimpleNamespace
 
-    from fxcontact.solver import NewtonSolver
+    from fxcontact.solver import ContactNewtonSolver
 
-    fake = SimpleNamespace(_states=[], CYCLE_PERIODS=NewtonSolver.CYCLE_PERIODS,
-                           CYCLE_RTOL=NewtonSolver.CYCLE_RTOL)
-    return lambda c, f: NewtonSolver._cycle_period(fake, [c], f)
+    fake = SimpleNamespace(_states=[], CYCLE_PERIODS=ContactNewtonSolver.CYCLE_PERIODS,
+                           CYCLE_RTOL=ContactNewtonSolver.CYCLE_RTOL)
+    return lambda c, f: ContactNewtonSolver._cycle_period(fake, [c], f)
 
 
 @pytest.mark.parametrize("period", [2, 3, 4])
@@ -512,7 +512,7 @@ def test_trust_region_retest_of_the_same_iterate_is_not_a_cycle():
 
     from petsc4py import PETSc
 
-    from fxcontact.solver import NewtonSolver, SolverOptions
+    from fxcontact.solver import ContactNewtonSolver, SolverOptions
 
     def solver():
         c = _State()
@@ -520,12 +520,15 @@ def test_trust_region_retest_of_the_same_iterate_is_not_a_cycle():
         fake = SimpleNamespace(problem=SimpleNamespace(contributors=[c]),
                                options=SolverOptions(max_it=100), _rtol=1e-12, _states=[],
                                _norms=[], _f0=None, _last_it=-1, _last_stable=False,
-                               _cycle_message="", CYCLE_PERIODS=NewtonSolver.CYCLE_PERIODS,
-                               CYCLE_RTOL=NewtonSolver.CYCLE_RTOL)
-        fake._cycle_period = lambda cs, f: NewtonSolver._cycle_period(fake, cs, f)
-        fake._describe_cycle = lambda cs, p, f: NewtonSolver._describe_cycle(fake, cs, p, f)
-        fake._residual_floor = NewtonSolver._residual_floor
-        return fake, c, (lambda it, f: NewtonSolver._converged(fake, None, it, (1.0, 1.0, f)))
+                               _cycle_message="",
+                               CYCLE_PERIODS=ContactNewtonSolver.CYCLE_PERIODS,
+                               CYCLE_RTOL=ContactNewtonSolver.CYCLE_RTOL)
+        fake._cycle_period = lambda cs, f: ContactNewtonSolver._cycle_period(fake, cs, f)
+        fake._describe_cycle = lambda cs, p, f: ContactNewtonSolver._describe_cycle(
+            fake, cs, p, f)
+        fake._residual_floor = ContactNewtonSolver._residual_floor
+        return fake, c, (lambda it, f: ContactNewtonSolver._converged(fake, None, it,
+                                                                      (1.0, 1.0, f)))
 
     R = PETSc.SNES.ConvergedReason
     fake, c, conv = solver()

@@ -222,6 +222,26 @@ class ContactBoundary:
         v2q[c2v.ravel()] = d[:, : c2v.shape[1]].ravel()
         return v2q[self.vertices]
 
+    def strain_rate(self, w, dx) -> np.ndarray:
+        """(N,) equivalent strain rate of the velocity of the mixed Function ``w`` at the
+        contact vertices: volume average over the adjacent cells (lumped P1 projection;
+        collective). The forms are compiled at the first call for a ``w``."""
+        from fxcontact.forms import equivalent_strain_rate_ufl
+        if getattr(self, "_rate_forms", (None,))[0] is not w:
+            Q1 = compat.function_space(self.mesh, ("Lagrange", 1))
+            q = ufl.TestFunction(Q1)
+            rate = equivalent_strain_rate_ufl(ufl.split(w)[0], self.gdim)
+            self._rate_forms = (w, compat.form(rate * q * dx), compat.form(q * dx),
+                                self.q1_dofs(Q1))
+        _, f_rate, f_vol, q1 = self._rate_forms
+        vals = []
+        for f in (f_rate, f_vol):
+            b = dolfinx.fem.petsc.assemble_vector(f)
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            vals.append(b.getArray(readonly=True)[q1].copy() if len(q1) else np.zeros(0))
+            b.destroy()
+        return vals[0] / vals[1]
+
     def total_area(self) -> float:
         return self.comm.allreduce(float(np.sum(self.areas)), op=MPI.SUM)
 

@@ -32,6 +32,10 @@ Jacobian symmetric. The dependence of ``n`` and ``v_tool(P)`` on the iterate thr
 projection is neglected (frozen per iteration), as is that of ``k`` (evaluated once per
 increment from the predictor's strain rate).
 
+**Which shear flow stress k** a Tresca limit uses is said by the law (``shear_limit=``, the
+law's :attr:`FrictionLaw.k_source`, a :class:`ShearLimit`) and printed in the run's summary:
+the local nodal strain rate (the default), the material at a given strain rate, or a given k.
+
 Parameter ranges (checked, ``ValueError`` otherwise): ``μ ≥ 0`` (``μ`` up to 1 and beyond is
 allowed: industrial hot rolling uses μ = 1), ``0 ≤ m̄ ≤ 1`` (m̄ = 1 is full sticking friction
 ``τ = k``), ``α_f ≥ 0``, ``0 < q ≤ 1``, shear limits and ``K`` finite and > 0.
@@ -41,13 +45,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional
+from typing import List, Optional, Union
 
 import numba
 import numpy as np
 
-__all__ = ["FrictionLaw", "Frictionless", "Coulomb", "Tresca", "Norton", "friction_kernel",
-           "friction_kernel_numpy", "LAW_NONE", "LAW_COULOMB", "LAW_TRESCA", "LAW_NORTON"]
+__all__ = ["FrictionLaw", "Frictionless", "Coulomb", "Tresca", "Norton", "ShearLimit",
+           "shear_flow_stress", "laws_per_tool", "friction_kernel", "friction_kernel_numpy",
+           "LAW_NONE", "LAW_COULOMB", "LAW_TRESCA", "LAW_NORTON"]
 
 LAW_NONE, LAW_COULOMB, LAW_TRESCA, LAW_NORTON = 0, 1, 2, 3
 
@@ -71,6 +76,84 @@ def _optional_positive(name: str, value) -> Optional[float]:
     return _finite(name, value, 0.0, lo_open=True)
 
 
+def shear_flow_stress(material, strain_rate):
+    """Shear flow stress k = K z^m of a Norton–Hoff ``material`` at an equivalent strain rate
+    (a number or an array), z = √(3 ε̄̇² + 3 ε̇₀²) regularised like the material."""
+    z = np.sqrt(3.0 * strain_rate**2 + 3.0 * material.regularization**2)
+    return material.K * z**material.m
+
+
+@dataclass(frozen=True)
+class ShearLimit:
+    """Which shear flow stress k the Tresca limit m̄ k of a law uses (its ``shear_limit=``).
+
+    * :meth:`local_rate` (the default, ``shear_limit=None``): k of the Norton–Hoff material at
+      each node, k = K (√3 ε̄̇)^m with the node's strain rate of the increment's predictor (a
+      lumped average over its cells). Near a static tool (an extrusion container) the local
+      rate, hence k, is well below those at the process's mean rate.
+    * :meth:`at_strain_rate`: k of the material at one given equivalent strain rate (e.g. a
+      die's mean rate, :func:`fxcontact.forming.drawing_mean_strain_rate`), at every node.
+    * :meth:`given` (or a number, ``shear_limit=k``): k [stress] itself; the only choice for a
+      body that is not Norton–Hoff.
+    """
+
+    value: Optional[float] = None
+    strain_rate: Optional[float] = None
+
+    def __post_init__(self):
+        if self.value is not None and self.strain_rate is not None:
+            raise ValueError("ShearLimit: give the shear limit k (value=) or the strain rate at "
+                             "which the material gives it (strain_rate=), not both")
+        object.__setattr__(self, "value", _optional_positive("shear_limit", self.value))
+        object.__setattr__(self, "strain_rate",
+                           _optional_positive("ShearLimit strain_rate", self.strain_rate))
+
+    @classmethod
+    def local_rate(cls) -> "ShearLimit":
+        return cls()
+
+    @classmethod
+    def at_strain_rate(cls, strain_rate: float) -> "ShearLimit":
+        return cls(strain_rate=strain_rate)
+
+    @classmethod
+    def given(cls, k: float) -> "ShearLimit":
+        return cls(value=k)
+
+    @property
+    def kind(self) -> str:
+        """``"given"``, ``"strain rate"`` or ``"local rate"``."""
+        return ("given" if self.value is not None else
+                "strain rate" if self.strain_rate is not None else "local rate")
+
+    def k(self, material) -> float:
+        """k for a body of ``material``, the same at every node; NaN for the local rate."""
+        if self.value is not None:
+            return self.value
+        if self.strain_rate is not None:
+            return float(shear_flow_stress(material, self.strain_rate))
+        return math.nan
+
+    def describe(self) -> str:
+        if self.value is not None:
+            return f"k = {self.value:.4g} given"
+        if self.strain_rate is not None:
+            return f"k of the material at the strain rate {self.strain_rate:.4g} 1/s"
+        return "k of the material at each node's local strain rate"
+
+
+def _shear_limit(law):
+    """A law's ``shear_limit`` checked: a number (k), None (the local rate) or a ShearLimit at a
+    strain rate (a given k and the local rate are kept as a number and None)."""
+    value = law.shear_limit
+    if isinstance(value, ShearLimit):
+        if value.kind != "strain rate":
+            value = value.value
+        else:
+            return value
+    return _optional_positive("shear_limit", value)
+
+
 class FrictionLaw:
     """Base class of the friction laws (one law per tool–body pair)."""
 
@@ -80,6 +163,67 @@ class FrictionLaw:
     needs_shear_limit: bool = False
     #: True if the law needs the body's consistency K (viscoplastic friction)
     needs_consistency: bool = False
+
+    @property
+    def k_source(self) -> ShearLimit:
+        """Which shear flow stress k the law uses (:class:`ShearLimit`)."""
+        value = getattr(self, "shear_limit", None)
+        return value if isinstance(value, ShearLimit) else ShearLimit(value=value)
+
+    def describe(self) -> str:
+        """The law and, for a Tresca limit, which k it uses (the run's summary)."""
+        fields = ", ".join(f"{k}={v:g}" for k, v in vars(self).items()
+                           if isinstance(v, (int, float)) and k not in ("shear_limit", "K"))
+        text = f"{type(self).__name__}({fields})"
+        if self.needs_shear_limit:
+            text += f", {self.k_source.describe()}"
+        if self.needs_consistency:
+            K = getattr(self, "K", None)
+            text += ", K given" if K is not None else ", K of the material"
+        return text
+
+
+def laws_per_tool(friction, tools) -> List[FrictionLaw]:
+    """One law per tool from a law, a ``{tool or tool name: law}`` dict (tools left out are
+    frictionless) or a sequence aligned with ``tools`` (ValueError otherwise)."""
+    from fxcontact.tools.base import Tool
+
+    def check(law, where):
+        if not isinstance(law, FrictionLaw):
+            raise ValueError(f"friction {where} must be a friction law (Coulomb, Tresca, "
+                             f"Norton, Frictionless), got {law!r}")
+        return law
+    if friction is None:
+        return [Frictionless() for _ in tools]
+    if isinstance(friction, FrictionLaw):
+        return [friction for _ in tools]
+    if isinstance(friction, dict):
+        names = [t.name for t in tools]
+        out = [Frictionless() for _ in tools]
+        for key, law in friction.items():
+            if isinstance(key, Tool):
+                idx = [k for k, t in enumerate(tools) if t is key]
+                label = key.name
+            elif isinstance(key, str):
+                idx = [k for k, nm in enumerate(names) if nm == key]
+                label = key
+            else:
+                raise ValueError(f"friction keys must be tools or tool names, got {key!r}")
+            if not idx:
+                raise ValueError(f"friction given for tool '{label}', which is not one of "
+                                 f"this contact's tools {names}")
+            if len(idx) > 1:
+                raise ValueError(f"friction key '{label}' matches several tools: give the "
+                                 f"tools distinct names")
+            out[idx[0]] = check(law, f"for tool '{label}'")
+        return out
+    if isinstance(friction, (list, tuple)):
+        if len(friction) != len(tools):
+            raise ValueError(f"friction sequence has {len(friction)} laws for "
+                             f"{len(tools)} tools")
+        return [check(law, f"[{k}]") for k, law in enumerate(friction)]
+    raise ValueError(f"friction must be a friction law, a dict or a sequence, "
+                     f"got {friction!r}")
 
 
 @dataclass(frozen=True)
@@ -96,14 +240,15 @@ class Coulomb(FrictionLaw):
     Args:
         mu: Coulomb coefficient μ ≥ 0.
         mbar: Tresca factor m̄ in [0, 1] limiting the shear stress to m̄ k; None: pure Coulomb.
-        shear_limit: k [stress], the body's shear flow stress. Default: from the Norton–Hoff
-            material at the node (k = K (√3 ε̄̇)^m); required for other materials when ``mbar``
-            is given.
+        shear_limit: the body's shear flow stress k of the limit (:class:`ShearLimit`): a
+            number k [stress], ``ShearLimit.at_strain_rate(rate)``, or None (default): the
+            Norton–Hoff material at each node (k = K (√3 ε̄̇)^m, the local strain rate);
+            a number is required for other materials when ``mbar`` is given.
     """
 
     mu: float
     mbar: Optional[float] = None
-    shear_limit: Optional[float] = None
+    shear_limit: Union[float, ShearLimit, None] = None
     code = LAW_COULOMB
 
     def __post_init__(self):
@@ -111,8 +256,7 @@ class Coulomb(FrictionLaw):
         if self.mbar is not None:
             object.__setattr__(self, "mbar", _finite("Coulomb mbar (Tresca limit)", self.mbar,
                                                      0.0, 1.0))
-        object.__setattr__(self, "shear_limit",
-                           _optional_positive("shear_limit", self.shear_limit))
+        object.__setattr__(self, "shear_limit", _shear_limit(self))
 
     @property
     def needs_shear_limit(self) -> bool:
@@ -125,19 +269,19 @@ class Tresca(FrictionLaw):
 
     Args:
         mbar: friction factor m̄ in [0, 1] (1: the shear flow stress, full sticking friction).
-        shear_limit: k [stress]; default from the Norton–Hoff material at the node; required
-            for other materials.
+        shear_limit: k [stress], ``ShearLimit.at_strain_rate(rate)``, or None (default): the
+            Norton–Hoff material at each node's local strain rate (:class:`ShearLimit`); a
+            number is required for other materials.
     """
 
     mbar: float
-    shear_limit: Optional[float] = None
+    shear_limit: Union[float, ShearLimit, None] = None
     code = LAW_TRESCA
     needs_shear_limit = True
 
     def __post_init__(self):
         object.__setattr__(self, "mbar", _finite("Tresca mbar", self.mbar, 0.0, 1.0))
-        object.__setattr__(self, "shear_limit",
-                           _optional_positive("shear_limit", self.shear_limit))
+        object.__setattr__(self, "shear_limit", _shear_limit(self))
 
 
 @dataclass(frozen=True)

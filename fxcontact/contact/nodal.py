@@ -43,24 +43,23 @@ import logging
 import math
 import zlib
 from collections import deque
-from typing import Dict, List, Optional
+from typing import List, Optional
 
 import numpy as np
 from mpi4py import MPI
 
-import dolfinx.fem
 
-from fxcontact import compat
 from fxcontact.contact.boundary import ContactBoundary
-from fxcontact.contact.friction import (LAW_COULOMB, LAW_NONE, LAW_NORTON, LAW_TRESCA,
-                                        FrictionLaw, Frictionless, friction_kernel,
-                                        friction_kernel_numpy)
-from fxcontact.contact.penalty import penalty_kernel, penalty_kernel_numpy
+from fxcontact.contact.nodal_io import STICK_FACTOR, NodalContactIO
+from fxcontact.contact.friction import (LAW_NONE, friction_kernel, friction_kernel_numpy,
+                                        laws_per_tool, shear_flow_stress)
+from fxcontact.contact.penalty import (DEFAULT_BETA, Penalty, penalty_from_beta,  # noqa: F401
+                                       penalty_kernel, penalty_kernel_numpy)
 from fxcontact.kinematics import CartesianUpdate
-from fxcontact.materials import LinearElastic, NortonHoff
+from fxcontact.materials import NortonHoff
 from fxcontact.collective import together
 from fxcontact.petsc import ContributorError, NodalTerms
-from fxcontact.tools.base import Tool, unit_vector
+from fxcontact.tools.base import Tool
 
 __all__ = ["NodalContact", "SCHEMES", "FRICTION_MODES", "FORMULATIONS", "penalty_from_beta"]
 
@@ -77,34 +76,6 @@ FORMULATIONS = ("velocity", "displacement")
 #: default slip-speed regularisation v₀ relative to the characteristic speed of the process
 #: (THEORY §9: 1e-3 – 1e-2 of the typical sliding speed)
 DEFAULT_SLIP_VELOCITY_REL = 1e-3
-
-#: a node sticks if its slip speed |Δv_t| is below this many v₀ (diagnostics only)
-STICK_FACTOR = 3.0
-
-#: β used when neither ``penalty`` nor ``beta`` is given (THEORY §2.5 recommends 1e2–1e4).
-DEFAULT_BETA = 1e3
-
-
-def penalty_from_beta(material, beta: float, element_size: float, strain_rate: float = None,
-                      dt: float = None) -> float:
-    """Penalty ρ from the dimensionless β of THEORY §2.5.
-
-    Norton–Hoff: ρ = β η / h_e with η = K (√3 ε̄̇)^(m-1) at a representative ``strain_rate``.
-    Linear elastic: ρ = β dt E* / h_e (β_el of §2.5), E* = E/(1-ν²).
-    """
-    if not (beta > 0 and element_size > 0):
-        raise ValueError("beta and element_size must be > 0")
-    if isinstance(material, NortonHoff):
-        if strain_rate is None or not strain_rate > 0:
-            raise ValueError("a representative strain_rate > 0 is needed for a Norton-Hoff "
-                             "penalty from beta")
-        return beta * material.viscosity(strain_rate) / element_size
-    if isinstance(material, LinearElastic):
-        if dt is None or not dt > 0:
-            raise ValueError("dt > 0 is needed for an elastic penalty from beta")
-        return beta * dt * material.plane_strain_modulus / element_size
-    raise ValueError(f"no beta rule for material {material!r}")
-
 
 def _pad3(x: np.ndarray) -> np.ndarray:
     if x.shape[1] == 3:
@@ -146,7 +117,7 @@ class _StepState:
         self.w_prev = self.w = type("F", (), {"x": box})()
 
 
-class NodalContact:
+class NodalContact(NodalContactIO):
     """Nodal penalty contact of a :class:`ContactBoundary` against rigid tools.
 
     Args:
@@ -199,10 +170,16 @@ class NodalContact:
 
     Friction (THEORY §9) acts on the nodes in contact, against the velocity relative to the
     tool's material point at the projection (tools that translate and rotate about their own
-    axis). The shear flow stress k of Tresca limits and the consistency K of viscoplastic
-    friction come from the Norton–Hoff material (k = K (√3 ε̄̇)^m with the nodal strain rate of
-    the increment's predictor, regularised like the material); other materials need
-    ``shear_limit``/``K`` in the law.
+    axis). Each law says which shear flow stress k its Tresca limit uses
+    (:class:`~fxcontact.contact.friction.ShearLimit`: by default the Norton–Hoff material at
+    each node, k = K (√3 ε̄̇)^m with the nodal strain rate of the increment's predictor,
+    regularised like the material; or the material at a given strain rate; or a given k); the
+    consistency K of viscoplastic friction is the material's. Other materials need
+    ``shear_limit``/``K`` in the law. The choice is in the run's summary (:meth:`summary`).
+
+    The penalty is one object, :attr:`penalty` (:class:`~fxcontact.contact.penalty.Penalty`),
+    resolved at each increment by ``Penalty.rho``; ``rho`` is its value for the current
+    increment.
     """
 
     def __init__(self, boundary: ContactBoundary, tools, scheme: Optional[str] = None,
@@ -242,18 +219,8 @@ class NodalContact:
                 raise ValueError(f"unknown contact scheme {scheme!r}; choose one of {SCHEMES}")
             if scheme == "implicit-exact" and not all(t.has_hessian for t in tools):
                 raise ValueError("implicit-exact needs tools that provide the gap Hessian")
-            if gap_stiffness is not None:
-                if penalty is not None or beta is not None:
-                    raise ValueError("give only one of penalty, beta and gap_stiffness")
-                if not (math.isfinite(gap_stiffness) and gap_stiffness > 0):
-                    raise ValueError(f"gap_stiffness must be finite and > 0, got {gap_stiffness!r}")
-            elif penalty is None and beta is None:
-                beta = DEFAULT_BETA
-            self.gap_stiffness = gap_stiffness
-            if penalty is not None and not (math.isfinite(penalty) and penalty > 0):
-                raise ValueError(f"penalty must be finite and > 0, got {penalty!r}")
-            if beta is not None and not (math.isfinite(beta) and beta > 0):
-                raise ValueError(f"beta must be finite and > 0, got {beta!r}")
+            #: the penalty (ρ, β or a gap stiffness), resolved per increment by Penalty.rho
+            self.penalty = Penalty(penalty, beta, gap_stiffness, strain_rate)
             if not (math.isfinite(sticky_gap) and sticky_gap >= 0):
                 raise ValueError("sticky_gap must be >= 0")
             if backend not in ("numba", "numpy"):
@@ -263,16 +230,13 @@ class NodalContact:
             self.scheme = scheme
             self.name = name
             self.gdim = boundary.gdim
-            self._penalty, self.beta = penalty, beta
-            self._penalty_given = penalty
-            self.strain_rate = strain_rate
             self.sticky_gap = float(sticky_gap)
             #: factor on ρ of the current evaluations (< 1 in the softened first stage of a
             #: Newton solve with penalty continuation, SolverOptions.penalty_continuation)
             self.penalty_scale = 1.0
             self.kernel = penalty_kernel if backend == "numba" else penalty_kernel_numpy
             self.friction_kernel = friction_kernel if backend == "numba" else friction_kernel_numpy
-            self.friction = self._friction_per_tool(friction, tools)
+            self.friction = laws_per_tool(friction, tools)
             self.has_friction = any(law.code != LAW_NONE for law in self.friction)
             if friction_mode is None:
                 friction_mode = ("implicit" if scheme in ("implicit", "implicit-exact")
@@ -305,19 +269,10 @@ class NodalContact:
         self.element_size = float(element_size)
         self.max_initial_penetration = (0.5 * self.element_size if max_initial_penetration
                                         is None else float(max_initial_penetration))
-        self.rho = penalty
-        self.stiffness = None
+        self.penalty.bind(formulation, self.element_size, modulus)
+        #: ρ of the current increment (None before the first one)
+        self.rho = self.penalty.fixed_rho
         if formulation == "displacement":
-            # gap stiffness k [stress/length]; rho = k dt at each load step
-            if gap_stiffness is not None or penalty is not None:
-                self.stiffness = float(gap_stiffness if gap_stiffness is not None else penalty)
-            else:
-                if modulus is None or not (math.isfinite(modulus) and modulus > 0):
-                    raise ValueError("the displacement formulation needs the gap stiffness: give "
-                                     "penalty= (k, stress/length) or beta= with modulus= (E*, "
-                                     f"k = beta E*/h_e); got modulus={modulus!r}")
-                self.stiffness = self.beta * float(modulus) / self.element_size
-            self.rho = None
             self._u_t = None
             self._v_hat = np.zeros((len(boundary), self.gdim))
         self.sim = None
@@ -346,85 +301,20 @@ class NodalContact:
         # per-node shear flow stress and consistency, last evaluation's friction terms
         self._p_prev = np.zeros(n)
         self._k_node = np.zeros(n)
+        self._k_law = np.full(len(self.tools), np.nan)
         self._K_node = np.zeros(n)
         self._rf = np.zeros((n, self.gdim))
         self._tau = np.zeros((n, self.gdim))
         self._dvt = np.zeros((n, self.gdim))
         self._branch = np.zeros(n, dtype=np.int8)
         self._point = np.zeros((n, 3))
-        self._rate_forms = None
 
     # ------------------------------------------------------------------ friction set-up
-    @staticmethod
-    def _friction_per_tool(friction, tools) -> List[FrictionLaw]:
-        """One law per tool from a law, a {tool or name: law} dict or a sequence."""
-        def check(law, where):
-            if not isinstance(law, FrictionLaw):
-                raise ValueError(f"friction {where} must be a friction law (Coulomb, Tresca, "
-                                 f"Norton, Frictionless), got {law!r}")
-            return law
-        if friction is None:
-            return [Frictionless() for _ in tools]
-        if isinstance(friction, FrictionLaw):
-            return [friction for _ in tools]
-        if isinstance(friction, dict):
-            names = [t.name for t in tools]
-            out = [Frictionless() for _ in tools]
-            for key, law in friction.items():
-                if isinstance(key, Tool):
-                    idx = [k for k, t in enumerate(tools) if t is key]
-                    label = key.name
-                elif isinstance(key, str):
-                    idx = [k for k, nm in enumerate(names) if nm == key]
-                    label = key
-                else:
-                    raise ValueError(f"friction keys must be tools or tool names, got {key!r}")
-                if not idx:
-                    raise ValueError(f"friction given for tool '{label}', which is not one of "
-                                     f"this contact's tools {names}")
-                if len(idx) > 1:
-                    raise ValueError(f"friction key '{label}' matches several tools: give the "
-                                     f"tools distinct names")
-                out[idx[0]] = check(law, f"for tool '{label}'")
-            return out
-        if isinstance(friction, (list, tuple)):
-            if len(friction) != len(tools):
-                raise ValueError(f"friction sequence has {len(friction)} laws for "
-                                 f"{len(tools)} tools")
-            return [check(law, f"[{k}]") for k, law in enumerate(friction)]
-        raise ValueError(f"friction must be a friction law, a dict or a sequence, "
-                         f"got {friction!r}")
-
-    def _vertex_strain_rate(self, sim) -> np.ndarray:
-        """Equivalent strain rate of the current ``sim.w`` at the contact vertices: volume
-        average over the adjacent cells (lumped P1 projection; collective)."""
-        import ufl
-        import dolfinx.fem.petsc
-        from petsc4py import PETSc
-        if self._rate_forms is None:
-            Q1 = compat.function_space(sim.mesh, ("Lagrange", 1))
-            q = ufl.TestFunction(Q1)
-            v = ufl.split(sim.w)[0]
-            e = ufl.sym(ufl.grad(v))
-            de = e - ufl.tr(e) / self.gdim * ufl.Identity(self.gdim)
-            rate = ufl.sqrt(2.0 / 3.0 * ufl.inner(de, de))
-            dx = sim.space.dx
-            self._rate_forms = (compat.form(rate * q * dx), compat.form(q * dx),
-                                self.boundary.q1_dofs(Q1))
-        f_rate, f_vol, q1 = self._rate_forms
-        vals = []
-        for f in (f_rate, f_vol):
-            b = dolfinx.fem.petsc.assemble_vector(f)
-            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            vals.append(b.getArray(readonly=True)[q1].copy() if len(q1) else np.zeros(0))
-            b.destroy()
-        return vals[0] / vals[1]
-
     def _begin_friction(self, sim, t: float, dt: float):
         """Material data at the nodes and the slip regularisation (collective)."""
         mat = sim.material
         for law, tool in zip(self.friction, self.tools):
-            if law.needs_shear_limit and law.shear_limit is None and \
+            if law.needs_shear_limit and law.k_source.kind != "given" and \
                     not isinstance(mat, NortonHoff):
                 raise ValueError(f"friction on tool '{tool.name}' needs the shear flow stress k "
                                  f"of the body, which a {type(mat).__name__} material does not "
@@ -433,14 +323,17 @@ class NodalContact:
                 raise ValueError(f"viscoplastic friction on tool '{tool.name}' needs the "
                                  f"consistency K, which a {type(mat).__name__} material does not "
                                  f"define: give K= in the Norton law")
-        need_k = any(law.needs_shear_limit and law.shear_limit is None for law in self.friction)
+        need_k = any(law.needs_shear_limit and law.k_source.kind == "local rate"
+                     for law in self.friction)
         need_K = any(law.needs_consistency and law.K is None for law in self.friction)
         if isinstance(mat, NortonHoff) and need_K:
             self._K_node = np.full(len(self.boundary), mat.K)
         if isinstance(mat, NortonHoff) and need_k:
-            rate = self._vertex_strain_rate(sim)
-            z = np.sqrt(3.0 * rate**2 + 3.0 * mat.regularization**2)
-            self._k_node = mat.K * z**mat.m
+            self._k_node = shear_flow_stress(mat, self.boundary.strain_rate(sim.w,
+                                                                            sim.space.dx))
+        # k of each law when it is the same at every node (given, or at a given rate); NaN: local
+        self._k_law = np.array([law.k_source.k(mat) if law.needs_shear_limit else np.nan
+                                for law in self.friction])
         if self._slip_velocity_user is None:
             pr, tool_idx = self._project_all(self.x_t, t, hessian=False)
             speed = 0.0
@@ -463,39 +356,33 @@ class NodalContact:
             self.slip_velocity = v0
 
     # ------------------------------------------------------------------ set-up per increment
-    def _resolve_penalty(self, sim, dt):
-        if self.formulation == "displacement":
-            return self.stiffness * dt
-        if self.gap_stiffness is not None:
-            return self.gap_stiffness * dt
-        if self._penalty is not None:
-            return self._penalty
-        if isinstance(sim.material, NortonHoff):
-            if self.strain_rate is None:
-                # representative strain rate: mean of the first increment's initial guess;
-                # the start-up solve does not see the tools, so a body driven by velocity
-                # conditions against static tools (drawing) moves rigidly in it: then the
-                # speed of the body relative to the tools over the body's size
-                rate = sim.mean_strain_rate()
-                v = self.boundary.velocities(sim.w)
-                speed = max(float(np.max(np.linalg.norm(
-                    v - tool.velocity(_pad3(self.x_t), self.t)[:, : self.gdim], axis=1),
-                    initial=0.0)) for tool in self.tools)
-                speed = self.boundary.comm.allreduce(speed, op=MPI.MAX)
-                rate_kin = speed / sim.volume() ** (1.0 / self.gdim)
-                if not rate > 1e-6 * rate_kin:
-                    rate = rate_kin
-                if not rate > 0:
-                    raise ValueError("cannot estimate a representative strain rate for the "
-                                     "penalty (the body and the tools are at rest): give "
-                                     "strain_rate= or penalty=")
-                self.strain_rate = rate
-                log.info("%s: representative strain rate %.4g 1/s", self.name, rate)
-            self._penalty = penalty_from_beta(sim.material, self.beta, self.element_size,
-                                              self.strain_rate)
-            log.info("%s: penalty rho = %.4g (beta = %g)", self.name, self._penalty, self.beta)
-            return self._penalty
-        return penalty_from_beta(sim.material, self.beta, self.element_size, None, dt)
+    # the penalty as given (read-only views of self.penalty)
+    beta = property(lambda self: self.penalty.beta)
+    gap_stiffness = property(lambda self: self.penalty.gap_stiffness)
+    #: the gap stiffness k of the displacement form (or of ``gap_stiffness``), else None
+    stiffness = property(lambda self: self.penalty.stiffness)
+    #: representative strain rate of a Norton–Hoff β (given or estimated at the first increment)
+    strain_rate = property(lambda self: self.penalty.strain_rate)
+
+    def _representative_strain_rate(self, sim) -> float:
+        """The strain rate of a Norton–Hoff β: the mean of the first increment's initial guess;
+        the start-up solve does not see the tools, so a body driven by velocity conditions
+        against static tools (drawing) moves rigidly in it: then the speed of the body relative
+        to the tools over the body's size (collective)."""
+        rate = sim.mean_strain_rate()
+        v = self.boundary.velocities(sim.w)
+        speed = max(float(np.max(np.linalg.norm(
+            v - tool.velocity(_pad3(self.x_t), self.t)[:, : self.gdim], axis=1),
+            initial=0.0)) for tool in self.tools)
+        speed = self.boundary.comm.allreduce(speed, op=MPI.MAX)
+        rate_kin = speed / sim.volume() ** (1.0 / self.gdim)
+        if not rate > 1e-6 * rate_kin:
+            rate = rate_kin
+        if not rate > 0:
+            raise ValueError("cannot estimate a representative strain rate for the "
+                             "penalty (the body and the tools are at rest): give "
+                             "strain_rate= or penalty=")
+        return rate
 
     def _project_all(self, X: np.ndarray, t: float, hessian: bool):
         """Project on every tool; per node keep the tool with the smallest gap."""
@@ -531,7 +418,8 @@ class NodalContact:
         if not sim.material.small_strain:
             b.update_areas()
         self.x_t = np.ascontiguousarray(x_t_all[b.vertices])
-        self.rho = self._resolve_penalty(sim, dt)
+        self.rho = self.penalty.rho(sim.material, dt,
+                                    lambda: self._representative_strain_rate(sim), self.name)
         self._ever_active[:] = False
         self._fallbacks_all = 0
         self._status_prev = None
@@ -608,7 +496,7 @@ class NodalContact:
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"the load step must advance the time: dt = {dt!r}")
         for law, tool in zip(self.friction, self.tools):
-            if (law.needs_shear_limit and law.shear_limit is None) or \
+            if (law.needs_shear_limit and law.k_source.kind != "given") or \
                     (law.needs_consistency and law.K is None):
                 raise ValueError(f"friction on tool '{tool.name}' in the displacement "
                                  f"formulation: the body's shear flow stress / consistency are "
@@ -646,7 +534,7 @@ class NodalContact:
 
     def scale_penalty(self, factor: float):
         """Multiply the penalty ρ by ``factor`` in the following evaluations (1 restores it);
-        used by the penalty continuation of :class:`~fxcontact.solver.NewtonSolver`."""
+        used by the penalty continuation of :class:`~fxcontact.solver.ContactNewtonSolver`."""
         if not (math.isfinite(factor) and factor > 0):
             raise ValueError(f"penalty scale must be finite and > 0, got {factor!r}")
         self.penalty_scale = float(factor)
@@ -829,8 +717,7 @@ class NodalContact:
         mu = np.array([getattr(law, "mu", 0.0) for law in laws])[tool_idx]
         mbar = np.array([law.mbar if getattr(law, "mbar", None) is not None else np.nan
                          for law in laws])[tool_idx]
-        k_user = np.array([law.shear_limit if getattr(law, "shear_limit", None) is not None
-                           else np.nan for law in laws])[tool_idx]
+        k_user = self._k_law[tool_idx]
         k = np.where(np.isnan(k_user), self._k_node, k_user)
         tau_max = np.where(np.isnan(mbar), np.inf, mbar * k)
         alpha = np.array([getattr(law, "alpha_f", 0.0) for law in laws])[tool_idx]
@@ -908,130 +795,6 @@ class NodalContact:
         exceeds the relative tolerance)."""
         return self._floor
 
-    def cycle_hint(self, period: int = 1) -> str:
-        """What changes over a cycle of ``period`` Newton iterations (counted over the whole
-        cycle, each node once), and the usual cure: nodes entering and leaving contact,
-        switching between tools, between facets/features of one tool, or between the smooth
-        projection and its flat fall-back; or nothing (a residual that stagnates)."""
-        recent = list(self._recent)[-(period + 1):]
-        comm = self.boundary.comm
-        n = np.zeros(4, dtype=np.int64)
-        if len(recent) > 1:
-            act, tool, feat, fb = (np.array([r[k] for r in recent]) for k in range(4))
-            enter = np.any(act != act[-1], axis=0)
-            both = np.all(act, axis=0)
-            tools = both & np.any(tool != tool[-1], axis=0)
-            feats = both & ~tools & np.any(feat != feat[-1], axis=0)
-            fall = ~enter & ~tools & ~feats & np.any(fb != fb[-1], axis=0)
-            n = np.array([np.sum(enter), np.sum(tools), np.sum(feats), np.sum(fall)])
-        n_in, n_tool, n_feat, n_fall = (int(k) for k in comm.allreduce(n, op=MPI.SUM))
-        who = f"contact '{self.name}'"
-        parts = []
-        if n_in:
-            parts.append(f"{n_in} node(s) enter and leave contact")
-        if n_tool:
-            names = " and ".join(f"'{t.name}'" for t in self.tools)
-            parts.append(f"{n_tool} node(s) switch between the tools {names} (where the tools "
-                         f"meet or overlap)")
-        if n_feat:
-            parts.append(f"{n_feat} node(s) switch between facets/features of their tool "
-                         f"(facet switching, THEORY §6)")
-        if n_fall:
-            parts.append(f"{n_fall} node(s) switch between the smooth projection and its flat "
-                         f"fall-back (a hole or a sharp edge of the faceted tool)")
-        if not parts:
-            return (f"{who}: no node changes its contact status, tool, facet or projection "
-                    f"over the cycle: the residual stagnates, not the contact state")
-        cures = []
-        if n_feat or n_fall:
-            cures.append("smooth the faceted tool (mode='nagata') or repair its surface")
-        if n_tool:
-            cures.append("round or separate the tools where they meet")
-        cures.append(self._dt_advice())
-        return f"{who}: " + "; ".join(parts) + " over the cycle: " + ", or ".join(cures)
-
-    def _dt_advice(self) -> str:
-        """"reduce dt", unless dt is already so small that the gap's round-off ε|X|/dt is
-        more than 1e-6 of the nodes' speeds (collective values of the last iterate)."""
-        comm = self.boundary.comm
-        x_t = getattr(self, "x_t", np.zeros((0, self.gdim)))
-        X = comm.allreduce(float(np.max(np.abs(x_t), initial=0.0)), op=MPI.MAX)
-        v = comm.allreduce(float(np.max(np.linalg.norm(self._v_last, axis=1), initial=0.0)),
-                           op=MPI.MAX)
-        eps = np.finfo(float).eps
-        if v > 0 and eps * X / self.dt > 1e-6 * v:
-            return (f"a larger dt: dt = {self.dt:.3g} is so small that the positions x + dt v "
-                    f"(|x| up to {X:.3g}, |v| up to {v:.3g}) keep fewer than 6 digits of the "
-                    f"motion; dt >= {1e6 * eps * X / v:.3g} keeps them")
-        return "reduce dt (cut-back)"
-
-    # ------------------------------------------------------------------ checkpoint
-    def checkpoint_state(self) -> dict:
-        """What a resumed run needs (:mod:`fxcontact.checkpoint`): the penalty resolved from β
-        at the first increment, the representative strain rate, the slip regularisation and the
-        nodal pressures of the last converged increment (explicit friction). The tools are
-        immutable and move as functions of time: restoring t restores their positions, except
-        for motions whose rates are set during the run (:class:`fxcontact.mill.ControlledMotion`:
-        their ``checkpoint_state()`` is saved too, under ``motions``)."""
-        from fxcontact.checkpoint import PerVertex
-        return {"name": self.name, "scheme": self.scheme,
-                "tools": [t.name for t in self.tools],
-                "motions": [t.motion.checkpoint_state()
-                            if hasattr(getattr(t, "motion", None), "checkpoint_state") else None
-                            for t in self.tools],
-                "penalty": self._penalty, "strain_rate": self.strain_rate,
-                "slip_velocity": self.slip_velocity,
-                "p_prev": PerVertex(self.boundary.vertices, self._p_prev)}
-
-    def setup_signature(self) -> dict:
-        """The contact's parameters as given (not those resolved during the run): a checkpoint
-        is resumed only with the same (:meth:`Simulation.resume
-        <fxcontact.simulation.Simulation.resume>` names the one that differs)."""
-        from fxcontact.checkpoint import describe
-        tools = []
-        for t in self.tools:
-            base = getattr(t, "tool", t)   # a MovedTool's tool
-            geometry = base._repr_fields() if hasattr(base, "_repr_fields") else repr(base)
-            tools.append({"type": type(t).__name__, "name": t.name,
-                          "geometry": type(base).__name__ if " at 0x" in geometry else geometry,
-                          "motion": describe(t.motion)})
-        return {"name": self.name, "scheme": self.scheme, "formulation": self.formulation,
-                "penalty": self._penalty_given, "beta": self.beta,
-                "gap_stiffness": self.gap_stiffness,
-                "sticky_gap": self.sticky_gap, "friction": describe(self.friction),
-                "friction_mode": self.friction_mode, "slip_velocity": self._slip_velocity_user,
-                "tools": tools}
-
-    def restore_state(self, state: dict):
-        from fxcontact.checkpoint import CheckpointError
-        mine = {"name": self.name, "scheme": self.scheme, "tools": [t.name for t in self.tools]}
-        theirs = {k: state.get(k) for k in mine}
-        if theirs != mine:
-            raise CheckpointError(f"the checkpoint's contact {theirs} is not this contact {mine}")
-        if self._penalty is None and self.gap_stiffness is None:  # resolved from beta
-            self._penalty = state["penalty"]
-            self.rho = self._penalty
-        if self.strain_rate is None:
-            self.strain_rate = state["strain_rate"]
-        if self._slip_velocity_user is None:
-            self.slip_velocity = state["slip_velocity"]
-        self._p_prev = np.asarray(state["p_prev"].at(self.boundary.vertices), dtype=np.float64)
-        for t, m in zip(self.tools, state.get("motions") or [None] * len(self.tools)):
-            has = hasattr(getattr(t, "motion", None), "restore_state")
-            if (m is None) == has:
-                raise CheckpointError(f"the checkpoint's motion of tool '{t.name}' "
-                                      f"({'none' if m is None else 'rates set during the run'}) "
-                                      f"does not fit this tool's {type(t.motion).__name__}")
-            if m is not None:
-                t.motion.restore_state(m)
-
-    # ------------------------------------------------------------------ diagnostics / output
-    def pressures(self) -> np.ndarray:
-        """(N,) nodal contact pressures ρ[h]₊ of the last evaluation."""
-        if self.rho is None:  # before the first increment resolves ρ from β
-            return np.zeros_like(self._h)
-        return self.rho * self.penalty_scale * np.maximum(self._h, 0.0)
-
     def end_increment(self, sim, dt: float):
         """Measure the true penetration of the updated nodes against the tools at t + dt."""
         b = self.boundary
@@ -1040,94 +803,3 @@ class NodalContact:
         self._true_pen = float(np.max(-pr.gap, initial=-np.inf))
         # contact pressures of the converged increment: the explicit friction of the next one
         self._p_prev = self.pressures().copy()
-
-    def diagnostics(self) -> Dict[str, float]:
-        comm = self.boundary.comm
-        b = self.boundary
-        act = self._h > 0
-        pmax = comm.allreduce(float(np.max(self.dt * self._h, initial=-np.inf)), op=MPI.MAX)
-        tpen = comm.allreduce(getattr(self, "_true_pen", -np.inf), op=MPI.MAX)
-        out = {f"{self.name}_penetration_predicted": max(pmax, 0.0),
-               f"{self.name}_penetration_true": max(tpen, 0.0),
-               f"{self.name}_nodes": comm.allreduce(int(np.sum(act)), op=MPI.SUM),
-               f"{self.name}_area": comm.allreduce(float(np.sum(b.areas[act])), op=MPI.SUM),
-               f"{self.name}_pressure_max": comm.allreduce(
-                   float(np.max(self.pressures(), initial=0.0)), op=MPI.MAX),
-               # projections that fell back to the flat facet (faceted Nagata tools): at the
-               # accepted iterate, and summed over every evaluation of the increment
-               f"{self.name}_fallbacks": comm.allreduce(self._fallbacks, op=MPI.SUM),
-               f"{self.name}_fallbacks_all": comm.allreduce(self._fallbacks_all, op=MPI.SUM)}
-        for k, tool in enumerate(self.tools):
-            F = self.tool_force(k)
-            for j, c in enumerate("xyz"[: self.gdim]):
-                out[f"{tool.name}_force_{c}"] = float(F[j])
-            if self.has_friction:
-                Ff = self.tool_force(k, friction_only=True)
-                for j, c in enumerate("xyz"[: self.gdim]):
-                    out[f"{tool.name}_friction_{c}"] = float(Ff[j])
-                out[f"{tool.name}_torque"] = self.tool_torque(k)
-        if self.has_friction:
-            on = self._branch > 0
-            slip = np.linalg.norm(self._dvt, axis=1)
-            stick = on & (slip < STICK_FACTOR * self.slip_velocity)
-            out[f"{self.name}_stick"] = comm.allreduce(int(np.sum(stick)), op=MPI.SUM)
-            out[f"{self.name}_slip"] = comm.allreduce(int(np.sum(on & ~stick)), op=MPI.SUM)
-            # power dissipated by friction Σ S τ·(−Δv_t) = Σ r_f·Δv_t ≥ 0
-            out[f"{self.name}_friction_power"] = comm.allreduce(
-                float(np.sum(self._rf * self._dvt)), op=MPI.SUM)
-            out[f"{self.name}_slip_velocity"] = float(self.slip_velocity)
-        return out
-
-    def tool_force(self, k: int = 0, friction_only: bool = False) -> np.ndarray:
-        """Force on tool k (gdim,) from the last evaluation, summed over ranks: contact plus
-        friction (= −the force on the body), or the friction part only."""
-        sel = self._tool == k
-        r = self._rf if friction_only else self._r + self._rf
-        return self.boundary.comm.allreduce(
-            np.sum(r[sel], axis=0) if np.any(sel) else np.zeros(self.gdim), op=MPI.SUM)
-
-    def tool_torque(self, k: int = 0) -> float:
-        """Torque on tool k about its own (rotation) axis from the last evaluation, summed over
-        ranks: w · Σ (P_n − a) × f_n with f_n the nodal force on the tool (contact + friction)
-        at the projection point P_n. For a roll this is the driving torque (sign: the torque
-        the body exerts on the tool, right-hand rule about the axis)."""
-        tool = self.tools[k]
-        sel = self._tool == k
-        t = self.t if self.scheme == "explicit" else self.t + self.dt
-        w = unit_vector(tool.motion.axis, "tool axis")
-        a = tool.motion.axis_point_at(t)
-        M = 0.0
-        if np.any(sel):
-            f = np.zeros((int(np.sum(sel)), 3))
-            f[:, : self.gdim] = (self._r + self._rf)[sel]
-            arm = self._point[sel] - a
-            M = float(np.sum(np.cross(arm, f) @ w))
-        return self.boundary.comm.allreduce(M, op=MPI.SUM)
-
-    def output_fields(self):
-        if self._fields is None:
-            b = self.boundary
-            Q1 = compat.function_space(b.mesh, ("Lagrange", 1))
-            p = dolfinx.fem.Function(Q1, name=f"{self.name}_pressure")
-            s = dolfinx.fem.Function(Q1, name=f"{self.name}_status")
-            self._fields = (p, s)
-            if self.has_friction:
-                V1 = compat.vector_function_space(b.mesh, "Lagrange", 1)
-                self._fields += (dolfinx.fem.Function(V1, name=f"{self.name}_friction_stress"),)
-        return list(self._fields)
-
-    def update_output_fields(self):
-        fields = self.output_fields()
-        p, s = fields[:2]
-        q = self.boundary.q1_dofs(p.function_space)
-        p.x.array[:] = 0.0
-        s.x.array[:] = 0.0
-        p.x.array[q] = self.pressures()
-        s.x.array[q] = (self._h > 0).astype(float)
-        if self.has_friction:
-            f = fields[2]
-            f.x.array[:] = 0.0
-            qv = self.boundary.q1_dofs(f.function_space)   # block dofs of the vertices
-            f.x.array.reshape(-1, self.gdim)[qv] = self._tau
-        for fn in fields:
-            fn.x.scatter_forward()

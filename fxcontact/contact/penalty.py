@@ -1,4 +1,5 @@
-"""Nodal penalty kernel (THEORY §2.2), numba-compiled, with its numpy reference twin.
+"""The penalty of nodal contact (THEORY §2.2, §2.5): :class:`Penalty`, and the nodal penalty
+kernel, numba-compiled, with its numpy reference twin.
 
 For each contact node, with the velocity-scaled constraint ``h`` (admissible iff h ≤ 0), its
 gradient ``g = ∇h`` and Hessian ``Hh = ∇²h`` with respect to the nodal velocity::
@@ -7,14 +8,159 @@ gradient ``g = ∇h`` and Hessian ``Hh = ∇²h`` with respect to the nodal velo
 
 where ``A`` is the active flag used in the tangent: ``H(h)``, or 1 for a node kept active by the
 active-set stabilisation of THEORY §3.6 (the residual is unchanged by it).
+
+The penalty is one concept given one of three ways (:class:`Penalty`): ρ itself
+[stress/velocity], the dimensionless β of THEORY §2.5, or a gap stiffness k [stress/length]
+(ρ = k·dt); :meth:`Penalty.rho` resolves it for an increment, in one place.
 """
 
 from __future__ import annotations
 
+import logging
+import math
+from typing import Callable, Optional
+
 import numba
 import numpy as np
 
-__all__ = ["penalty_kernel", "penalty_kernel_numpy"]
+from fxcontact.materials import LinearElastic, NortonHoff
+
+__all__ = ["Penalty", "penalty_from_beta", "DEFAULT_BETA", "penalty_kernel",
+           "penalty_kernel_numpy"]
+
+log = logging.getLogger(__name__)
+
+#: β used when neither ``penalty``, ``beta`` nor ``gap_stiffness`` is given (THEORY §2.5
+#: recommends 1e2–1e4).
+DEFAULT_BETA = 1e3
+
+
+def penalty_from_beta(material, beta: float, element_size: float, strain_rate: float = None,
+                      dt: float = None) -> float:
+    """Penalty ρ from the dimensionless β of THEORY §2.5.
+
+    Norton–Hoff: ρ = β η / h_e with η = K (√3 ε̄̇)^(m-1) at a representative ``strain_rate``.
+    Linear elastic: ρ = β dt E* / h_e (β_el of §2.5), E* = E/(1-ν²).
+    """
+    if not (beta > 0 and element_size > 0):
+        raise ValueError("beta and element_size must be > 0")
+    if isinstance(material, NortonHoff):
+        if strain_rate is None or not strain_rate > 0:
+            raise ValueError("a representative strain_rate > 0 is needed for a Norton-Hoff "
+                             "penalty from beta")
+        return beta * material.viscosity(strain_rate) / element_size
+    if isinstance(material, LinearElastic):
+        if dt is None or not dt > 0:
+            raise ValueError("dt > 0 is needed for an elastic penalty from beta")
+        return beta * dt * material.plane_strain_modulus / element_size
+    raise ValueError(f"no beta rule for material {material!r}")
+
+
+class Penalty:
+    """The penalty of a :class:`~fxcontact.contact.NodalContact`, given one of three ways.
+
+    Args:
+        penalty: ρ [stress/velocity] (velocity form), or the gap stiffness k [stress/length]
+            (displacement form).
+        beta: dimensionless β (THEORY §2.5): ρ = β η(ε̄̇)/h_e for Norton–Hoff (at
+            ``strain_rate``, estimated at the first increment if not given), ρ = β dt E*/h_e for
+            linear elasticity, k = β E*/h_e in displacement form (``modulus`` = E*). The
+            default when nothing is given: :data:`DEFAULT_BETA`.
+        gap_stiffness: k [stress/length] on the end-of-increment gap: ρ = k·dt.
+
+    Raises ValueError (``penalty``, ``beta`` or ``gap_stiffness`` not finite and > 0; a gap
+    stiffness with another of them). :meth:`bind` then fixes the formulation and the element
+    size (a displacement-form β without ``modulus`` is refused there).
+    """
+
+    def __init__(self, penalty: Optional[float] = None, beta: Optional[float] = None,
+                 gap_stiffness: Optional[float] = None, strain_rate: Optional[float] = None):
+        if gap_stiffness is not None:
+            if penalty is not None or beta is not None:
+                raise ValueError("give only one of penalty, beta and gap_stiffness")
+            if not (math.isfinite(gap_stiffness) and gap_stiffness > 0):
+                raise ValueError(f"gap_stiffness must be finite and > 0, got {gap_stiffness!r}")
+        elif penalty is None and beta is None:
+            beta = DEFAULT_BETA
+        if penalty is not None and not (math.isfinite(penalty) and penalty > 0):
+            raise ValueError(f"penalty must be finite and > 0, got {penalty!r}")
+        if beta is not None and not (math.isfinite(beta) and beta > 0):
+            raise ValueError(f"beta must be finite and > 0, got {beta!r}")
+        #: the values as given (``beta``: :data:`DEFAULT_BETA` when nothing was given)
+        self.given, self.beta, self.gap_stiffness = penalty, beta, gap_stiffness
+        #: representative strain rate of a Norton–Hoff β (given, or estimated at the first
+        #: increment)
+        self.strain_rate = strain_rate
+        #: ρ when fixed: given, or resolved from a Norton–Hoff β at the first increment
+        self.fixed_rho = penalty
+        #: the gap stiffness k of ρ = k·dt (``gap_stiffness``; in displacement form always)
+        self.stiffness = None if gap_stiffness is None else gap_stiffness
+        self.formulation, self.element_size = "velocity", None
+
+    def bind(self, formulation: str, element_size: float, modulus: Optional[float] = None):
+        """Fix the formulation and the element size h_e (known once the contact nodes are):
+        in displacement form the penalty is a gap stiffness k, ``penalty``, ``gap_stiffness``
+        or β E*/h_e (``modulus`` = E*)."""
+        self.formulation, self.element_size = formulation, float(element_size)
+        if formulation == "displacement":
+            if self.gap_stiffness is not None or self.given is not None:
+                self.stiffness = float(self.gap_stiffness if self.gap_stiffness is not None
+                                       else self.given)
+            else:
+                if modulus is None or not (math.isfinite(modulus) and modulus > 0):
+                    raise ValueError("the displacement formulation needs the gap stiffness: give "
+                                     "penalty= (k, stress/length) or beta= with modulus= (E*, "
+                                     f"k = beta E*/h_e); got modulus={modulus!r}")
+                self.stiffness = self.beta * float(modulus) / self.element_size
+            self.fixed_rho = None
+
+    def rho(self, material, dt: float, representative_rate: Callable[[], float],
+            name: str = "contact") -> float:
+        """ρ of an increment of ``dt`` for the body's ``material`` (the one place where the
+        penalty is resolved). ``representative_rate()`` estimates the strain rate of a
+        Norton–Hoff β when it is not given (called once, at the first increment)."""
+        if self.stiffness is not None:
+            return self.stiffness * dt
+        if self.fixed_rho is not None:
+            return self.fixed_rho
+        if isinstance(material, NortonHoff):
+            if self.strain_rate is None:
+                self.strain_rate = representative_rate()
+                log.info("%s: representative strain rate %.4g 1/s", name, self.strain_rate)
+            self.fixed_rho = penalty_from_beta(material, self.beta, self.element_size,
+                                               self.strain_rate)
+            log.info("%s: penalty rho = %.4g (beta = %g)", name, self.fixed_rho, self.beta)
+            return self.fixed_rho
+        return penalty_from_beta(material, self.beta, self.element_size, None, dt)
+
+    def signature(self) -> dict:
+        """The penalty as given, for a checkpoint's set-up signature."""
+        return {"penalty": self.given, "beta": self.beta, "gap_stiffness": self.gap_stiffness}
+
+    def state(self) -> dict:
+        """What a resumed run needs: ρ resolved from β and the representative strain rate."""
+        return {"penalty": self.fixed_rho, "strain_rate": self.strain_rate}
+
+    def restore(self, state: dict):
+        if self.fixed_rho is None and self.gap_stiffness is None:   # resolved from β
+            self.fixed_rho = state["penalty"]
+        if self.strain_rate is None:
+            self.strain_rate = state["strain_rate"]
+
+    def summary(self) -> str:
+        """How the penalty was given and what it resolved to."""
+        if self.formulation == "displacement":
+            how = ("given" if self.gap_stiffness is not None or self.given is not None
+                   else f"beta = {self.beta:g} x E*/h_e")
+            return f"gap stiffness k = {self.stiffness:.4g} ({how}; rho = k dt)"
+        if self.gap_stiffness is not None:
+            return f"gap stiffness k = {self.gap_stiffness:.4g} (rho = k dt)"
+        if self.given is not None:
+            return f"penalty rho = {self.given:.4g} (given)"
+        if self.fixed_rho is not None:
+            return (f"penalty rho = {self.fixed_rho:.4g} (beta = {self.beta:g} at the "
+                    f"representative strain rate {self.strain_rate:.4g} 1/s)")
+        return f"penalty from beta = {self.beta:g} (rho = beta dt E*/h_e at each increment)"
 
 
 @numba.njit(cache=True)
