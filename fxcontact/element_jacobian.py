@@ -263,7 +263,7 @@ def element_condensation_supported(problem) -> Optional[str]:
 
 
 class CondensedJacobian:
-    """The condensed Newton matrix of a MINI :class:`~fxcontact.petsc.NonlinearProblem`,
+    """The condensed Newton matrix of a MINI :class:`~fxcontact.petsc.NodalNonlinearProblem`,
     assembled on the P1/P1 layout (:class:`~fxcontact.element_condense.P1P1Layout`: one block
     of gdim + 1 unknowns per vertex, a BAIJ matrix).
 
