@@ -21,7 +21,7 @@ MatCholFctrNum / MatLUFactorNum (factorisation, mean over the matrices) and MatS
 mean), the maximum over the ranks, the best of ``--repeat`` repetitions. Accuracy: the largest
 relative residual ‖S x − b‖/‖b‖ over the matrices and the largest relative difference
 ‖x − x_ref‖/‖x_ref‖ from the preset's solution. MUMPS figures: INFOG(7) (the ordering used,
-sequential analysis), INFOG(32) (1 sequential / 2 parallel analysis), INFOG(29) (entries in the
+sequential analysis), INFOG(32) (1 sequential / 2 parallel analysis), INFOG(35) (entries in the
 factors, effective with BLR, millions) and INFOG(22) (memory used by the factorisation, total
 over the ranks, MB).
 
@@ -221,12 +221,16 @@ class VariantFailed(RuntimeError):
     pass
 
 
-def _wall(comm, fn):
+def _timed(comm, fn):
+    """(wall, CPU) seconds of ``fn()``, the maximum over the ranks (the CPU time of this
+    process is not inflated by the other processes of a shared machine)."""
     comm.Barrier()
-    t0 = time.perf_counter()
+    w0, c0 = time.perf_counter(), time.process_time()
     fn()
+    c1 = time.process_time()
     comm.Barrier()
-    return time.perf_counter() - t0
+    w1 = time.perf_counter()
+    return np.array([w1 - w0, comm.allreduce(c1 - c0, op=MPI.MAX)])
 
 
 def formats(pairs, order):
@@ -248,56 +252,45 @@ def formats(pairs, order):
     return out
 
 
-def run_variant(tag, options, mats, repeat, comm):
-    """Times (best of ``repeat``) and the solutions of one variant on the matrices ``mats``:
-    ``first`` the first set-up (analysis and factorisation), ``num`` the mean set-up of the
-    other matrices (their values copied into the working matrix: factorisation only),
-    ``sym`` = first − num (the analysis), ``solve`` the mean solve."""
-    opts = PETSc.Options()
-    prefix = f"bench{tag}_"
-    for k, v in options.items():
-        opts.setValue(prefix + k, v)
-    best = {"first": np.inf, "num": np.inf, "solve": np.inf}
-    xs, info = [], {}
+def run_variant(prefix, mats, comm):
+    """One pass of a variant (its options under ``prefix``) over the matrices ``mats``: a
+    fresh KSP, the first set-up (analysis and factorisation), then the values of each other
+    matrix copied into the working matrix and its set-up (factorisation only), one solve per
+    matrix. Returns the (wall, CPU) times ``first``, ``num`` (mean of the other set-ups),
+    ``sym`` = first − num (the analysis), ``solve`` (mean), MUMPS figures and the solutions."""
+    W = mats[0][0].duplicate(copy=True)
+    ksp = PETSc.KSP().create(comm)
     try:
-        for _ in range(repeat):
-            W = mats[0][0].duplicate(copy=True)
-            ksp = PETSc.KSP().create(comm)
-            ksp.setOptionsPrefix(prefix)
-            ksp.setOperators(W, W)
-            ksp.setFromOptions()
-            xs = []
-            t = {"first": 0.0, "num": 0.0, "solve": 0.0}
-            for i, (S, b) in enumerate(mats):
-                if i:
-                    S.copy(W, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-                    ksp.setOperators(W, W)   # as the condensed PC does at every set-up
-                t["num" if i else "first"] += _wall(comm, ksp.setUp)
-                F = ksp.getPC().getFactorMatrix()
-                if F.getMumpsInfog(1) < 0:
-                    raise VariantFailed(f"MUMPS INFOG(1) = {F.getMumpsInfog(1)}, INFOG(2) = "
-                                        f"{F.getMumpsInfog(2)}")
-                x = b.duplicate()
-                t["solve"] += _wall(comm, lambda: ksp.solve(b, x))
-                if ksp.getConvergedReason() < 0:
-                    raise VariantFailed(f"KSP reason {ksp.getConvergedReason()}")
-                xs.append(x)
-            n = len(mats)
-            t["num"] /= max(1, n - 1)
-            t["solve"] /= n
-            for k in best:
-                best[k] = min(best[k], t[k])
-            f29 = F.getMumpsInfog(29)
-            info = dict(ordering=F.getMumpsInfog(7), analysis=F.getMumpsInfog(32),
-                        factors=(-f29 if f29 < 0 else f29 / 1e6),
-                        memory=F.getMumpsInfog(22), null_pivots=F.getMumpsInfog(28))
-            ksp.destroy()
-            W.destroy()
+        ksp.setOptionsPrefix(prefix)
+        ksp.setOperators(W, W)
+        ksp.setFromOptions()
+        xs = []
+        t = {"first": 0.0, "num": 0.0, "solve": 0.0}
+        for i, (S, b) in enumerate(mats):
+            if i:
+                S.copy(W, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+                ksp.setOperators(W, W)   # as the condensed PC does at every set-up
+            t["num" if i else "first"] = t["num" if i else "first"] + _timed(comm, ksp.setUp)
+            F = ksp.getPC().getFactorMatrix()
+            if F.getMumpsInfog(1) < 0:
+                raise VariantFailed(f"MUMPS INFOG(1) = {F.getMumpsInfog(1)}, INFOG(2) = "
+                                    f"{F.getMumpsInfog(2)}")
+            x = b.duplicate()
+            t["solve"] = t["solve"] + _timed(comm, lambda: ksp.solve(b, x))
+            if ksp.getConvergedReason() < 0:
+                raise VariantFailed(f"KSP reason {ksp.getConvergedReason()}")
+            xs.append(x)
+        t["num"] = t["num"] / max(1, len(mats) - 1)
+        t["solve"] = t["solve"] / len(mats)
+        t["sym"] = t["first"] - t["num"]
+        f35 = F.getMumpsInfog(35)      # entries in the factors after the BLR compression
+        info = dict(ordering=F.getMumpsInfog(7), analysis=F.getMumpsInfog(32),
+                    factors=(-f35 if f35 < 0 else f35 / 1e6),
+                    memory=F.getMumpsInfog(22), null_pivots=F.getMumpsInfog(28))
     finally:
-        for k in options:
-            opts.delValue(prefix + k)
-    best["sym"] = best["first"] - best["num"]
-    return best, info, xs
+        ksp.destroy()
+        W.destroy()
+    return t, info, xs
 
 
 def accuracy(mats, xs, refs):
@@ -316,6 +309,30 @@ def accuracy(mats, xs, refs):
 ORDERINGS = {0: "AMD", 1: "given", 2: "AMF", 3: "SCOTCH", 4: "PORD", 5: "METIS", 6: "QAMD"}
 
 
+def newton_check(size: float, increments: int, change: dict, comm, say):
+    """The wire drawing with the ``condensed-mumps`` preset and with ``change`` (options of
+    the condensed system without prefix, None removes one): Newton iterations, drawing force
+    and linear-solve time per increment."""
+    from _common import load_demo
+    from fxcontact.solver import LINEAR_SOLVERS
+
+    demo = load_demo("demo_wire_drawing")
+    out = {}
+    preset = LINEAR_SOLVERS["condensed-mumps"]
+    changed = {k: v for k, v in {**preset, **{"condensed_" + k: v for k, v in change.items()}
+                                 }.items() if v is not None}
+    for label, lin in (("preset", dict(preset)), ("changed", changed)):
+        res = demo.run(size=size, t_end=increments * demo.DEFAULTS["dt"], linear_solver=lin,
+                       pictures=False, output_dir=None, comm=comm)
+        h = res["history"]
+        out[label] = h
+        say(f"{label}: Newton iterations {[r['newton_iterations'] for r in h]}, drawing "
+            f"force {[round(r['drawing_force'], 6) for r in h]}, linear solve "
+            f"{sum(r['wall_linear_solve'] for r in h):.1f} s of {res['wall']:.1f} s")
+    a, b = out["preset"][-1]["drawing_force"], out["changed"][-1]["drawing_force"]
+    say(f"relative difference of the last drawing force {abs(b - a) / abs(a):.1e}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", type=float, default=1.0, help="wire drawing size (demo's size)")
@@ -328,10 +345,24 @@ def main():
                     help="run only the variants whose name contains this text (repeatable; "
                     "the preset always runs)")
     ap.add_argument("--capture-only", action="store_true", help="run, save, do not time")
+    ap.add_argument("--newton", metavar="KEY=VALUE,...",
+                    help="no timing of the factorisation: run the wire drawing with the preset "
+                    "and with these condensed-system options (without prefix, e.g. "
+                    "mat_mumps_icntl_7=0; VALUE none removes the preset's option) and compare "
+                    "the Newton iterations and the drawing force")
     args = ap.parse_args()
     comm = MPI.COMM_WORLD
     PETSc.Log.begin()
     say = (lambda *a: print(*a, flush=True)) if comm.rank == 0 else (lambda *a: None)
+    if args.newton is not None:
+        import fxcontact as fx
+        fx.configure_logging(verbose=False, quiet=True)
+        change = {}
+        for kv in filter(None, args.newton.split(",")):
+            k, v = kv.split("=", 1)
+            change[k] = None if v.lower() == "none" else v
+        newton_check(args.size, args.increments, change, comm, say)
+        return
     if args.load:
         pairs, order = load(args.load, comm)
     else:
@@ -355,44 +386,69 @@ def main():
         f"(AIJ), matrices {pick} of the run, {comm.size} rank(s), best of {args.repeat}; "
         f"load average {os.getloadavg()[0]:.1f}")
     mats = formats(pairs, order)
-    rows = []
-    refs = {}
+    opts = PETSc.Options()
+    todo = []
     for tag, (name, change, fmt) in enumerate(variants(comm.size)):
         if tag and args.only and not any(s in name for s in args.only):
             continue
-        options = {k: v for k, v in {**PRESET, **change}.items() if v is not None}
-        try:
-            t, info, xs = run_variant(tag, options, mats[fmt], args.repeat, comm)
-        except (PETSc.Error, VariantFailed) as err:
-            say(f"{name}: failed ({str(err).splitlines()[-1]})")
-            rows.append((name, None, None, None, None))
+        for k, v in {**PRESET, **change}.items():
+            if v is not None:
+                opts.setValue(f"bench{tag}_{k}", v)
+        todo.append((tag, name, fmt))
+    # round robin: every repetition runs all the variants, so that the load of the machine
+    # (shared) changes all alike; the best of the repetitions is kept
+    best, found, failed = {}, {}, {}
+    for rep in range(args.repeat):
+        for tag, name, fmt in todo:
+            if tag in failed:
+                continue
+            try:
+                t, info, xs = run_variant(f"bench{tag}_", mats[fmt], comm)
+            except (PETSc.Error, VariantFailed) as err:
+                failed[tag] = str(err).splitlines()[-1]
+                say(f"{name}: failed ({failed[tag]})")
+                continue
+            best[tag] = t if tag not in best else {k: np.minimum(best[tag][k], t[k])
+                                                   for k in t}
+            found[tag] = (info, xs)
+        say(f"repetition {rep + 1} done, load average {os.getloadavg()[0]:.1f}")
+    refs = {"aij": found[0][1], "sbaij": found[0][1]}
+    refs["aij4"] = refs["baij4"] = refs["sbaij4"] = [
+        permuted_vec(x, order, m[1]) for x, m in zip(found[0][1], mats["aij4"])]
+    rows = []
+    for tag, name, fmt in todo:
+        if tag in failed:
+            rows.append((name, None, failed[tag], None, None))
             continue
-        if tag == 0:
-            refs["aij"] = [x for x in xs]
-            refs["sbaij"] = refs["aij"]
-            ref4 = [permuted_vec(x, order, m[1]) for x, m in zip(xs, mats["aij4"])]
-            for f in ("aij4", "baij4", "sbaij4"):
-                refs[f] = ref4
+        info, xs = found[tag]
+        t = {k: v for k, v in best[tag].items()}
+        t["sym"] = t["first"] - t["num"]
         res, dif = accuracy(mats[fmt], xs, refs[fmt])
         rows.append((name, t, info, res, dif))
-        say(f"{name}: analysis {t['sym']:.3f} s, factorisation {t['num']:.3f} s, solve "
-            f"{t['solve']:.4f} s; residual {res:.1e}, "
+        say(f"{name}: analysis {t['sym'][1]:.3f} s, factorisation {t['num'][1]:.3f} s, solve "
+            f"{t['solve'][1]:.4f} s (CPU; wall {t['sym'][0]:.3f}, {t['num'][0]:.3f}, "
+            f"{t['solve'][0]:.4f}); residual {res:.1e}, "
             f"|x - x_preset| {dif:.1e}; ordering {ORDERINGS.get(info['ordering'], '?')}, "
             f"analysis {'parallel' if info['analysis'] == 2 else 'sequential'}, factors "
             f"{info['factors']:.2f} M, memory {info['memory']} MB, null pivots "
             f"{info['null_pivots']}")
     base = rows[0][1]
     say("")
-    say("| variant | analysis s | factorisation s | solve s | fact. / preset | "
+    say("CPU seconds (maximum over the ranks), the factorisation's wall time beside it; ratios "
+        "of CPU times")
+    say("")
+    say("| variant | analysis s | factorisation s (wall) | solve s | fact. / preset | "
         "ana.+fact. / preset | ‖Sx−b‖/‖b‖ | ‖x−x₀‖/‖x₀‖ | ordering | factors M | MB |")
     say("|---|---|---|---|---|---|---|---|---|---|---|")
     for name, t, info, res, dif in rows:
         if t is None:
-            say(f"| {name} | failed | | | | | | | | | |")
+            say(f"| {name} | failed: {info} | | | | | | | | | |")
             continue
-        say(f"| {name} | {t['sym']:.3f} | {t['num']:.3f} | {t['solve']:.4f} | "
-            f"{t['num'] / base['num']:.2f} | "
-            f"{(t['sym'] + t['num']) / (base['sym'] + base['num']):.2f} | {res:.1e} | "
+        c = {k: v[1] for k, v in t.items()}
+        c0 = {k: v[1] for k, v in base.items()}
+        say(f"| {name} | {c['sym']:.3f} | {c['num']:.3f} ({t['num'][0]:.3f}) | "
+            f"{c['solve']:.4f} | {c['num'] / c0['num']:.2f} | "
+            f"{(c['sym'] + c['num']) / (c0['sym'] + c0['num']):.2f} | {res:.1e} | "
             f"{dif:.1e} | {ORDERINGS.get(info['ordering'], '?')}"
             f"{' (par.)' if info['analysis'] == 2 else ''} | {info['factors']:.2f} | "
             f"{info['memory']} |")
