@@ -26,7 +26,8 @@ as in the Newton loop. Accuracy: the largest
 relative residual ‖S x − b‖/‖b‖ over the matrices and the largest relative difference
 ‖x − x_ref‖/‖x_ref‖ from the preset's solution. MUMPS figures: INFOG(7) (the ordering used,
 sequential analysis), INFOG(32) (1 sequential / 2 parallel analysis), INFOG(35) (entries in the
-factors after the BLR compression, millions) and INFOG(22) (memory used by the factorisation, total
+factors after the BLR compression, millions), RINFOG(3) (operations of the elimination),
+INFOG(13) (delayed pivots) and INFOG(22) (memory used by the factorisation, total
 over the ranks, MB).
 
 Input formats: ``aij`` (the run's matrix), ``sbaij`` (upper triangle), ``baij4``/``sbaij4``
@@ -297,7 +298,8 @@ def run_variant(prefix, mats, comm):
         f35 = F.getMumpsInfog(35)      # entries in the factors after the BLR compression
         info = dict(ordering=F.getMumpsInfog(7), analysis=F.getMumpsInfog(32),
                     factors=(-f35 if f35 < 0 else f35 / 1e6),
-                    memory=F.getMumpsInfog(22), null_pivots=F.getMumpsInfog(28))
+                    memory=F.getMumpsInfog(22), null_pivots=F.getMumpsInfog(28),
+                    flops=F.getMumpsRinfog(3) / 1e9, delayed=F.getMumpsInfog(13))
     finally:
         ksp.destroy()
         W.destroy()
@@ -443,19 +445,20 @@ def main():
             f"{t['solve'][0]:.4f}); residual {res:.1e}, "
             f"|x - x_preset| {dif:.1e}; ordering {ORDERINGS.get(info['ordering'], '?')}, "
             f"analysis {'parallel' if info['analysis'] == 2 else 'sequential'}, factors "
-            f"{info['factors']:.2f} M, memory {info['memory']} MB, null pivots "
-            f"{info['null_pivots']}")
+            f"{info['factors']:.2f} M, {info['flops']:.2f} GFlop, memory {info['memory']} MB, "
+            f"null pivots {info['null_pivots']}, delayed pivots {info['delayed']}")
     base = rows[0][1]
     say("")
     say("CPU seconds (maximum over the ranks), the factorisation's wall time beside it; ratios "
         "of CPU times")
     say("")
     say("| variant | analysis s | factorisation s (wall) | solve s | fact. / preset | "
-        "ana.+fact. / preset | ‖Sx−b‖/‖b‖ | ‖x−x₀‖/‖x₀‖ | ordering | factors M | MB |")
-    say("|---|---|---|---|---|---|---|---|---|---|---|")
+        "ana.+fact. / preset | ‖Sx−b‖/‖b‖ | ‖x−x₀‖/‖x₀‖ | ordering | factors M | GFlop | "
+        "MB |")
+    say("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name, t, info, res, dif in rows:
         if t is None:
-            say(f"| {name} | failed: {info} | | | | | | | | | |")
+            say(f"| {name} | failed: {info} | | | | | | | | | | |")
             continue
         c = {k: v[1] for k, v in t.items()}
         c0 = {k: v[1] for k, v in base.items()}
@@ -464,7 +467,7 @@ def main():
             f"{(c['sym'] + c['num']) / (c0['sym'] + c0['num']):.2f} | {res:.1e} | "
             f"{dif:.1e} | {ORDERINGS.get(info['ordering'], '?')}"
             f"{' (par.)' if info['analysis'] == 2 else ''} | {info['factors']:.2f} | "
-            f"{info['memory']} |")
+            f"{info['flops']:.1f} | {info['memory']} |")
     say(f"load average at the end {os.getloadavg()[0]:.1f}")
 
 
