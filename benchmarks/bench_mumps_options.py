@@ -7,6 +7,10 @@ Usage::
     # time the variants on the saved matrices, 1 and 2 ranks
     python benchmarks/bench_mumps_options.py --load /tmp/S_size1.dat
     mpirun -n 2 python benchmarks/bench_mumps_options.py --load /tmp/S_size1.dat
+    # self-contained: run and time in one go (also under mpirun)
+    python benchmarks/bench_mumps_options.py --size 1.0 --increments 2
+    # Newton runs with the preset and with changed options
+    python benchmarks/bench_mumps_options.py --size 0.4 --increments 3 --newton mat_mumps_cntl_1=0
 
 The wire drawing of ``demos/demo_wire_drawing.py`` (``run(size=..., t_end=increments x dt)``,
 ``linear_solver="condensed-mumps"``) is run and, at every set-up of the condensed
