@@ -1,0 +1,187 @@
+"""Pieces shared by the forming processes: nodal gathers, the numerics columns of a history
+row and their summary, steady values over a window, the power balance of an increment, a
+meridian (symmetry-face) section of cell fields, curve and section pictures, the CSV of the
+rows.
+
+Every function that communicates is collective (call it on every rank); the pictures are drawn
+on rank 0 only (matplotlib, no VTK).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from typing import Dict, Optional, Sequence
+
+import numpy as np
+from mpi4py import MPI
+
+from fxcontact import compat
+from fxcontact.power import PlasticDissipation, PressurePower, on_configuration, penalty_power
+from fxcontact.simulation import wall_split
+
+__all__ = ["gather", "numerics_columns", "run_summary", "steady_values", "PowerBalance",
+           "meridian_section", "plot_sections", "plot_curves", "write_rows"]
+
+
+def gather(comm, arr) -> np.ndarray:
+    """The ranks' arrays concatenated, on every rank (rank order)."""
+    parts = comm.allgather(np.asarray(arr))
+    return np.concatenate(parts) if parts else np.asarray(arr)
+
+
+def numerics_columns(r: dict) -> Dict[str, float]:
+    """The numerics of an increment from a :class:`~fxcontact.Simulation` history row: Newton
+    iterations (all attempts, and of the converged one with its Krylov iterations), cut-backs,
+    wall time split, volume change, smallest element quality, symmetry violation."""
+    return dict(newton_iterations=r["newton_iterations_all"], cutbacks=r["cutbacks"],
+                linear_iterations=r["linear_iterations"],
+                newton_iterations_converged=r["newton_iterations"],
+                wall=r["wall_increment_all"], wall_assembly=r["wall_assembly"],
+                wall_linear_solve=r["wall_linear_solve"], wall_contact=r["wall_contact"],
+                volume_change=r["volume_change"], min_quality=r["min_quality"],
+                symmetry_violation=r.get("symmetry_violation", 0.0))
+
+
+def run_summary(rows: Sequence[dict]) -> dict:
+    """Over the rows (with :func:`numerics_columns`): largest |volume change|, smallest
+    quality, Newton mean and max, cut-backs, wall split."""
+    return dict(max_volume_change=max(abs(q["volume_change"]) for q in rows),
+                min_quality=min(q["min_quality"] for q in rows),
+                newton_mean=float(np.mean([q["newton_iterations"] for q in rows])),
+                newton_max=int(max(q["newton_iterations"] for q in rows)),
+                cutbacks=int(sum(q["cutbacks"] for q in rows)),
+                wall_split=wall_split(rows))
+
+
+def steady_values(rows: Sequence[dict], first: int, last: int, keys: Sequence[str]) -> dict:
+    """Means of ``keys`` over the rows ``first..last`` (the steady window), and the half
+    peak-to-peak oscillation of each relative to its mean (``{key}_oscillation``)."""
+    sel = rows[first:last + 1]
+    out = {}
+    for key in keys:
+        vals = [q[key] for q in sel]
+        mean = float(np.mean(vals))
+        out[key] = mean
+        out[f"{key}_oscillation"] = float(np.ptp(vals) / (2.0 * abs(mean))) if mean else 0.0
+    return out
+
+
+class PowerBalance:
+    """The power balance of a forming increment (THEORY §14.5): the power the tools and the
+    prescribed velocities put in against the plastic dissipation ∫ s:D dV (less the pressure
+    power of the volume correction, THEORY §1.5), the friction power of the ``contacts`` and,
+    apart, their penalty work. Collective; call after each increment (``sim.step``).
+
+    The dissipation is taken on the configuration the increment was solved on (the start of
+    the increment, ``X − dt v``), like the history's forces."""
+
+    def __init__(self, sim, contacts):
+        self.sim = sim
+        self.contacts = list(contacts)
+        self._dissipation = PlasticDissipation(sim)
+        self._pressure = PressurePower(sim)
+
+    def __call__(self, row: dict, power_in: float, losses: float = 0.0) -> Dict[str, float]:
+        """``row``: the increment's history row; ``power_in``: the power of the tools and
+        prescribed velocities on the body; ``losses``: other dissipated power (a damper).
+        Returns ``dissipation``, ``friction_power``, ``penalty_power``, ``power_in``,
+        ``power_balance`` = P_in/(D + P_f + losses) − 1 and ``power_balance_penalty`` (the
+        same with the penalty work in the denominator)."""
+        sim = self.sim
+        X = sim.vertex_positions()
+        v = sim.w.x.array[sim.space.vertex_dofs]
+        X0 = X - row["dt"] * v
+        D = on_configuration(sim, X0, self._dissipation)
+        D -= on_configuration(sim, X0, self._pressure)
+        Pf = sum(row.get(f"{c.name}_friction_power", 0.0) for c in self.contacts)
+        Pp = sum(penalty_power(c, v, sim.t) for c in self.contacts)
+        out = D + Pf + losses
+        return dict(dissipation=D, friction_power=Pf, penalty_power=Pp, power_in=power_in,
+                    power_balance=power_in / out - 1.0 if out > 0 else math.nan,
+                    power_balance_penalty=power_in / (out + Pp) - 1.0 if out > 0 else math.nan)
+
+
+def meridian_section(comm, sim, facet_tags, tag, fields) -> tuple:
+    """The triangles of a symmetry face through the axis (z): the (z, r) coordinates of their
+    vertices, (N, 3, 2), and the values of each cell function of ``fields`` in the cell behind
+    each triangle; gathered on every rank."""
+    msh = sim.mesh
+    facets = facet_tags.indices[facet_tags.values == tag]
+    msh.topology.create_connectivity(2, 3)
+    f2c = msh.topology.connectivity(2, 3)
+    tri = compat.entities_to_geometry(msh, 2, facets)
+    x = msh.geometry.x
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int64)
+    zr = np.stack([x[tri][..., 2], np.hypot(x[tri][..., 0], x[tri][..., 1])], -1)
+    return (gather(comm, zr.reshape(-1, 3, 2)),
+            [gather(comm, f.x.array[cells]) for f in fields])
+
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def plot_sections(path, zr, panels, outline=None, title="", r_max=None, dpi=120,
+                  xlabel="z [mm]"):
+    """Meridian sections (rank 0): one panel per ``(values, label, colormap)`` of the
+    triangles ``zr`` of :func:`meridian_section`, each with the ``outline`` curve
+    ``(s, r, label)`` (a tool's profile), equal axes; saved to ``path``."""
+    plt = _pyplot()
+    from matplotlib.collections import PolyCollection
+
+    fig, axs = plt.subplots(len(panels), 1, figsize=(11, 3.2 * len(panels)), sharex=True,
+                            squeeze=False)
+    axs = axs[:, 0]
+    for ax, (val, lab, cmap) in zip(axs, panels):
+        pc = PolyCollection(zr, array=val, cmap=cmap, edgecolors="face", linewidths=0.2)
+        ax.add_collection(pc)
+        fig.colorbar(pc, ax=ax, label=lab, fraction=0.05, pad=0.01)
+        if outline is not None:
+            ax.plot(outline[0], outline[1], "k-", lw=1.5, label=outline[2])
+            ax.legend(loc="upper left", fontsize=8)
+        ax.set_ylim(0, r_max or 1.1 * zr[..., 1].max())
+        ax.set_aspect("equal")
+        ax.set_ylabel("r [mm]")
+    axs[0].set_xlim(zr[..., 0].min() - 1, zr[..., 0].max() + 1)
+    axs[-1].set_xlabel(xlabel)
+    axs[0].set_title(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
+def plot_curves(ax, t, curves, bands=(), window=None, ylabel="", ylim=None):
+    """One axis of history curves: ``curves`` ``[(values, style, label)]`` against ``t``,
+    horizontal ``bands`` ``[(value, style, label)]`` (theory), the steady ``window``
+    ``(t0, t1)`` shaded."""
+    for vals, style, label in curves:
+        ax.plot(t, vals, style, label=label)
+    for val, style, label in bands:
+        ax.axhline(val, color="k", ls=style, label=label)
+    if window is not None:
+        ax.axvspan(window[0], window[1], color="y", alpha=0.3, label="steady window")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel(ylabel)
+    if ylim is not None:
+        ax.set_ylim(*ylim)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.grid(alpha=0.3)
+
+
+def write_rows(comm, path: Optional[str], rows: Sequence[dict]) -> Optional[str]:
+    """The rows as a CSV file (rank 0 writes; the directory is created)."""
+    if not path or not rows:
+        return None
+    if comm.rank == 0:
+        os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
+        with open(path, "w", newline="") as fh:
+            wr = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            wr.writeheader()
+            wr.writerows(rows)
+    return path
