@@ -15,5 +15,10 @@ and :mod:`fxcontact.processes.die` (the bar's nose, the die and its faceted sect
 from fxcontact.processes.drawing import DrawingCase, DrawingResult, DrawingSetup
 from fxcontact.processes.drawing import build as build_drawing
 from fxcontact.processes.drawing import run as run_drawing
+from fxcontact.processes.extrusion import ExtrusionCase, ExtrusionResult, ExtrusionSetup
+from fxcontact.processes.extrusion import build as build_extrusion
+from fxcontact.processes.extrusion import run as run_extrusion
 
-__all__ = ["DrawingCase", "DrawingResult", "DrawingSetup", "build_drawing", "run_drawing"]
+__all__ = ["DrawingCase", "DrawingResult", "DrawingSetup", "build_drawing", "run_drawing",
+           "ExtrusionCase", "ExtrusionResult", "ExtrusionSetup", "build_extrusion",
+           "run_extrusion"]

@@ -12,17 +12,20 @@ from __future__ import annotations
 import csv
 import math
 import os
-from typing import Dict, Optional, Sequence
+from dataclasses import dataclass, field
+from typing import Callable, Dict, Optional, Sequence
 
 import numpy as np
 from mpi4py import MPI
 
 from fxcontact import compat
 from fxcontact.power import PlasticDissipation, PressurePower, on_configuration, penalty_power
-from fxcontact.simulation import wall_split
+from fxcontact.simulation import IncrementError, wall_split
+from fxcontact.steady import steady_window
 
-__all__ = ["gather", "numerics_columns", "run_summary", "steady_values", "PowerBalance",
-           "meridian_section", "plot_sections", "plot_curves", "write_rows"]
+__all__ = ["gather", "numerics_columns", "run_summary", "steady_values", "run_increments",
+           "ProcessResult", "PowerBalance", "meridian_section", "vertex_field", "plot_sections",
+           "plot_curves", "write_rows"]
 
 
 def gather(comm, arr) -> np.ndarray:
@@ -53,6 +56,82 @@ def run_summary(rows: Sequence[dict]) -> dict:
                 newton_max=int(max(q["newton_iterations"] for q in rows)),
                 cutbacks=int(sum(q["cutbacks"] for q in rows)),
                 wall_split=wall_split(rows))
+
+
+def run_increments(sim, dt: float, t_end: float, max_cutbacks: int, row: Callable,
+                   steady_keys: Sequence[str], window: int, tol: float,
+                   settled: Callable[[float], bool], stop_at_steady: bool = False,
+                   progress: Optional[Callable[[dict], None]] = None):
+    """Step ``sim`` to ``t_end`` by ``dt``; after each increment ``row(history_row)`` makes the
+    process's row (collective) and ``progress(row)`` may log it. Once ``settled(t)``, the run
+    is steady when the means of ``steady_keys`` over the last ``window`` increments and the
+    window before agree within ``tol`` (:func:`fxcontact.steady.steady_window`); with
+    ``stop_at_steady`` it stops there. An :class:`~fxcontact.IncrementError` ends the run
+    (status "failed", its message kept).
+
+    Returns ``(rows, status, message, steady)``, ``steady = (first, last)`` row indices of the
+    steady window or None."""
+    rows, steady = [], None
+    status, message = "completed", ""
+    while sim.t < t_end - 1e-9 * dt:
+        try:
+            res = sim.step(min(dt, t_end - sim.t), max_cutbacks=int(max_cutbacks))
+        except IncrementError as err:   # MeshInversionError included
+            status, message = "failed", str(err)
+            break
+        rows.append(row(res.row))
+        if progress is not None:
+            progress(rows[-1])
+        if steady is None and settled(sim.t):
+            first = steady_window(rows, steady_keys, window, tol)
+            if first is not None:
+                steady = (first, len(rows) - 1)
+                if stop_at_steady:
+                    break
+    return rows, status, message, steady
+
+
+@dataclass
+class ProcessResult:
+    """What every process run returns: status, the history (one dict per increment), the
+    theory band, the size of the model and the numerics over the run; the steady window (row
+    indices and times) and the power balance over it (else at the last increment); the
+    outputs' paths. Each process adds its steady values."""
+
+    status: str = "completed"
+    message: str = ""
+    history: list = field(default_factory=list)
+    theory: dict = field(default_factory=dict)
+    dofs: int = 0
+    h: float = math.nan
+    wall: float = math.nan
+    time: float = 0.0
+    ranks: int = 1
+    increments: int = 0
+    max_volume_change: float = math.nan
+    min_quality: float = math.nan
+    newton_mean: float = math.nan
+    newton_max: int = 0
+    cutbacks: int = 0
+    wall_split: dict = field(default_factory=dict)
+    steady_from: Optional[int] = None
+    steady_to: Optional[int] = None
+    steady_time: Optional[tuple] = None
+    power_balance: Optional[float] = None
+    pictures: list = field(default_factory=list)
+    csv: Optional[str] = None
+    vtk: Optional[str] = None
+
+    def numerics_lines(self) -> list:
+        """The report's lines on the power balance and the numerics."""
+        from fxcontact.simulation import format_wall_split
+
+        return [f"power balance P_in / (D + P_f) - 1 = {100 * self.power_balance:.2f} %",
+                f"Newton its mean {self.newton_mean:.1f} max {self.newton_max}, cut-backs "
+                f"{self.cutbacks}; wall {self.wall:.0f} s: "
+                f"{format_wall_split(self.wall_split)}",
+                f"max |dV/V| {self.max_volume_change:.2e}; min element quality "
+                f"{self.min_quality:.3f}"]
 
 
 def steady_values(rows: Sequence[dict], first: int, last: int, keys: Sequence[str]) -> dict:
@@ -103,10 +182,19 @@ class PowerBalance:
                     power_balance_penalty=power_in / (out + Pp) - 1.0 if out > 0 else math.nan)
 
 
+def vertex_field(sim, values) -> np.ndarray:
+    """Per-vertex ``values`` (local vertices, e.g. ``sim.w.x.array[sim.space.vertex_dofs]``)
+    as an array over the mesh's geometry nodes, for :func:`meridian_section`."""
+    out = np.zeros((sim.mesh.geometry.x.shape[0],) + np.shape(values)[1:])
+    out[sim.space.vertex_geometry] = values
+    return out
+
+
 def meridian_section(comm, sim, facet_tags, tag, fields) -> tuple:
     """The triangles of a symmetry face through the axis (z): the (z, r) coordinates of their
-    vertices, (N, 3, 2), and the values of each cell function of ``fields`` in the cell behind
-    each triangle; gathered on every rank."""
+    vertices, (N, 3, 2), and per triangle the value of each of ``fields``: a cell function
+    (the cell behind the triangle) or an array over the geometry nodes
+    (:func:`vertex_field`, averaged over the triangle's vertices); gathered on every rank."""
     msh = sim.mesh
     facets = facet_tags.indices[facet_tags.values == tag]
     msh.topology.create_connectivity(2, 3)
@@ -115,8 +203,9 @@ def meridian_section(comm, sim, facet_tags, tag, fields) -> tuple:
     x = msh.geometry.x
     cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int64)
     zr = np.stack([x[tri][..., 2], np.hypot(x[tri][..., 0], x[tri][..., 1])], -1)
-    return (gather(comm, zr.reshape(-1, 3, 2)),
-            [gather(comm, f.x.array[cells]) for f in fields])
+    vals = [f[tri].mean(axis=1) if isinstance(f, np.ndarray) else f.x.array[cells]
+            for f in fields]
+    return gather(comm, zr.reshape(-1, 3, 2)), [gather(comm, v) for v in vals]
 
 
 def _pyplot():

@@ -29,7 +29,7 @@ import logging
 import math
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
@@ -41,15 +41,15 @@ from fxcontact.contact.friction import Coulomb, Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
-from fxcontact.processes.common import (PowerBalance, gather, meridian_section,
-                                        numerics_columns, plot_curves, plot_sections,
-                                        run_summary, steady_values, write_rows)
+from fxcontact.processes.common import (PowerBalance, ProcessResult, gather,
+                                        meridian_section, numerics_columns, plot_curves,
+                                        plot_sections, run_increments, run_summary,
+                                        steady_values, write_rows)
 from fxcontact.processes.die import (DIE_MESHES, DIES, die_profile_tool, die_radius, die_tool,
                                      nose_layout, true_penetration)
-from fxcontact.simulation import IncrementError, Simulation, format_wall_split
+from fxcontact.simulation import Simulation
 from fxcontact.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
-from fxcontact.steady import steady_window
 
 __all__ = ["DrawingCase", "DrawingSetup", "DrawingResult", "build", "run", "check_positive"]
 
@@ -263,46 +263,23 @@ def build(case: DrawingCase, comm=None, output_dir: Optional[str] = None,
 
 
 @dataclass
-class DrawingResult:
-    """The outcome of :func:`run`: the history (one dict per increment), the theory band and
-    the steady values (None without a steady state)."""
+class DrawingResult(ProcessResult):
+    """The outcome of :func:`run` (:class:`~fxcontact.processes.common.ProcessResult`) and the
+    drawing's own values; the steady ones are None without a steady state."""
 
-    case: DrawingCase
-    status: str
-    message: str
-    history: list
-    theory: dict
-    dofs: int
-    h: float
-    facet: float
-    facet_sag: float
-    A1: float
-    wall: float
-    time: float
-    ranks: int
-    increments: int = 0
+    case: Optional[DrawingCase] = None
+    facet: float = math.nan
+    facet_sag: float = 0.0
+    A1: float = math.nan
     max_penetration: float = math.nan       #: true, against the exact die, over the run
     max_penetration_tool: float = math.nan  #: against the die used
-    max_volume_change: float = math.nan
-    min_quality: float = math.nan
-    newton_mean: float = math.nan
-    newton_max: int = 0
-    cutbacks: int = 0
-    wall_split: dict = field(default_factory=dict)
     contact_nodes_01: int = -1              #: at t = 0.1 s (or the last increment before)
     time_01: float = math.nan
-    steady_from: Optional[int] = None
-    steady_to: Optional[int] = None
     steady_stress: Optional[float] = None   #: σ_d = F/A₁ over the steady window
     steady_force: Optional[float] = None
     steady_oscillation: Optional[float] = None
-    steady_time: Optional[tuple] = None
     ratio_ideal: Optional[float] = None
     ratio_avitzur: Optional[float] = None
-    power_balance: Optional[float] = None   #: over the steady window (else the last increment)
-    pictures: list = field(default_factory=list)
-    csv: Optional[str] = None
-    vtk: Optional[str] = None
 
     def report(self) -> str:
         """A summary for the console."""
@@ -336,12 +313,7 @@ class DrawingResult:
                 f"max true penetration (exact die) {self.max_penetration:.3g} mm, against the "
                 f"die used {self.max_penetration_tool:.3g} mm (facet sag "
                 f"{self.facet_sag:.2g}); contact nodes at t = {self.time_01:.3g} s: "
-                f"{self.contact_nodes_01}",
-                f"power balance F v / (D + P_f) - 1 = {100 * self.power_balance:.2f} %",
-                f"Newton its mean {self.newton_mean:.1f} max {self.newton_max}, cut-backs "
-                f"{self.cutbacks}; wall {self.wall:.0f} s: {format_wall_split(self.wall_split)}",
-                f"max |dV/V| {self.max_volume_change:.2e}; min element quality "
-                f"{self.min_quality:.3f}"]
+                f"{self.contact_nodes_01}"] + self.numerics_lines()
         if self.pictures:
             lines.append("pictures: " + ", ".join(self.pictures))
         return "\n".join(lines)
@@ -359,36 +331,28 @@ def run(case: DrawingCase, comm=None, output_dir: Optional[str] = None, pictures
     balance = PowerBalance(sim, [contact])
     win = max(3, int(math.ceil(case.window / (case.speed * case.dt) - 1e-9)))
     settle = case.settle if case.settle is not None else g.h
-    rows = []
-    steady_from = steady_to = None
-    wall0 = time.perf_counter()
-    status, message = "completed", ""
-    while sim.t < case.t_end - 1e-9 * case.dt:
-        try:
-            res = sim.step(min(case.dt, case.t_end - sim.t), max_cutbacks=int(case.max_cutbacks))
-        except IncrementError as err:   # MeshInversionError included
-            status, message = "failed", str(err)
-            break
-        r = res.row
+
+    def row(r):
         Fz = r["pull_z"]
-        rows.append(dict(
+        return dict(
             increment=r["increment"], time=r["time"], dt=r["dt"], drawing_force=Fz,
             drawing_stress=Fz / g.A1,
             penetration_true=true_penetration(comm, s.exact_die, contact, sim),
             penetration_tool=r["contact_penetration_true"], contact_nodes=r["contact_nodes"],
-            **numerics_columns(r), **balance(r, Fz * case.speed)))
+            **numerics_columns(r), **balance(r, Fz * case.speed))
+
+    def progress(q):
         if comm.rank == 0:   # progress of a long run
             log.info("wire drawing: t = %.4g / %.4g s, F/A1 = %.1f MPa, %d Newton its, %.1f s",
-                     sim.t, case.t_end, rows[-1]["drawing_stress"],
-                     rows[-1]["newton_iterations"], rows[-1]["wall"])
-        # steady state: two consecutive windows of `window` mm of pull with the same mean force
-        # (each window spans element passages: the nodal force oscillates with them)
-        if steady_from is None and case.speed * sim.t >= settle:
-            steady_from = steady_window(rows, ("drawing_force",), win, case.steady_tol)
-            if steady_from is not None:
-                steady_to = len(rows) - 1
-                if case.stop_at_steady:
-                    break
+                     q["time"], case.t_end, q["drawing_stress"], q["newton_iterations"],
+                     q["wall"])
+
+    wall0 = time.perf_counter()
+    # steady state: two consecutive windows of `window` mm of pull with the same mean force
+    # (each window spans element passages: the nodal force oscillates with them)
+    rows, status, message, steady = run_increments(
+        sim, case.dt, case.t_end, case.max_cutbacks, row, ("drawing_force",), win,
+        case.steady_tol, lambda t: case.speed * t >= settle, case.stop_at_steady, progress)
     out = DrawingResult(case=case, status=status, message=message, history=rows,
                         theory=s.theory, dofs=s.dofs, h=g.h, facet=g.facet,
                         facet_sag=s.facet_sag, A1=g.A1, wall=time.perf_counter() - wall0,
@@ -400,7 +364,8 @@ def run(case: DrawingCase, comm=None, output_dir: Optional[str] = None, pictures
             max_penetration_tool=max(q["penetration_tool"] for q in rows),
             contact_nodes_01=before[-1]["contact_nodes"], time_01=before[-1]["time"],
             power_balance=rows[-1]["power_balance"], **run_summary(rows))
-    if steady_from is not None:
+    if steady is not None:
+        steady_from, steady_to = steady
         st = steady_values(rows, steady_from, steady_to, ("drawing_stress", "power_balance"))
         sd = st["drawing_stress"]
         out = dataclasses.replace(
