@@ -28,7 +28,7 @@ from mpi4py import MPI
 from fxcontact.processes import ExtrusionCase, run_extrusion
 
 #: (die semi-angle in degrees, exit radius) of the band: two angles, two reductions (51 %, 36 %)
-BAND_CASES = ((20.0, 3.5), (35.0, 3.5), (20.0, 4.0), (35.0, 4.0))
+BAND_CASES = ((20.0, 3.5), (30.0, 3.5), (20.0, 4.0), (30.0, 4.0))
 
 
 def band(cases=BAND_CASES, comm=None) -> list:

@@ -70,3 +70,10 @@ def test_wire_drawing_demo(tmp_path):
     _process_demo("demo_wire_drawing.py", ["--quick", "--t_end", "0.01"],
                   ["wire_drawing_strain.png", "wire_drawing_contact.png"],
                   ["drawing stress", "Avitzur"], tmp_path)
+
+
+@pytest.mark.serial
+def test_extrusion_demo(tmp_path):
+    _process_demo("demo_extrusion.py", ["--quick", "--t_end", "0.05"],
+                  ["extrusion_flow.png", "extrusion_pressure.png"],
+                  ["punch pressure", "Avitzur"], tmp_path)

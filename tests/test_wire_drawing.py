@@ -65,8 +65,10 @@ def _band(res):
     assert res.max_volume_change < 5e-3
     assert res.min_quality > 0.05
     assert all(q["symmetry_violation"] < 1e-9 * res.case.speed for q in res.history)
-    # power put in by the pull = plastic dissipation (+ friction), to the discretisation error
+    # power put in by the pull = plastic dissipation (+ friction), to the discretisation error;
+    # with the penalty work, the discrete virtual-power identity
     assert abs(res.power_balance) < 0.05, res.power_balance
+    assert abs(res.power_balance_penalty) < 1e-6, res.power_balance_penalty
 
 
 @pytest.mark.serial   # a run to steady state; the MPI path: test_one_and_two_ranks_agree

@@ -18,12 +18,14 @@ from typing import Callable, Dict, Optional, Sequence
 import numpy as np
 from mpi4py import MPI
 
+import dolfinx.mesh
+
 from fxcontact import compat
 from fxcontact.power import PlasticDissipation, PressurePower, on_configuration, penalty_power
 from fxcontact.simulation import IncrementError, wall_split
 from fxcontact.steady import steady_window
 
-__all__ = ["gather", "numerics_columns", "run_summary", "steady_values", "run_increments",
+__all__ = ["gather", "contact_nodes_on", "contact_force_on_body", "numerics_columns", "run_summary", "steady_values", "run_increments",
            "ProcessResult", "PowerBalance", "meridian_section", "vertex_field", "plot_sections",
            "plot_curves", "write_rows"]
 
@@ -32,6 +34,27 @@ def gather(comm, arr) -> np.ndarray:
     """The ranks' arrays concatenated, on every rank (rank order)."""
     parts = comm.allgather(np.asarray(arr))
     return np.concatenate(parts) if parts else np.asarray(arr)
+
+
+def contact_nodes_on(contact, facets) -> np.ndarray:
+    """Mask of the contact's nodes that are vertices of ``facets`` (local facet indices)."""
+    msh = contact.boundary.mesh
+    verts = dolfinx.mesh.compute_incident_entities(msh, np.asarray(facets, np.int32),
+                                             msh.topology.dim - 1, 0)
+    return np.isin(contact.boundary.vertices, verts)
+
+
+def contact_force_on_body(contact, mask) -> np.ndarray:
+    """Force (gdim,) of the contact (pressure and friction) on the body at the contact nodes of
+    ``mask`` (:func:`contact_nodes_on`), at its last evaluation, summed over ranks.
+
+    A face driven by a velocity condition whose vertices are also contact nodes (the punched
+    face's rim, which slides on the container) takes these forces too: the reaction of
+    :meth:`~fxcontact.Simulation.add_reaction` sums the internal forces at the face's velocity
+    dofs only, so the force that drives the face is the reaction *minus* this force."""
+    r = contact._r + contact._rf                      # on the tool, per node
+    local = np.sum(r[mask], axis=0) if np.any(mask) else np.zeros(r.shape[1])
+    return -contact.boundary.comm.allreduce(local, op=MPI.SUM)
 
 
 def numerics_columns(r: dict) -> Dict[str, float]:
@@ -118,6 +141,8 @@ class ProcessResult:
     steady_to: Optional[int] = None
     steady_time: Optional[tuple] = None
     power_balance: Optional[float] = None
+    #: the same with the penalty work: the discrete virtual-power identity (≈ round-off)
+    power_balance_penalty: Optional[float] = None
     pictures: list = field(default_factory=list)
     csv: Optional[str] = None
     vtk: Optional[str] = None
@@ -126,7 +151,8 @@ class ProcessResult:
         """The report's lines on the power balance and the numerics."""
         from fxcontact.simulation import format_wall_split
 
-        return [f"power balance P_in / (D + P_f) - 1 = {100 * self.power_balance:.2f} %",
+        return [f"power balance P_in / (D + P_f) - 1 = {100 * self.power_balance:.2f} % "
+                f"(with the penalty work {self.power_balance_penalty:.1e})",
                 f"Newton its mean {self.newton_mean:.1f} max {self.newton_max}, cut-backs "
                 f"{self.cutbacks}; wall {self.wall:.0f} s: "
                 f"{format_wall_split(self.wall_split)}",

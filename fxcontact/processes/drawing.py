@@ -41,8 +41,8 @@ from fxcontact.contact.friction import Coulomb, Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
-from fxcontact.processes.common import (PowerBalance, ProcessResult, gather,
-                                        meridian_section, numerics_columns, plot_curves,
+from fxcontact.processes.common import (PowerBalance, ProcessResult, contact_force_on_body,
+                                        contact_nodes_on, gather, meridian_section, numerics_columns, plot_curves,
                                         plot_sections, run_increments, run_summary,
                                         steady_values, write_rows)
 from fxcontact.processes.die import (DIE_MESHES, DIES, die_profile_tool, die_radius, die_tool,
@@ -332,8 +332,12 @@ def run(case: DrawingCase, comm=None, output_dir: Optional[str] = None, pictures
     win = max(3, int(math.ceil(case.window / (case.speed * case.dt) - 1e-9)))
     settle = case.settle if case.settle is not None else g.h
 
+    front = contact_nodes_on(contact, sim.facets(s.facet_tags, DRAWING_BAR_TAGS["front"]))
+
     def row(r):
-        Fz = r["pull_z"]
+        # the pull: the front face's reaction, less the die's force on the face's rim (nil
+        # while the nose does not touch the die)
+        Fz = r["pull_z"] - contact_force_on_body(contact, front)[2]
         return dict(
             increment=r["increment"], time=r["time"], dt=r["dt"], drawing_force=Fz,
             drawing_stress=Fz / g.A1,
@@ -363,10 +367,12 @@ def run(case: DrawingCase, comm=None, output_dir: Optional[str] = None, pictures
             out, max_penetration=max(q["penetration_true"] for q in rows),
             max_penetration_tool=max(q["penetration_tool"] for q in rows),
             contact_nodes_01=before[-1]["contact_nodes"], time_01=before[-1]["time"],
-            power_balance=rows[-1]["power_balance"], **run_summary(rows))
+            power_balance=rows[-1]["power_balance"],
+            power_balance_penalty=rows[-1]["power_balance_penalty"], **run_summary(rows))
     if steady is not None:
         steady_from, steady_to = steady
-        st = steady_values(rows, steady_from, steady_to, ("drawing_stress", "power_balance"))
+        st = steady_values(rows, steady_from, steady_to,
+                           ("drawing_stress", "power_balance", "power_balance_penalty"))
         sd = st["drawing_stress"]
         out = dataclasses.replace(
             out, steady_from=steady_from, steady_to=steady_to, steady_stress=sd,
@@ -374,7 +380,8 @@ def run(case: DrawingCase, comm=None, output_dir: Optional[str] = None, pictures
             ratio_avitzur=sd / s.theory["avitzur"],
             steady_oscillation=st["drawing_stress_oscillation"],
             steady_time=(rows[steady_from]["time"], rows[steady_to]["time"]),
-            power_balance=st["power_balance"])
+            power_balance=st["power_balance"],
+            power_balance_penalty=st["power_balance_penalty"])
     if output_dir and rows:
         out.csv = write_rows(comm, os.path.join(output_dir, "wire_drawing_diagnostics.csv"),
                              rows)

@@ -4,22 +4,25 @@ A billet of radius R₀ in a container is pushed by a punch (a velocity conditio
 face, reaction ``punch``) through a conical die to the radius R₁; one sector about the axis is
 modelled, with symmetry planes like the drawing. The billet is meshed with a nose already
 through the die (:func:`fxcontact.processes.die.nose_layout`: the die's entry is at the
-container's radius, so the container meets the cone in a sharp corner). Tresca friction on the
-die and on the container.
+container's radius; the corner where the container meets the cone is rounded by an arc of
+radius ``entry_fillet``). Tresca friction on the die and on the container.
 
 **Tools** (``container``): ``"separate"`` (default) — the container is its own tool, a
 :class:`~fxcontact.RevolvedProfile` of one straight line at R₀ (an infinite bore), and the die
-another (``RevolvedProfile.die``), two tools of one :class:`~fxcontact.NodalContact`, each with
-its own friction law; the container's force is then a history column of its own. ``"profile"``
+another (its entry face perpendicular to the axis at the container's end, the entry fillet, the
+cone, the fillet, the land and the exit relief), two tools of one
+:class:`~fxcontact.NodalContact`, each with its own friction law; the container's force is then a history column of its own. ``"profile"``
 — one profile: the container's segment followed by the die's (one tool, one friction law: the
 two friction factors must then be equal). How a node chooses among the tools of one contact
 (``NodalContact._project_all``): every node is projected on every tool and keeps the tool with
 the **smallest signed gap** (the deepest penetration, or the nearest surface), the first tool on
-a tie; its friction law is that tool's. For a container and a die whose cone continues beyond
-the container's radius this is the exact distance to the union of the two bodies (the corner is
-concave seen from the billet: the two gaps meet on the corner's bisector), the same as one
-profile with a kink there; both converge alike (``benchmarks/bench_extrusion.py`` measures
-them).
+a tie; its friction law is that tool's. For a container and a die this is the exact distance
+to the union of the two bodies (where they meet, the corner is concave seen from the billet and
+the two gaps meet on its bisector), the same as one profile: both give the same iterates and
+converge alike (``benchmarks/bench_extrusion.py``, ``tests/test_extrusion.py``). Two tools that
+coincide over a stretch (a die continued backwards along the container's radius) would leave
+the choice there to round-off: the die here starts with its entry face, so the container is
+strictly the nearer tool upstream.
 
 **Which k the Tresca friction uses.** τ = m̄ k with k = K (√3 ε̄̇)^m taken at each contact
 node from its own strain rate (averaged over the adjacent cells, with the material's
@@ -60,7 +63,8 @@ from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
-from fxcontact.processes.common import (PowerBalance, ProcessResult, meridian_section,
+from fxcontact.processes.common import (PowerBalance, ProcessResult, contact_force_on_body,
+                                        contact_nodes_on, meridian_section,
                                         numerics_columns, plot_curves, plot_sections,
                                         run_increments, run_summary, steady_values,
                                         vertex_field, write_rows)
@@ -100,6 +104,7 @@ class ExtrusionCase:
     relief_angle: float = 20.0       #: exit relief semi-angle (0: no relief)
     relief_length: float = 1.0
     nose_ratio: float = 0.96         #: nose radius over R1
+    entry_fillet: float = 1.0        #: radius rounding the container–die corner (0: sharp)
     container: str = "separate"      #: "separate" tools or one "profile"
     # material (Norton–Hoff)
     K: float = 40.0
@@ -127,7 +132,7 @@ class ExtrusionCase:
 
     #: the reduced size of the tests: R₀ 5 → 3.5 mm, h = 1 mm, a short billet
     QUICK = dict(R0=5.0, R1=3.5, length=14.0, h=1.0, land=0.5, fillet=0.5, relief_length=0.5,
-                 t_end=0.6, window=1.0, stop_at_steady=True)
+                 entry_fillet=0.5, t_end=0.6, window=1.0, stop_at_steady=True)
 
     @classmethod
     def quick(cls, **changes) -> "ExtrusionCase":
@@ -140,6 +145,8 @@ class ExtrusionCase:
     def __post_init__(self):
         check_positive(self, ("R0", "R1", "length", "K", "speed", "alpha", "land", "h", "dt",
                               "t_end", "window", "steady_tol", "sector", "beta"))
+        if not (math.isfinite(self.entry_fillet) and self.entry_fillet >= 0):
+            raise ValueError(f"entry_fillet must be finite and >= 0, got {self.entry_fillet}")
         if not self.R1 < self.R0:
             raise ValueError(f"R1 ({self.R1}) must be smaller than R0 ({self.R0})")
         if not 0 < self.alpha < 90:
@@ -163,7 +170,7 @@ class ExtrusionCase:
                              "container='separate'")
         if self.scheme not in SCHEMES:
             raise ValueError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
-        self.layout()
+        self.die_profile()      # the billet must hold the nose, the cone the fillets
 
     def layout(self):
         """The nose and die placement (:class:`~fxcontact.processes.die.NoseLayout`); the
@@ -171,6 +178,28 @@ class ExtrusionCase:
         return nose_layout(self.R0, self.R1, self.alpha, self.land, self.fillet,
                            self.relief_angle, self.relief_length, self.nose_ratio, self.h, self.h,
                            self.length, self.sector, entry_radius=self.R0)
+
+    def die_profile(self):
+        """``(points, arcs)`` of the die's meridian profile (:func:`fxcontact.die_profile`
+        placed by :meth:`layout`), its sharp entry corner at (s₀, R₀) rounded by an arc of
+        radius ``entry_fillet`` tangent to the container's line and to the cone (the die's
+        profile then starts parallel to the container)."""
+        g = self.layout()
+        die = die_profile_tool(g, self.R1, self.alpha, self.land, self.fillet,
+                               self.relief_length)
+        pts = np.asarray(die.points, float)
+        arcs = list(die.arcs or [None] * (len(pts) - 1))
+        if self.entry_fillet > 0:
+            a = math.radians(self.alpha)
+            t = self.entry_fillet * math.tan(0.5 * a)       # tangent length
+            if t >= np.hypot(*(pts[1] - pts[0])):
+                raise ValueError(f"entry_fillet {self.entry_fillet} is too large for the die's "
+                                 f"cone: give a smaller entry_fillet")
+            start = [pts[0, 0] - t, self.R0]
+            end = [pts[0, 0] + t * math.cos(a), self.R0 - t * math.sin(a)]
+            pts = np.vstack([start, end, pts[1:]])
+            arcs = [-self.entry_fillet] + arcs              # clockwise: towards the axis
+        return pts, arcs
 
     def theory(self, container_length: float = 0.0) -> dict:
         """:func:`fxcontact.forming.extrusion_theory` for ``container_length`` L_c of billet
@@ -191,17 +220,18 @@ class ExtrusionSetup:
     contact: NodalContact
     tools: list                  #: [container, die] or [profile]
     profile: RevolvedProfile     #: container + die as one profile (the outline, pictures)
-    corner: float                #: axial position of the container–die corner
+    corner: float                #: axial position where the container ends (the die begins)
+    punch_nodes: np.ndarray      #: mask of the contact nodes on the punched face (its rim)
     facet_tags: object
     layout: object
     dofs: int
 
 
 def _profile(case, g, name="die") -> RevolvedProfile:
-    die = die_profile_tool(g, case.R1, case.alpha, case.land, case.fillet, case.relief_length)
-    pts = np.vstack([[g.s0 - case.length - 2.0 * case.h, case.R0], die.points])
-    return RevolvedProfile(pts, [None] + list(die.arcs or [None] * (len(die.points) - 1)),
-                           inside=True, name=name)
+    """The container (a line at R₀ from behind the billet) and the die as one profile."""
+    pts, arcs = case.die_profile()
+    return RevolvedProfile(np.vstack([[g.s0 - case.length - 2.0 * case.h, case.R0], pts]),
+                           [None] + arcs, inside=True, name=name)
 
 
 def build(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
@@ -228,10 +258,13 @@ def build(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
     sim.add_reaction("punch", f["back"])
     profile = _profile(case, g)
     if case.container == "separate":
-        container = RevolvedProfile([[profile.points[0, 0], case.R0], [g.s0, case.R0]],
-                                    inside=True, name="container")
-        die = die_profile_tool(g, case.R1, case.alpha, case.land, case.fillet,
-                               case.relief_length)
+        container = RevolvedProfile(profile.points[:2], inside=True, name="container")
+        # the die's own profile starts with its entry face, perpendicular to the axis at the
+        # container's end: upstream of it the container is strictly the nearer tool (no tie
+        # between the container and a die extended backwards along R₀)
+        pts, arcs = case.die_profile()
+        die = RevolvedProfile(np.vstack([[pts[0, 0], 1.5 * case.R0], pts]), [None] + arcs,
+                              inside=True, name="die")
         tools = [container, die]
         friction = {"container": Tresca(case.mbar_container, case.container_shear_limit),
                     "die": Tresca(case.mbar_die)}
@@ -246,7 +279,8 @@ def build(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
                            gap_stiffness=rho / case.dt)
     sim.add_contributor(contact)
     dofs = space.W.dofmap.index_map.size_global * space.W.dofmap.index_map_bs
-    return ExtrusionSetup(case, sim, contact, tools, profile, g.s0, ft, g, dofs)
+    return ExtrusionSetup(case, sim, contact, tools, profile, float(profile.points[1, 0]),
+                          contact_nodes_on(contact, f["back"]), ft, g, dofs)
 
 
 @dataclass
@@ -315,7 +349,9 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
     separate = case.container == "separate"
 
     def row(r):
-        F = r["punch_z"]
+        # the punch's force: the back face's reaction, less the container's friction on the
+        # face's rim (its nodes are driven by the punch and slide on the container)
+        F = r["punch_z"] - contact_force_on_body(contact, s.punch_nodes)[2]
         Lc = max(s.corner - case.speed * r["time"], 0.0)
         Fc = r["container_force_z"] if separate else math.nan
         Fc_th = case.mbar_container * k_c * math.radians(case.sector) * case.R0 * Lc
@@ -345,11 +381,14 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
                           increments=len(rows))
     if rows:
         out = dataclasses.replace(out, max_penetration=max(q["penetration"] for q in rows),
-                                  power_balance=rows[-1]["power_balance"], **run_summary(rows))
+                                  power_balance=rows[-1]["power_balance"],
+                                  power_balance_penalty=rows[-1]["power_balance_penalty"],
+                                  **run_summary(rows))
     if steady is not None:
         first, last = steady
         st = steady_values(rows, first, last, ("punch_pressure", "die_pressure",
-                                               "container_length", "power_balance"))
+                                               "container_length", "power_balance",
+                                               "power_balance_penalty"))
         sel = rows[first:last + 1]
         ratio = None
         if separate and case.mbar_container > 0:
@@ -361,7 +400,8 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
             theory=case.theory(st["container_length"]), punch_pressure=st["punch_pressure"],
             die_pressure=st["die_pressure"], container_length=st["container_length"],
             container_ratio=ratio, steady_oscillation=st["die_pressure_oscillation"],
-            power_balance=st["power_balance"])
+            power_balance=st["power_balance"],
+            power_balance_penalty=st["power_balance_penalty"])
     if output_dir and rows:
         out.csv = write_rows(comm, os.path.join(output_dir, "extrusion_diagnostics.csv"), rows)
         if pictures:
