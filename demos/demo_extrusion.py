@@ -50,7 +50,7 @@ from fxcontact.processes.extrusion import CONTAINERS
 # with a 45° die and a coarser mesh:
 
 # %%
-CASE = ExtrusionCase(alpha=45.0, h=1.5, entry_fillet=1.5, t_end=0.6, window=2.0)
+CASE = ExtrusionCase(alpha=45.0, mbar_die=0.3, h=1.5, entry_fillet=1.5, t_end=0.1)
 
 # %% [markdown]
 # ## The set-up, written out

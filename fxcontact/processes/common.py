@@ -243,26 +243,33 @@ def _pyplot():
 
 def plot_sections(path, zr, panels, outline=None, title="", r_max=None, dpi=120,
                   xlabel="z [mm]"):
-    """Meridian sections (rank 0): one panel per ``(values, label, colormap)`` of the
-    triangles ``zr`` of :func:`meridian_section`, each with the ``outline`` curve
-    ``(s, r, label)`` (a tool's profile), equal axes; saved to ``path``."""
+    """Meridian sections (rank 0): one panel per ``(values, label, colormap)`` or ``(values,
+    label, colormap, (vmin, vmax))`` of the triangles ``zr`` of :func:`meridian_section`, each
+    with the ``outline`` curve ``(s, r, label)`` (a tool's profile), equal axes, the figure
+    sized to the section; saved to ``path``."""
     plt = _pyplot()
     from matplotlib.collections import PolyCollection
 
-    fig, axs = plt.subplots(len(panels), 1, figsize=(11, 3.2 * len(panels)), sharex=True,
+    z0, z1 = zr[..., 0].min() - 1, zr[..., 0].max() + 1
+    r1 = r_max or 1.1 * zr[..., 1].max()
+    width = 11.0
+    height = len(panels) * (0.8 + 0.8 * width * r1 / (z1 - z0)) + 0.6
+    fig, axs = plt.subplots(len(panels), 1, figsize=(width, height), sharex=True,
                             squeeze=False)
     axs = axs[:, 0]
-    for ax, (val, lab, cmap) in zip(axs, panels):
+    for ax, (val, lab, cmap, *lim) in zip(axs, panels):
         pc = PolyCollection(zr, array=val, cmap=cmap, edgecolors="face", linewidths=0.2)
+        if lim:
+            pc.set_clim(*lim[0])
         ax.add_collection(pc)
         fig.colorbar(pc, ax=ax, label=lab, fraction=0.05, pad=0.01)
         if outline is not None:
             ax.plot(outline[0], outline[1], "k-", lw=1.5, label=outline[2])
             ax.legend(loc="upper left", fontsize=8)
-        ax.set_ylim(0, r_max or 1.1 * zr[..., 1].max())
+        ax.set_ylim(0, r1)
         ax.set_aspect("equal")
         ax.set_ylabel("r [mm]")
-    axs[0].set_xlim(zr[..., 0].min() - 1, zr[..., 0].max() + 1)
+    axs[0].set_xlim(z0, z1)
     axs[-1].set_xlabel(xlabel)
     axs[0].set_title(title, fontsize=9)
     fig.tight_layout()

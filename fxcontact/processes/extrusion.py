@@ -326,7 +326,8 @@ class ExtrusionResult(ProcessResult):
                 + (f"; container force / theory {self.container_ratio:.3f}"
                    if self.container_ratio is not None else ""))
         else:
-            lines.append("no steady state detected")
+            last = self.history[-1]["punch_pressure"] if self.history else float("nan")
+            lines.append(f"no steady state detected; last punch pressure {last:.1f} MPa")
         if self.history:
             lines.append(f"max penetration {self.max_penetration:.3g} mm")
             lines += self.numerics_lines()
@@ -381,6 +382,8 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
                           increments=len(rows))
     if rows:
         out = dataclasses.replace(out, max_penetration=max(q["penetration"] for q in rows),
+                                  theory=case.theory(rows[-1]["container_length"]),
+                                  container_length=rows[-1]["container_length"],
                                   power_balance=rows[-1]["power_balance"],
                                   power_balance_penalty=rows[-1]["power_balance_penalty"],
                                   **run_summary(rows))
@@ -426,7 +429,8 @@ def _pictures(comm, s: ExtrusionSetup, res: ExtrusionResult, out: str):
         return [f1, f2]
     th = res.theory
     sz = np.linspace(zr[..., 0].min() - 1, zr[..., 0].max() + 1, 800)
-    plot_sections(f1, zr, [(v, "axial velocity / punch speed", "turbo"),
+    plot_sections(f1, zr, [(v, "axial velocity / punch speed", "turbo",
+                            (0.0, th["extrusion_ratio"])),
                            (rate, "equivalent strain rate [1/s]", "magma")],
                   outline=(sz, die_radius(s.profile, sz), "container and die"),
                   r_max=1.3 * c.R0, xlabel="z [mm] (extrusion direction →)",
