@@ -39,11 +39,10 @@
 # %%
 import argparse
 
-from mpi4py import MPI
-
 import fxcontact as fx
-from fxcontact.console import add_verbosity_arguments, auto_on_off, configure_logging
+from fxcontact.console import auto_on_off
 from fxcontact.processes import DrawingCase, run_drawing
+from fxcontact.processes.common import script_main
 from fxcontact.processes.die import DIE_MESHES, DIES
 
 # %% [markdown]
@@ -106,7 +105,6 @@ from fxcontact.processes.die import DIE_MESHES, DIES
 # %%
 def main(argv=None):
     ap = argparse.ArgumentParser(description="Wire drawing, the thesis case (see the header).")
-    ap.add_argument("--quick", action="store_true", help="the reduced size of the tests")
     for k in ("R0", "R1", "length", "K", "m", "speed", "alpha", "land", "fillet", "h",
               "facet", "size", "dt", "t_end", "mu", "mbar", "beta", "penalty_dt", "window",
               "steady_tol", "penalty_continuation"):
@@ -121,20 +119,8 @@ def main(argv=None):
     ap.add_argument("--active_set_prediction", type=auto_on_off)
     ap.add_argument("--material_tangent", choices=fx.MATERIAL_TANGENTS)
     ap.add_argument("--stop_at_steady", action="store_true", default=None)
-    ap.add_argument("--vtk_every", type=int, default=0)
-    ap.add_argument("--no-pictures", dest="pictures", action="store_false")
-    ap.add_argument("--output-dir", dest="output_dir", default="results/wire_drawing")
-    add_verbosity_arguments(ap)
-    a = ap.parse_args(argv)
-    configure_logging(verbose=a.verbose, quiet=a.quiet)
-    fields = DrawingCase.__dataclass_fields__
-    changes = {k: v for k, v in vars(a).items() if k in fields and v is not None}
-    case = DrawingCase.quick(**changes) if a.quick else DrawingCase(**changes)
-    res = run_drawing(case, output_dir=a.output_dir, pictures=a.pictures,
-                      vtk_every=a.vtk_every)
-    if MPI.COMM_WORLD.rank == 0:
-        print(res.report())
-    return res
+    return script_main(ap, DrawingCase, run_drawing, argv=argv,
+                       output_dir="results/wire_drawing")
 
 
 # %% [markdown]

@@ -10,6 +10,7 @@ on rank 0 only (matplotlib, no VTK).
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import os
 from dataclasses import dataclass, field
@@ -25,9 +26,72 @@ from fxcontact.power import PlasticDissipation, PressurePower, on_configuration,
 from fxcontact.simulation import IncrementError, wall_split
 from fxcontact.steady import steady_window
 
-__all__ = ["gather", "contact_nodes_on", "contact_force_on_body", "numerics_columns", "run_summary", "steady_values", "run_increments",
+__all__ = ["CaseBase", "script_main", "gather", "contact_nodes_on", "contact_force_on_body", "numerics_columns", "run_summary", "steady_values", "run_increments",
            "ProcessResult", "PowerBalance", "meridian_section", "vertex_field", "plot_sections",
            "plot_curves", "write_rows"]
+
+
+class CaseBase:
+    """What the process cases (frozen dataclasses) share: :meth:`quick` (the reduced size of
+    the tests, the class's ``QUICK`` fields), :meth:`replace` and the checks of their common
+    fields, each a ``ValueError`` naming the field."""
+
+    QUICK: Dict[str, object] = {}
+
+    @classmethod
+    def quick(cls, **changes):
+        """The reduced case of the tests (``QUICK``), with ``changes``."""
+        return cls(**{**cls.QUICK, **changes})
+
+    def replace(self, **changes):
+        """A copy with ``changes`` (checked)."""
+        return dataclasses.replace(self, **changes)
+
+    def check_positive(self, names):
+        """ValueError naming the first of the fields ``names`` that is not a finite number
+        > 0."""
+        for key in names:
+            v = getattr(self, key)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{key} must be a finite number > 0, got {v!r}")
+
+    def check_bar_and_die(self, alpha_max: float):
+        """R1 < R0, the die semi-angle alpha in (0, alpha_max) degrees, the nose ratio in
+        (0, 1), the Norton–Hoff m in (0, 1]."""
+        if not self.R1 < self.R0:
+            raise ValueError(f"R1 ({self.R1}) must be smaller than R0 ({self.R0})")
+        if not 0 < self.alpha < alpha_max:
+            raise ValueError(f"alpha (die semi-angle, degrees) must be in (0, {alpha_max:g}), "
+                             f"got {self.alpha}")
+        if not 0 < self.nose_ratio < 1:
+            raise ValueError(f"nose_ratio must be in (0, 1), got {self.nose_ratio}")
+        if not 0 < self.m <= 1:
+            raise ValueError(f"m must be in (0, 1], got {self.m}")
+
+
+def script_main(parser, case_type, run, default=None, argv=None, output_dir="results"):
+    """The command line of a process script: ``parser`` with the script's own options (each
+    named after a field of ``case_type``) gets ``--quick`` (the case's :meth:`quick`),
+    ``--vtk_every``, ``--no-pictures``, ``--output-dir`` and ``--verbose``/``--quiet``; the
+    case is ``default`` (or the quick one) with the fields given; ``run(case, ...)`` is run and
+    its ``report()`` printed on rank 0. Returns the result."""
+    from fxcontact.console import add_verbosity_arguments, configure_logging
+
+    parser.add_argument("--quick", action="store_true", help="the reduced size of the tests")
+    parser.add_argument("--vtk_every", type=int, default=0)
+    parser.add_argument("--no-pictures", dest="pictures", action="store_false")
+    parser.add_argument("--output-dir", dest="output_dir", default=output_dir)
+    add_verbosity_arguments(parser)
+    a = parser.parse_args(argv)
+    configure_logging(verbose=a.verbose, quiet=a.quiet)
+    changes = {k: v for k, v in vars(a).items()
+               if k in case_type.__dataclass_fields__ and v is not None}
+    base = case_type.quick() if a.quick else (default or case_type())
+    res = run(base.replace(**changes), output_dir=a.output_dir, pictures=a.pictures,
+              vtk_every=a.vtk_every)
+    if MPI.COMM_WORLD.rank == 0:
+        print(res.report())
+    return res
 
 
 def gather(comm, arr) -> np.ndarray:
@@ -160,11 +224,28 @@ class ProcessResult:
                 f"{self.min_quality:.3f}"]
 
 
+def finish_run(comm, sim, res, output_dir, name, pictures, vtk_every, draw):
+    """End a process run: with ``output_dir`` the rows of ``res.history`` as
+    ``{name}_diagnostics.csv``, the pictures (``draw()`` returns their paths) and the VTK series'
+    path; close the simulation. Returns ``res``."""
+    if output_dir and res.history:
+        res.csv = write_rows(comm, os.path.join(output_dir, f"{name}_diagnostics.csv"),
+                             res.history)
+        if pictures:
+            res.pictures = draw()
+        if vtk_every:
+            res.vtk = os.path.join(output_dir, f"{name}.pvd")
+    sim.close()
+    return res
+
+
 def steady_values(rows: Sequence[dict], first: int, last: int, keys: Sequence[str]) -> dict:
-    """Means of ``keys`` over the rows ``first..last`` (the steady window), and the half
-    peak-to-peak oscillation of each relative to its mean (``{key}_oscillation``)."""
+    """Means of ``keys`` over the rows ``first..last`` (the steady window), the half
+    peak-to-peak oscillation of each relative to its mean (``{key}_oscillation``), and the
+    window itself (``steady_from``, ``steady_to``, ``steady_time``)."""
     sel = rows[first:last + 1]
-    out = {}
+    out = dict(steady_from=first, steady_to=last,
+               steady_time=(rows[first]["time"], rows[last]["time"]))
     for key in keys:
         vals = [q[key] for q in sel]
         mean = float(np.mean(vals))

@@ -20,7 +20,7 @@ from fxcontact.meshing import gmsh_session
 from fxcontact.tools.faceted import FacetedTool
 from fxcontact.tools.revolved import RevolvedProfile
 
-__all__ = ["DIES", "DIE_MESHES", "NoseLayout", "nose_layout", "die_profile_tool",
+__all__ = ["DIES", "DIE_MESHES", "NoseLayout", "nose_layout", "bar_simulation", "die_profile_tool",
            "gmsh_die_sector", "die_tool", "die_radius", "true_penetration"]
 
 #: how the die is represented: the exact surface of revolution, or its faceted sector projected
@@ -77,6 +77,37 @@ def nose_layout(R0, R1, alpha_deg, land, fillet, relief_angle, relief_length, no
                       z_body=z_body, s0=s0, entry_radius=entry_radius, relief=relief,
                       A0=math.radians(sector) / 2 * R0 ** 2,
                       A1=math.radians(sector) / 2 * R1 ** 2)
+
+
+def bar_simulation(case, g: NoseLayout, comm, strain_rate: float, solver_options,
+                   driven: str, reaction: str, output_dir=None, vtk_every: int = 0,
+                   name: str = "bar"):
+    """The bar (:func:`fxcontact.drawing_bar`) of ``case`` (fields R0, length, alpha, sector,
+    K, m, speed) with the nose of ``g``, Norton–Hoff with the regularisation 1e-3
+    ``strain_rate``, in a :class:`~fxcontact.Simulation` with the sector's symmetry planes
+    ``sym0``/``sym1`` and the face ``driven`` ("front": pulled, "back": pushed) moved at
+    ``case.speed`` along +z, its reaction named ``reaction``. Returns ``(sim, facet_tags,
+    facets by tag name, material)``; the VTK series every ``vtk_every`` increments into
+    ``output_dir`` (0: none)."""
+    from fxcontact.materials import NortonHoff
+    from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
+    from fxcontact.simulation import Simulation
+    from fxcontact.spaces import MixedSpace
+
+    mat = NortonHoff(K=case.K, m=case.m, regularization=1e-3 * strain_rate)
+    msh, _, ft = drawing_bar(comm, case.R0, case.length, g.h, nose_length=g.nose_length,
+                             nose_radius=g.nose_radius, nose_angle=case.alpha,
+                             sector=case.sector)
+    sim = Simulation(MixedSpace(msh), mat, solver_options=solver_options,
+                     output_dir=output_dir if vtk_every else None, name=name,
+                     output_every=max(1, int(vtk_every or 1)), progress=False)
+    f = {k: sim.facets(ft, v) for k, v in DRAWING_BAR_TAGS.items()}
+    normals = sector_plane_normals(case.sector)
+    sim.add_symmetry_plane(f["symmetry_0"], normals["symmetry_0"], name="sym0")
+    sim.add_symmetry_plane(f["symmetry_1"], normals["symmetry_1"], name="sym1")
+    sim.add_velocity_bc(f[driven], case.speed, 2)
+    sim.add_reaction(reaction, f[driven])
+    return sim, ft, f, mat
 
 
 def die_profile_tool(g: NoseLayout, R1, alpha_deg, land, fillet, relief_length,

@@ -39,34 +39,23 @@ from fxcontact import forming
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Coulomb, Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
-from fxcontact.materials import NortonHoff
-from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
-from fxcontact.processes.common import (PowerBalance, ProcessResult, contact_force_on_body,
+from fxcontact.meshing import DRAWING_BAR_TAGS
+from fxcontact.processes.common import (CaseBase, PowerBalance, ProcessResult, contact_force_on_body,
                                         contact_nodes_on, gather, meridian_section, numerics_columns, plot_curves,
                                         plot_sections, run_increments, run_summary,
-                                        steady_values, write_rows)
-from fxcontact.processes.die import (DIE_MESHES, DIES, die_profile_tool, die_radius, die_tool,
+                                        steady_values, finish_run)
+from fxcontact.processes.die import (DIE_MESHES, DIES, bar_simulation, die_profile_tool, die_radius, die_tool,
                                      nose_layout, true_penetration)
 from fxcontact.simulation import Simulation
 from fxcontact.solver import SolverOptions
-from fxcontact.spaces import MixedSpace
 
-__all__ = ["DrawingCase", "DrawingSetup", "DrawingResult", "build", "run", "check_positive"]
+__all__ = ["DrawingCase", "DrawingSetup", "DrawingResult", "build", "run"]
 
 log = logging.getLogger("fxcontact.processes.drawing")
 
 
-def check_positive(case, names):
-    """ValueError naming the first field of ``case`` in ``names`` that is not a finite
-    number > 0."""
-    for key in names:
-        v = getattr(case, key)
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise ValueError(f"{key} must be a finite number > 0, got {v!r}")
-
-
 @dataclass(frozen=True)
-class DrawingCase:
+class DrawingCase(CaseBase):
     """A wire-drawing case: lengths mm, stresses MPa, times s, angles degrees.
 
     The defaults are the thesis's case (Annex A2.1: R₀ 10 → 7.5 mm, L = 38 mm, one third,
@@ -126,26 +115,10 @@ class DrawingCase:
                  fillet=1.0, relief_length=0.5, window=1.5, steady_tol=0.02,
                  stop_at_steady=True)
 
-    @classmethod
-    def quick(cls, **changes) -> "DrawingCase":
-        """The reduced case of the tests (:attr:`QUICK`), with ``changes``."""
-        return cls(**{**cls.QUICK, **changes})
-
-    def replace(self, **changes) -> "DrawingCase":
-        return dataclasses.replace(self, **changes)
-
     def __post_init__(self):
-        check_positive(self, ("R0", "R1", "length", "K", "speed", "alpha", "land", "h",
-                              "facet", "size", "dt", "t_end", "window", "steady_tol", "sector"))
-        if not self.R1 < self.R0:
-            raise ValueError(f"R1 ({self.R1}) must be smaller than R0 ({self.R0})")
-        if not 0 < self.alpha < 45:
-            raise ValueError(f"alpha (die semi-angle, degrees) must be in (0, 45), got "
-                             f"{self.alpha}")
-        if not 0 < self.nose_ratio < 1:
-            raise ValueError(f"nose_ratio must be in (0, 1), got {self.nose_ratio}")
-        if not 0 < self.m <= 1:
-            raise ValueError(f"m must be in (0, 1], got {self.m}")
+        self.check_positive(("R0", "R1", "length", "K", "speed", "alpha", "land", "h", "facet",
+                             "size", "dt", "t_end", "window", "steady_tol", "sector"))
+        self.check_bar_and_die(alpha_max=45.0)
         if self.die not in DIES:
             raise ValueError(f"die must be one of {DIES}, got {self.die!r}")
         if self.die_mesh not in DIE_MESHES:
@@ -228,20 +201,10 @@ def build(case: DrawingCase, comm=None, output_dir: Optional[str] = None,
     comm = comm or MPI.COMM_WORLD
     g = case.layout()
     theory = case.theory()
-    mat = NortonHoff(K=case.K, m=case.m, regularization=1e-3 * theory["strain_rate"])
-    msh, _, ft = drawing_bar(comm, case.R0, case.length, g.h, nose_length=g.nose_length,
-                             nose_radius=g.nose_radius, nose_angle=case.alpha,
-                             sector=case.sector)
-    space = MixedSpace(msh)
-    sim = Simulation(space, mat, solver_options=case.solver_options(),
-                     output_dir=output_dir if vtk_every else None, name=name,
-                     output_every=max(1, int(vtk_every or 1)), progress=False)
-    f = {k: sim.facets(ft, v) for k, v in DRAWING_BAR_TAGS.items()}
-    normals = sector_plane_normals(case.sector)
-    sim.add_symmetry_plane(f["symmetry_0"], normals["symmetry_0"], name="sym0")
-    sim.add_symmetry_plane(f["symmetry_1"], normals["symmetry_1"], name="sym1")
-    sim.add_velocity_bc(f["front"], case.speed, 2)
-    sim.add_reaction("pull", f["front"])
+    sim, ft, f, mat = bar_simulation(case, g, comm, theory["strain_rate"],
+                                     case.solver_options(), "front", "pull", output_dir,
+                                     vtk_every, name)
+    space = sim.space
     exact = die_profile_tool(g, case.R1, case.alpha, case.land, case.fillet,
                              case.relief_length)
     die, sag = die_tool(exact, case.die, case.die_mesh, case.sector, g.facet, g.h, case.R0,
@@ -370,27 +333,18 @@ def run(case: DrawingCase, comm=None, output_dir: Optional[str] = None, pictures
             power_balance=rows[-1]["power_balance"],
             power_balance_penalty=rows[-1]["power_balance_penalty"], **run_summary(rows))
     if steady is not None:
-        steady_from, steady_to = steady
-        st = steady_values(rows, steady_from, steady_to,
+        st = steady_values(rows, *steady,
                            ("drawing_stress", "power_balance", "power_balance_penalty"))
         sd = st["drawing_stress"]
         out = dataclasses.replace(
-            out, steady_from=steady_from, steady_to=steady_to, steady_stress=sd,
-            steady_force=sd * g.A1, ratio_ideal=sd / s.theory["ideal"],
-            ratio_avitzur=sd / s.theory["avitzur"],
+            out, steady_from=st["steady_from"], steady_to=st["steady_to"],
+            steady_time=st["steady_time"], steady_stress=sd, steady_force=sd * g.A1,
+            ratio_ideal=sd / s.theory["ideal"], ratio_avitzur=sd / s.theory["avitzur"],
             steady_oscillation=st["drawing_stress_oscillation"],
-            steady_time=(rows[steady_from]["time"], rows[steady_to]["time"]),
             power_balance=st["power_balance"],
             power_balance_penalty=st["power_balance_penalty"])
-    if output_dir and rows:
-        out.csv = write_rows(comm, os.path.join(output_dir, "wire_drawing_diagnostics.csv"),
-                             rows)
-        if pictures:
-            out.pictures = _pictures(comm, s, out, output_dir)
-        if vtk_every:
-            out.vtk = os.path.join(output_dir, "wire_drawing.pvd")
-    sim.close()
-    return out
+    return finish_run(comm, sim, out, output_dir, "wire_drawing", pictures, vtk_every,
+                      lambda: _pictures(comm, s, out, output_dir))
 
 
 def _pictures(comm, s: DrawingSetup, res: DrawingResult, out: str):

@@ -61,18 +61,15 @@ from fxcontact import forming
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
-from fxcontact.materials import NortonHoff
-from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
-from fxcontact.processes.common import (PowerBalance, ProcessResult, contact_force_on_body,
-                                        contact_nodes_on, meridian_section,
-                                        numerics_columns, plot_curves, plot_sections,
-                                        run_increments, run_summary, steady_values,
-                                        vertex_field, write_rows)
-from fxcontact.processes.die import die_profile_tool, die_radius, nose_layout
-from fxcontact.processes.drawing import check_positive
+from fxcontact.meshing import DRAWING_BAR_TAGS
+from fxcontact.processes.common import (CaseBase, PowerBalance, ProcessResult,
+                                        contact_force_on_body, contact_nodes_on,
+                                        meridian_section, numerics_columns, plot_curves,
+                                        plot_sections, run_increments, run_summary,
+                                        steady_values, vertex_field, finish_run)
+from fxcontact.processes.die import bar_simulation, die_profile_tool, die_radius, nose_layout
 from fxcontact.simulation import Simulation
 from fxcontact.solver import SolverOptions
-from fxcontact.spaces import MixedSpace
 from fxcontact.tools.revolved import RevolvedProfile
 
 __all__ = ["ExtrusionCase", "ExtrusionSetup", "ExtrusionResult", "CONTAINERS", "build", "run"]
@@ -84,7 +81,7 @@ CONTAINERS = ("separate", "profile")
 
 
 @dataclass(frozen=True)
-class ExtrusionCase:
+class ExtrusionCase(CaseBase):
     """A forward-extrusion case: lengths mm, stresses MPa, times s, angles degrees.
 
     Defaults: a hot aluminium billet R₀ 10 → 6 mm (64 % reduction, extrusion ratio 2.8)
@@ -134,33 +131,17 @@ class ExtrusionCase:
     QUICK = dict(R0=5.0, R1=3.5, length=14.0, h=1.0, land=0.5, fillet=0.5, relief_length=0.5,
                  entry_fillet=0.5, t_end=0.6, window=1.0, stop_at_steady=True)
 
-    @classmethod
-    def quick(cls, **changes) -> "ExtrusionCase":
-        """The reduced case of the tests (:attr:`QUICK`), with ``changes``."""
-        return cls(**{**cls.QUICK, **changes})
-
-    def replace(self, **changes) -> "ExtrusionCase":
-        return dataclasses.replace(self, **changes)
-
     def __post_init__(self):
-        check_positive(self, ("R0", "R1", "length", "K", "speed", "alpha", "land", "h", "dt",
-                              "t_end", "window", "steady_tol", "sector", "beta"))
+        self.check_positive(("R0", "R1", "length", "K", "speed", "alpha", "land", "h", "dt",
+                             "t_end", "window", "steady_tol", "sector", "beta"))
+        self.check_bar_and_die(alpha_max=90.0)
         if not (math.isfinite(self.entry_fillet) and self.entry_fillet >= 0):
             raise ValueError(f"entry_fillet must be finite and >= 0, got {self.entry_fillet}")
-        if not self.R1 < self.R0:
-            raise ValueError(f"R1 ({self.R1}) must be smaller than R0 ({self.R0})")
-        if not 0 < self.alpha < 90:
-            raise ValueError(f"alpha (die semi-angle, degrees) must be in (0, 90), got "
-                             f"{self.alpha}")
-        if not 0 < self.nose_ratio < 1:
-            raise ValueError(f"nose_ratio must be in (0, 1), got {self.nose_ratio}")
-        if not 0 < self.m <= 1:
-            raise ValueError(f"m must be in (0, 1], got {self.m}")
         for key in ("mbar_die", "mbar_container"):
             if not 0 <= getattr(self, key) <= 1:
                 raise ValueError(f"{key} must be in [0, 1], got {getattr(self, key)}")
         if self.container_shear_limit is not None:
-            check_positive(self, ("container_shear_limit",))
+            self.check_positive(("container_shear_limit",))
         if self.container not in CONTAINERS:
             raise ValueError(f"container must be one of {CONTAINERS}, got {self.container!r}")
         if self.container == "profile" and (self.mbar_die != self.mbar_container
@@ -242,20 +223,10 @@ def build(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
     comm = comm or MPI.COMM_WORLD
     g = case.layout()
     th = case.theory()
-    mat = NortonHoff(K=case.K, m=case.m, regularization=1e-3 * th["strain_rate"])
-    msh, _, ft = drawing_bar(comm, case.R0, case.length, g.h, nose_length=g.nose_length,
-                             nose_radius=g.nose_radius, nose_angle=case.alpha,
-                             sector=case.sector)
-    space = MixedSpace(msh)
-    sim = Simulation(space, mat, solver_options=SolverOptions(max_it=int(case.max_it)),
-                     output_dir=output_dir if vtk_every else None, name=name,
-                     output_every=max(1, int(vtk_every or 1)), progress=False)
-    f = {k: sim.facets(ft, v) for k, v in DRAWING_BAR_TAGS.items()}
-    normals = sector_plane_normals(case.sector)
-    sim.add_symmetry_plane(f["symmetry_0"], normals["symmetry_0"], name="sym0")
-    sim.add_symmetry_plane(f["symmetry_1"], normals["symmetry_1"], name="sym1")
-    sim.add_velocity_bc(f["back"], case.speed, 2)
-    sim.add_reaction("punch", f["back"])
+    sim, ft, f, mat = bar_simulation(case, g, comm, th["strain_rate"],
+                                     SolverOptions(max_it=int(case.max_it)), "back", "punch",
+                                     output_dir, vtk_every, name)
+    space = sim.space
     profile = _profile(case, g)
     if case.container == "separate":
         container = RevolvedProfile(profile.points[:2], inside=True, name="container")
@@ -398,21 +369,14 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
             ratio = float(np.mean([q["container_force"] / q["container_force_theory"]
                                    for q in sel]))
         out = dataclasses.replace(
-            out, steady_from=first, steady_to=last,
-            steady_time=(rows[first]["time"], rows[last]["time"]),
+            out, steady_from=first, steady_to=last, steady_time=st["steady_time"],
             theory=case.theory(st["container_length"]), punch_pressure=st["punch_pressure"],
             die_pressure=st["die_pressure"], container_length=st["container_length"],
             container_ratio=ratio, steady_oscillation=st["die_pressure_oscillation"],
             power_balance=st["power_balance"],
             power_balance_penalty=st["power_balance_penalty"])
-    if output_dir and rows:
-        out.csv = write_rows(comm, os.path.join(output_dir, "extrusion_diagnostics.csv"), rows)
-        if pictures:
-            out.pictures = _pictures(comm, s, out, output_dir)
-        if vtk_every:
-            out.vtk = os.path.join(output_dir, "extrusion.pvd")
-    sim.close()
-    return out
+    return finish_run(comm, sim, out, output_dir, "extrusion", pictures, vtk_every,
+                      lambda: _pictures(comm, s, out, output_dir))
 
 
 def _pictures(comm, s: ExtrusionSetup, res: ExtrusionResult, out: str):
@@ -436,7 +400,8 @@ def _pictures(comm, s: ExtrusionSetup, res: ExtrusionResult, out: str):
                   r_max=1.3 * c.R0, xlabel="z [mm] (extrusion direction →)",
                   title=f"Extrusion R₀ {c.R0:g} → {c.R1:g} mm, α = {c.alpha:g}°, m̄ die "
                         f"{c.mbar_die:g} / container {c.mbar_container:g}, t = {res.time:.3g}"
-                        f" s: θ = 0 section (dead metal: velocity ≈ 0 in the corner)")
+                        f" s: θ = 0 section; the slow corner between the container and the die: "
+                        f"dead-metal zone")
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(8, 4.5))
     hist = res.history
