@@ -6,7 +6,7 @@ Usage::
     python benchmarks/bench_assembly.py --size 0.25 --t_end 0.0125 --repeat 2
     python benchmarks/bench_assembly.py --skip-newton        # the kernel figures only
 
-Case: ``demos/demo_wire_drawing.py`` (MINI P1+bubble/P1, Norton–Hoff m = 0.016, quadrature
+Case: the wire drawing of :mod:`fxcontact.processes` (MINI P1+bubble/P1, Norton–Hoff m = 0.016, quadrature
 degree 6, implicit contact on the exact die, two symmetry planes), 1 process.
 
 **Kernel** (one Jacobian / residual assembly at a random velocity, best of ``--best``): time
@@ -60,7 +60,7 @@ import fxcontact as fx  # noqa: E402
 import fxcontact.petsc as fxpetsc  # noqa: E402
 import fxcontact.simulation as fxsim  # noqa: E402
 from fxcontact import compat  # noqa: E402
-from _common import load_demo  # noqa: E402
+from fxcontact.processes import DrawingCase, run_drawing  # noqa: E402
 
 VARIANTS = (("before", dict(flags=False, skip_lift=False)),
             ("+no-errno", dict(flags=True, skip_lift=False)),
@@ -129,16 +129,15 @@ def _kernel_functions(code: str):
 
 def kernel_figures(size: float, best: int):
     """Time per cell of the Jacobian/residual kernels under each set of compiler flags."""
-    demo = load_demo("demo_wire_drawing")
-    P = {**demo.DEFAULTS, "size": size}
-    g = demo.geometry(P)
+    case = DrawingCase(size=size)
+    g = case.layout()
     comm = MPI.COMM_WORLD
-    msh, _, _ = fx.drawing_bar(comm, P["R0"], P["length"], g["h"],
-                               nose_length=g["nose_length"], nose_radius=g["nose_radius"],
-                               nose_angle=P["alpha"], sector=P["sector"])
+    msh, _, _ = fx.drawing_bar(comm, case.R0, case.length, g.h, nose_length=g.nose_length,
+                               nose_radius=g.nose_radius, nose_angle=case.alpha,
+                               sector=case.sector)
     space = fx.MixedSpace(msh)
     ncell = msh.topology.index_map(3).size_local
-    mat = fx.NortonHoff(K=P["K"], m=P["m"], regularization=1e-3)
+    mat = fx.NortonHoff(K=case.K, m=case.m, regularization=1e-3)
     w = dolfinx.fem.Function(space.W)
     w.x.array[:] = np.random.default_rng(1).normal(size=w.x.array.size)
     v, p = ufl.split(w)
@@ -310,20 +309,19 @@ class _Recorder:
 
 
 def newton_run(size: float, t_end: float, flags: bool, skip_lift: bool):
-    """One demo run with the switches; returns the per-iteration figures."""
-    demo = load_demo("demo_wire_drawing")
+    """One drawing run with the switches; returns the per-iteration figures."""
     saved = (list(compat.JIT_EXTRA_COMPILE_ARGS), fxpetsc.NonlinearProblem.skip_zero_lifting)
     compat.JIT_EXTRA_COMPILE_ARGS[:] = saved[0] if flags else []
     fxpetsc.NonlinearProblem.skip_zero_lifting = skip_lift
     rec = _Recorder()
     try:
-        res = demo.run(size=size, t_end=t_end, pictures=False, output_dir=None)
+        res = run_drawing(DrawingCase(size=size, t_end=t_end), pictures=False)
     finally:
         rec.restore()
         compat.JIT_EXTRA_COMPILE_ARGS[:] = saved[0]
         fxpetsc.NonlinearProblem.skip_zero_lifting = saved[1]
-    if res["status"] != "completed":
-        raise RuntimeError(f"the run failed: {res['message']}")
+    if res.status != "completed":
+        raise RuntimeError(f"the run failed: {res.message}")
     sim = rec.sims[-1]
     infos, cbs = rec.infos[1:], rec.callbacks[1:]     # first increment: compilation
     its = sum(i.iterations for i in infos)
@@ -337,8 +335,8 @@ def newton_run(size: float, t_end: float, flags: bool, skip_lift: bool):
                contact=tot("contact") / its,
                python=(cb - tot("assembly") - tot("contact")) / its,
                linear=tot("linear_solve") / its, other=tot("other") / its,
-               total=tot("total") / its, dofs=res["dofs"],
-               force=np.array([r["drawing_force"] for r in res["history"]]),
+               total=tot("total") / its, dofs=res.dofs,
+               force=np.array([r["drawing_force"] for r in res.history]),
                v=sim.w.x.array.copy(), liftings=dict(sim.problem.liftings))
     return out
 

@@ -1,6 +1,6 @@
 """Quadrature degree of the MINI space: the wire drawing at each degree, side by side.
 
-Runs ``demos/demo_wire_drawing.py`` (MINI, Norton–Hoff m = 0.016, library defaults) once per
+Runs the wire drawing of :mod:`fxcontact.processes` (MINI, Norton–Hoff m = 0.016, library defaults) once per
 MINI quadrature degree, the degrees in turn ``--repeat`` times (each figure: the fastest run),
 and prints one table: quadrature points per tetrahedron, Newton iterations per increment,
 wall time and its split (assembly, linear solve, other), and the drawing stress of every
@@ -15,27 +15,21 @@ Run from the repository root (the figures of ``benchmarks/README.md``)::
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 
 import numpy as np
 from mpi4py import MPI
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(os.path.dirname(HERE), "demos"))
-
-import demo_wire_drawing as demo  # noqa: E402
-
-from fxcontact import spaces  # noqa: E402
+from fxcontact import spaces
+from fxcontact.processes import DrawingCase, run_drawing
 
 
 def run_at(degree: int, size: float, t_end: float) -> dict:
-    """The demo at ``size`` to ``t_end`` with MINI quadrature ``degree`` (the default of
+    """The drawing at ``size`` to ``t_end`` with MINI quadrature ``degree`` (the default of
     :class:`~fxcontact.spaces.MixedSpace` set for the run, then restored)."""
     old = spaces.DEFAULT_QUADRATURE["mini"]
     spaces.DEFAULT_QUADRATURE["mini"] = degree
     try:
-        return demo.run(size=size, t_end=t_end, pictures=False, output_dir=None)
+        return run_drawing(DrawingCase(size=size, t_end=t_end), pictures=False)
     finally:
         spaces.DEFAULT_QUADRATURE["mini"] = old
 
@@ -57,28 +51,27 @@ def main(argv=None):
     for r in range(a.repeat):
         for d in a.degrees:
             res = run_at(d, a.size, a.t_end)
-            if res["status"] != "completed":
-                raise SystemExit(f"degree {d}: the run stopped ({res['status']}: "
-                                 f"{res['message']})")
-            if d not in best or res["wall_split"]["total"] < best[d]["wall_split"]["total"]:
+            if res.status != "completed":
+                raise SystemExit(f"degree {d}: the run stopped ({res.status}: {res.message})")
+            if d not in best or res.wall_split["total"] < best[d].wall_split["total"]:
                 best[d] = res
     if MPI.COMM_WORLD.rank:
         return best
     import basix
-    ref = np.array([q["drawing_stress"] for q in best[a.degrees[0]]["history"]])
+    ref = np.array([q["drawing_stress"] for q in best[a.degrees[0]].history])
     r0 = best[a.degrees[0]]
-    print(f"\nwire drawing, size {a.size} ({r0['dofs']} dofs), t_end {a.t_end} s "
-          f"({r0['increments']} increments), {r0['ranks']} rank(s), fastest of {a.repeat}")
+    print(f"\nwire drawing, size {a.size} ({r0.dofs} dofs), t_end {a.t_end} s "
+          f"({r0.increments} increments), {r0.ranks} rank(s), fastest of {a.repeat}")
     print("\n| degree | points | Newton its/incr (max) | wall s | assembly s | linear s | "
           "other s | last σ_d MPa | max Δσ_d vs degree " f"{a.degrees[0]} |")
     print("|---|---|---|---|---|---|---|---|---|")
     for d in a.degrees:
         res = best[d]
         nq = len(basix.make_quadrature(basix.CellType.tetrahedron, d)[1])
-        sd = np.array([q["drawing_stress"] for q in res["history"]])
+        sd = np.array([q["drawing_stress"] for q in res.history])
         dev = float(np.max(np.abs(sd - ref) / np.abs(ref))) if sd.shape == ref.shape else np.nan
-        ws = res["wall_split"]
-        print(f"| {d} | {nq} | {res['newton_mean']:.1f} ({res['newton_max']}) | "
+        ws = res.wall_split
+        print(f"| {d} | {nq} | {res.newton_mean:.1f} ({res.newton_max}) | "
               f"{ws['total']:.1f} | {ws['assembly']:.1f} | {ws['linear_solve']:.1f} | "
               f"{ws['other']:.1f} | {sd[-1]:.1f} | {100 * dev:.2f} % |")
     return best

@@ -1,6 +1,6 @@
 """The thesis's wire-drawing comparison (Tables V-4 and V-5) reproduced on fxcontact's own runs.
 
-Case: ``demos/demo_wire_drawing.py`` (thesis Annex A2.1: bar L = 38 mm, R₀ 10 → 7.5 mm, one
+Case: :class:`fxcontact.processes.DrawingCase` (thesis Annex A2.1: bar L = 38 mm, R₀ 10 → 7.5 mm, one
 third modelled, Norton–Hoff K = 445 MPa·s^m, m = 0.016 without the thesis's elastic part,
 frictionless, 100 mm/s, our die: 10° cone, 2 mm fillet, 2 mm land). Variants (contact scheme +
 die): explicit + flat facets (Forge's standard), implicit + flat facets, implicit + Nagata,
@@ -28,15 +28,11 @@ import argparse
 import csv
 import math
 import os
-import sys
 import time
 
 from mpi4py import MPI
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(os.path.dirname(HERE), "demos"))
-
-import demo_wire_drawing as demo  # noqa: E402
+from fxcontact.processes import DrawingCase, run_drawing
 
 #: the variants of the thesis's Tables V-4/V-5: label -> (scheme, die); the exact die's scheme
 #: is set by --exact_scheme
@@ -69,12 +65,11 @@ def run(size: float = 1.0, t_end: float = 0.37, quick: bool = False, dt: float =
         verbose: bool = True, **extra) -> list:
     """Run every variant at dt × each factor; returns one row (dict) per run."""
     comm = comm or MPI.COMM_WORLD
-    base = dict(demo.QUICK) if quick else {}
-    base.update(stop_at_steady=False, pictures=False, output_dir=None, comm=comm)
-    base.update(extra)
+    base = (DrawingCase.quick() if quick else DrawingCase()).replace(stop_at_steady=False,
+                                                                      **extra)
     if size != 1.0 or not quick:
-        base["size"] = size
-    dt0 = dt or base.get("dt", demo.DEFAULTS["dt"])
+        base = base.replace(size=size)
+    dt0 = dt or base.dt
     rows = []
     for label in (variants or VARIANTS):
         scheme, die = VARIANTS[label]
@@ -83,35 +78,31 @@ def run(size: float = 1.0, t_end: float = 0.37, quick: bool = False, dt: float =
             t0 = time.perf_counter()
             # the same gap stiffness at every dt (k = ρ(β)/dt): the penalty penetration p/k
             # does not depend on dt, what changes is the scheme's geometric error
-            res = demo.run(**{**base, "scheme": scheme, "die": die, "dt": k * dt0,
-                              "penalty_dt": dt0, "t_end": t_end})
+            res = run_drawing(base.replace(scheme=scheme, die=die, dt=k * dt0, penalty_dt=dt0,
+                                           t_end=t_end), comm=comm, pictures=False)
             wall = time.perf_counter() - t0
-            hist = res["history"]
-            if res["steady_force"] is not None:
-                force, steady = res["steady_force"], True
+            hist = res.history
+            if res.steady_force is not None:
+                force, steady = res.steady_force, True
             elif hist:
                 half = hist[len(hist) // 2:]
                 force, steady = sum(q["drawing_force"] for q in half) / len(half), False
             else:
                 force, steady = math.nan, False
+            split = res.wall_split
             row = dict(variant=label, scheme=scheme, die=die, dt_factor=k, dt=k * dt0,
-                       status=res["status"], increments=res["increments"], time=res["time"],
-                       dofs=res["dofs"], ranks=comm.size,
-                       max_penetration=res.get("max_penetration", math.nan),
-                       max_penetration_tool=res.get("max_penetration_tool", math.nan),
-                       contact_nodes_01=res.get("contact_nodes_0.1", -1),
-                       time_01=res.get("time_0.1", math.nan), steady_force=force,
-                       steady=steady, steady_stress=force / res["A1"],
-                       ideal=res["theory"]["ideal"], avitzur=res["theory"]["avitzur"],
-                       newton_mean=res.get("newton_mean", math.nan),
-                       cutbacks=res.get("cutbacks", 0), wall=wall,
-                       wall_assembly=res.get("wall_split", {}).get("assembly", math.nan),
-                       wall_linear_solve=res.get("wall_split", {}).get("linear_solve",
-                                                                       math.nan),
-                       wall_contact=res.get("wall_split", {}).get("contact", math.nan),
-                       max_volume_change=res.get("max_volume_change", math.nan),
-                       min_quality=res.get("min_quality", math.nan),
-                       h=res["h"], facet=res["facet"], message=res["message"])
+                       status=res.status, increments=res.increments, time=res.time,
+                       dofs=res.dofs, ranks=comm.size, max_penetration=res.max_penetration,
+                       max_penetration_tool=res.max_penetration_tool,
+                       contact_nodes_01=res.contact_nodes_01, time_01=res.time_01,
+                       steady_force=force, steady=steady, steady_stress=force / res.A1,
+                       ideal=res.theory["ideal"], avitzur=res.theory["avitzur"],
+                       newton_mean=res.newton_mean, cutbacks=res.cutbacks, wall=wall,
+                       wall_assembly=split.get("assembly", math.nan),
+                       wall_linear_solve=split.get("linear_solve", math.nan),
+                       wall_contact=split.get("contact", math.nan),
+                       max_volume_change=res.max_volume_change, min_quality=res.min_quality,
+                       h=res.h, facet=res.facet, message=res.message)
             rows.append(row)
             if verbose and comm.rank == 0:
                 print(f"{label:34s} dt x{k}: {res['status']}, {res['increments']} increments, "

@@ -176,11 +176,12 @@ def drawing_bar(comm, R0: float, die: DrawingDie, upstream: float, nose: float, 
 
 
 def mean_strain_rate(R0: float, reduction: float, half_angle: float, entry_speed: float) -> float:
-    """Mean equivalent strain rate in a conical die (THEORY §14.2, homogeneous field):
-    6 v₀ tan α / D₀ · ln(A₀/A_f) / (1 − (D_f/D₀)³)."""
-    ratio = math.sqrt(1.0 - reduction)  # D_f / D₀
-    return (6.0 * entry_speed * math.tan(half_angle) / (2.0 * R0)
-            * -math.log(1.0 - reduction) / (1.0 - ratio**3))
+    """Mean equivalent strain rate in a conical die (THEORY §14.2) for a reduction of area:
+    :func:`fxcontact.forming.drawing_mean_strain_rate` with R_f = R₀ √(1 − reduction)."""
+    from fxcontact.forming import drawing_mean_strain_rate
+
+    return drawing_mean_strain_rate(R0, R0 * math.sqrt(1.0 - reduction), half_angle,
+                                    entry_speed)
 
 
 def drawing_simulation(comm=MPI.COMM_WORLD, R0: float = 5.0, reduction: float = 0.15,

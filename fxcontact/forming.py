@@ -21,6 +21,10 @@ biases: the FE answer is not expected to equal them but to fall in the band they
   :func:`drawing_mean_strain_rate` (the rate at which σ₀ of a power law is taken),
   :func:`drawing_optimal_angle` and :func:`drawing_theory` (the whole band for a Norton–Hoff
   material).
+* Forward extrusion through a conical die (THEORY §14.2): :func:`extrusion_container_friction`
+  (Tresca friction on the container wall, 2 m̄ k L_c/R₀) and :func:`extrusion_theory` (ideal
+  work, Avitzur's die terms — the die part of :func:`drawing_upper_bound` — plus the container
+  friction, for a Norton–Hoff material).
 
 Units are free (consistent); pressures are returned over σ₀ and powers per unit σ₀ and closing
 speed unless stated.
@@ -39,7 +43,8 @@ __all__ = ["flow_stress", "upsetting_upper_bound", "upsetting_slab_coulomb", "ri
            "ring_rolling_curvature", "ring_rolling_contact_length", "ring_rolling_feed_window",
            "ring_rolling_feed_speed", "ring_rolling_mean_diameter", "ring_rolling_force",
            "drawing_ideal_stress", "drawing_sachs_stress", "avitzur_f", "drawing_upper_bound",
-           "drawing_mean_strain_rate", "drawing_optimal_angle", "drawing_theory"]
+           "drawing_mean_strain_rate", "drawing_optimal_angle", "drawing_theory",
+           "extrusion_container_friction", "extrusion_theory"]
 
 SQRT3 = math.sqrt(3.0)
 
@@ -537,3 +542,48 @@ def drawing_theory(K: float, m: float, initial_radius: float, final_radius: floa
             "sachs": drawing_sachs_stress(s0, R0, Rf, half_angle, mu),
             "avitzur": drawing_upper_bound(s0, R0, Rf, half_angle, mbar, land_length),
             "avitzur_f": float(avitzur_f(half_angle))}
+
+
+# ------------------------------------------------------------------------------ extrusion
+def extrusion_container_friction(shear_yield: float, container_length: float,
+                                 initial_radius: float, mbar: float) -> float:
+    """Punch pressure spent on Tresca friction τ = m̄ k along the container wall (THEORY
+    §14.2): the billet slides over the length L_c still in the container, the friction force
+    2π R₀ L_c m̄ k over the punch area π R₀² gives p_c = 2 m̄ k L_c / R₀ (exact for a billet
+    that moves rigidly in the container, whatever the die)."""
+    k = _positive("shear_yield", shear_yield)
+    R0 = _positive("initial_radius", initial_radius)
+    L = float(container_length)
+    if not (math.isfinite(L) and L >= 0):
+        raise ValueError(f"container_length must be finite and >= 0, got {container_length!r}")
+    return 2.0 * _friction_factor(mbar) * k * L / R0
+
+
+def extrusion_theory(K: float, m: float, initial_radius: float, final_radius: float,
+                     half_angle: float, punch_speed: float, mbar_die: float = 0.0,
+                     mbar_container: float = 0.0, container_length: float = 0.0,
+                     land_length: float = 0.0, shear_yield: float = None) -> Dict[str, float]:
+    """The classical band of the punch pressure of forward extrusion through a conical die,
+    Norton–Hoff material (THEORY §14.2).
+
+    The billet enters the die at the punch speed v₀; the die's work is that of drawing (the
+    power p A₀ v₀ = σ_d A_f v_f, so p = σ_d): ``ideal`` = σ₀ ln(R₀²/R_f²) (a lower bound),
+    ``avitzur`` = Avitzur's upper bound of the die (:func:`drawing_upper_bound`: internal
+    deformation, the two shear surfaces, Tresca ``mbar_die`` on the cone and the land), plus
+    ``container`` = 2 m̄_c k L_c / R₀ (:func:`extrusion_container_friction`) with
+    ``shear_yield`` k (default σ₀/√3 at the die's mean strain rate); ``upper`` = avitzur +
+    container. σ₀ = √3 K (√3 ε̄̇)^m at :func:`drawing_mean_strain_rate` with the entry speed
+    v₀. Also ``sigma0``, ``strain_rate``, ``shear_yield``, ``exit_speed``, ``reduction`` (of
+    area) and ``extrusion_ratio`` A₀/A_f; stresses in the unit of K.
+    """
+    R0, Rf = _drawing_radii(initial_radius, final_radius)
+    v0 = _positive("punch_speed", punch_speed)
+    rate = drawing_mean_strain_rate(R0, Rf, half_angle, v0)
+    s0 = float(flow_stress(K, m, rate))
+    k = s0 / SQRT3 if shear_yield is None else _positive("shear_yield", shear_yield)
+    die = drawing_upper_bound(s0, R0, Rf, half_angle, mbar_die, land_length)
+    container = extrusion_container_friction(k, container_length, R0, mbar_container)
+    return {"sigma0": s0, "strain_rate": rate, "shear_yield": k,
+            "exit_speed": v0 * (R0 / Rf) ** 2, "reduction": 1.0 - (Rf / R0) ** 2,
+            "extrusion_ratio": (R0 / Rf) ** 2, "ideal": drawing_ideal_stress(s0, R0, Rf),
+            "avitzur": die, "container": container, "upper": die + container}

@@ -74,6 +74,36 @@ def load_demo(name):
     return _load_file(name, Path(__file__).resolve().parents[1] / "demos" / f"{name}.py")
 
 
+def run_script(path, args=(), nranks=1, timeout=HANG_TIMEOUT):
+    """Run a script as a user does (``python path args``, under ``mpirun -n nranks`` if
+    ``nranks > 1``) in its own process group with the checkout on PYTHONPATH; kill the group
+    and fail if it hangs. Returns ``(exit code, stdout + stderr)``."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import pytest
+
+    root = str(Path(__file__).resolve().parents[1])
+    env = dict(os.environ, PYTHONPATH=root + os.pathsep + os.environ.get("PYTHONPATH", ""),
+               OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OPENBLAS_NUM_THREADS="1")
+    cmd = [sys.executable, str(path), *map(str, args)]
+    if nranks > 1:
+        cmd = ["mpirun", "-n", str(nranks), "--oversubscribe"] + cmd
+    p = subprocess.Popen(cmd, env=env, cwd=root, stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        out, _ = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.communicate()
+        pytest.fail(f"{path} on {nranks} rank(s) hangs (killed after {timeout} s)")
+    return p.returncode, out
+
+
 def load_tool_meshes():
     """Import the tool-mesh script ``meshes/tool_meshes.py`` as a module."""
     from pathlib import Path

@@ -26,7 +26,7 @@ from fxcontact.checkpoint import CheckpointError, latest_checkpoint, list_checkp
 from fxcontact.io import HistoryWriter, SeriesWriter, read_pvd
 from fxcontact.simulation import IncrementError, OutputError
 
-from helpers import HANG_TIMEOUT, box_mesh, shared_tmpdir
+from helpers import HANG_TIMEOUT, box_mesh, run_script, shared_tmpdir
 
 ROOT = Path(__file__).resolve().parents[1]
 COMM = MPI.COMM_WORLD
@@ -630,27 +630,10 @@ SUBPROCESS_CASES = [
 def _run_driver(case, nranks, timeout=HANG_TIMEOUT):
     """Run the driver under ``mpirun -n nranks`` in its own process group; kill the group and
     fail if it hangs."""
-    import signal
-    import subprocess
-    import sys
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
-               OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OPENBLAS_NUM_THREADS="1")
     import tempfile
     out = tempfile.mkdtemp(prefix="fxc_bad_setup_")
-    cmd = [sys.executable, str(DRIVER), case, out]
-    if nranks > 1:
-        cmd = ["mpirun", "-n", str(nranks), "--oversubscribe"] + cmd
-    p = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, start_new_session=True)
-    try:
-        _, err = p.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(p.pid, signal.SIGKILL)
-        p.communicate()
-        pytest.fail(f"{case} on {nranks} rank(s) hangs (killed after {timeout} s)")
-    assert p.returncode == 0, f"{case} on {nranks} rank(s): exit code {p.returncode}\n" \
-                              f"{err[-3000:]}"
+    rc, text = run_script(DRIVER, [case, out], nranks, timeout)
+    assert rc == 0, f"{case} on {nranks} rank(s): exit code {rc}\n{text[-3000:]}"
     files = sorted(Path(out).glob("rank*.txt"))
     results = [f.read_text() for f in files]
     shutil.rmtree(out, ignore_errors=True)

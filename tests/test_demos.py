@@ -1,4 +1,9 @@
-"""Demos run at small size (serial and on 2 ranks) and give physically sensible results."""
+"""Demos run at small size (serial and on 2 ranks) and give physically sensible results.
+
+The process demos (drawing, extrusion) are run as a user runs them, as scripts in a
+subprocess (serially and under ``mpirun -n 2``), at a reduced size: the physics is tested on
+``fxcontact.processes`` by the process tests, here only that the story runs and writes its
+pictures."""
 
 import os
 
@@ -6,7 +11,9 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from helpers import load_demo, run_demo, shared_tmpdir
+from helpers import load_demo, run_demo, run_script, shared_tmpdir
+
+DEMOS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "demos")
 
 @pytest.fixture
 def outdir():
@@ -69,3 +76,29 @@ def test_process_demo_runs_as_a_script(name, nranks, tmp_path):
     for line in lines:
         assert line in p.stdout, p.stdout
     assert os.path.getsize(tmp_path / rows) > 0
+
+
+def _process_demo(name, args, pictures, words, tmp_path):
+    for n in (1, 2):
+        out = tmp_path / f"ranks{n}"
+        rc, text = run_script(os.path.join(DEMOS, name), [*args, "--output-dir", out, "--quiet"],
+                              nranks=n)
+        assert rc == 0, text[-3000:]
+        for w in words:
+            assert w in text, (w, text[-3000:])
+        for pic in pictures:
+            assert os.path.getsize(out / pic) > 10_000, pic
+
+
+@pytest.mark.serial   # each script is its own 1- and 2-rank job
+def test_wire_drawing_demo(tmp_path):
+    _process_demo("demo_wire_drawing.py", ["--quick", "--t_end", "0.01"],
+                  ["wire_drawing_strain.png", "wire_drawing_contact.png"],
+                  ["drawing stress", "Avitzur"], tmp_path)
+
+
+@pytest.mark.serial
+def test_extrusion_demo(tmp_path):
+    _process_demo("demo_extrusion.py", ["--quick", "--t_end", "0.05"],
+                  ["extrusion_flow.png", "extrusion_pressure.png"],
+                  ["punch pressure", "Avitzur"], tmp_path)

@@ -257,3 +257,36 @@ def test_drawing_optimal_angle_and_theory_band():
     assert th["strain_rate"] == pytest.approx(rate, rel=1e-14)
     assert th["sigma0"] == pytest.approx(flow_stress(445.0, 0.016, rate), rel=1e-14)
     assert th["ideal"] < th["avitzur"] and th["sachs"] == pytest.approx(th["ideal"])
+
+
+def test_extrusion_theory():
+    """Extrusion: the die terms are drawing's at the punch speed (p A₀ v₀ = σ_d A_f v_f), the
+    container friction is the Tresca stress m̄ k on the wall 2π R₀ L_c over the punch area, and
+    k defaults to σ₀/√3; bad friction and lengths are refused."""
+    from fxcontact.forming import (drawing_ideal_stress, drawing_mean_strain_rate,
+                                   drawing_upper_bound, extrusion_container_friction,
+                                   extrusion_theory)
+    a = math.radians(20.0)
+    th = extrusion_theory(40.0, 0.1, 10.0, 6.0, a, 10.0, mbar_die=0.1, mbar_container=0.3,
+                          container_length=12.0, land_length=1.0)
+    rate = drawing_mean_strain_rate(10.0, 6.0, a, 10.0)
+    s0 = float(flow_stress(40.0, 0.1, rate))
+    assert th["sigma0"] == pytest.approx(s0, rel=1e-14)
+    assert th["ideal"] == pytest.approx(s0 * math.log(10.0 ** 2 / 6.0 ** 2), rel=1e-14)
+    assert th["ideal"] == drawing_ideal_stress(s0, 10.0, 6.0)
+    assert th["avitzur"] == drawing_upper_bound(s0, 10.0, 6.0, a, 0.1, 1.0)
+    k = s0 / math.sqrt(3.0)
+    force = 0.3 * k * 2.0 * math.pi * 10.0 * 12.0
+    assert th["container"] == pytest.approx(force / (math.pi * 10.0 ** 2), rel=1e-14)
+    assert th["upper"] == th["avitzur"] + th["container"]
+    assert th["extrusion_ratio"] == pytest.approx(1.0 / (1.0 - th["reduction"]))
+    given = extrusion_theory(40.0, 0.1, 10.0, 6.0, a, 10.0, mbar_container=0.3,
+                             container_length=12.0, shear_yield=20.0)
+    assert given["container"] == pytest.approx(2 * 0.3 * 20.0 * 12.0 / 10.0, rel=1e-14)
+    assert extrusion_container_friction(20.0, 0.0, 10.0, 1.0) == 0.0
+    with pytest.raises(ValueError, match="mbar"):
+        extrusion_container_friction(20.0, 1.0, 10.0, 1.5)
+    with pytest.raises(ValueError, match="container_length"):
+        extrusion_container_friction(20.0, -1.0, 10.0, 0.3)
+    with pytest.raises(ValueError, match="final_radius"):
+        extrusion_theory(40.0, 0.1, 6.0, 10.0, a, 10.0)

@@ -1,7 +1,7 @@
 """The condensed iterative solver (``linear_solver="condensed-amg"``: MINI bubble condensed cell
 by cell, FGMRES + Schur field split, GAMG on the velocity block with rigid-body modes) on the
 process cases of the solver issue, at test size: Norton–Hoff upsetting with m = 0.015 and
-m = 0.3, the Hertz sphere with a contact penalty β = 10⁴, and the wire-drawing demo. Each
+m = 0.3, the Hertz sphere with a contact penalty β = 10⁴, and the wire drawing (fxcontact.processes). Each
 converges at every increment and gives the direct solver's (MUMPS on the MINI system) answer
 to the Newton tolerance; the Krylov iterations per Newton iteration are printed. (Their growth
 with the size, 80k → 1M dofs, is measured in benchmarks/README.md: too large for the suite.)"""
@@ -20,15 +20,14 @@ SOLVERS = ("mumps", "condensed-amg")
 
 
 def _wire_drawing(solvers):
-    import demo_wire_drawing as demo
-    return {s: demo.run(**{**demo.QUICK, "output_dir": None, "pictures": False,
-                           "t_end": 4 * demo.QUICK["dt"], "stop_at_steady": False,
-                           "linear_solver": s, "max_cutbacks": 0})
-            for s in solvers}
+    from fxcontact.processes import DrawingCase, run_drawing
+    case = DrawingCase.quick(t_end=4 * DrawingCase.QUICK["dt"], stop_at_steady=False,
+                             max_cutbacks=0)
+    return {s: run_drawing(case.replace(linear_solver=s), pictures=False) for s in solvers}
 
 
 def _check_wire_drawing(res, solver):
-    ref, it = res["mumps"]["history"], res[solver]["history"]
+    ref, it = res["mumps"].history, res[solver].history
     assert len(it) == len(ref) == 4
     assert all(r["cutbacks"] == 0 for r in it)
     for a, b in zip(it, ref):

@@ -54,3 +54,40 @@ def test_readme_example_runs():
     expected = sigma0 * sim.volume() / h  # quarter billet, mesh volume (faceted lateral face)
     assert force == pytest.approx(expected, rel=0.02)
     assert 0.0 <= hist[-1]["contact_penetration_true"] < 1e-2 * 4.0
+
+
+def process_examples():
+    """The python code blocks of the section "Forming processes": drawing, extrusion."""
+    text = README.read_text(encoding="utf-8")
+    section = text.split("## Forming processes", 1)[1].split("\n## ", 1)[0]
+    return re.findall(r"```python\n(.*?)```", section, re.S)
+
+
+def test_process_examples_are_short_and_use_the_process_library():
+    blocks = process_examples()
+    assert len(blocks) == 2
+    for code in blocks:
+        assert len(code.strip().splitlines()) <= 40
+        assert code.startswith("from fxcontact.processes import ")
+
+
+@pytest.mark.parametrize("which,shrink", [
+    (0, (("R0=10.0, R1=7.5", "R0=5.0, R1=3.75"), ("h=1.9", "h=1.5"), ("land=2.0", "land=1.0"),
+         ("t_end=0.1", "t_end=0.01, length=18.0, facet=1.0, fillet=1.0, relief_length=0.5"))),
+    (1, (("R0=10.0, R1=6.0, length=30.0", "R0=5.0, R1=3.5, length=14.0"), ("h=1.5", "h=1.0"),
+         ("t_end=1.0", "t_end=0.05, land=0.5, fillet=0.5, entry_fillet=0.5, relief_length=0.5"))),
+], ids=["drawing", "extrusion"])
+def test_process_example_runs(which, shrink):
+    """Each example as written, at the tests' reduced size (the replaced strings must be there
+    once), with its outputs in a temporary directory."""
+    code = process_examples()[which]
+    outdir = shared_tmpdir("fxc-readme-process-")
+    for old, new in shrink + (('output_dir="results/', f'output_dir="{outdir}/'),):
+        assert code.count(old) == 1, f"README example changed: {old!r} not found once"
+        code = code.replace(old, new)
+    ns = {"__name__": "readme_process_example"}
+    exec(compile(code, "README.md", "exec"), ns)
+    res = ns["res"]
+    assert res.status == "completed", res.message
+    assert res.increments == round(ns["case"].t_end / ns["case"].dt)
+    assert abs(res.power_balance_penalty) < 1e-6

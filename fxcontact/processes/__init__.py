@@ -4,20 +4,34 @@ returns the ready :class:`fxcontact.Simulation` with its handles, and ``run(case
 result (steady values over the detected steady window, the theory band, power balance,
 pictures, ``report()``).
 
+* :mod:`fxcontact.processes.drawing` — wire drawing through a die: :class:`DrawingCase`,
+  :func:`build_drawing`, :func:`run_drawing`;
+* :mod:`fxcontact.processes.extrusion` — forward extrusion: :class:`ExtrusionCase`,
+  :func:`build_extrusion`, :func:`run_extrusion`;
 * :mod:`fxcontact.processes.flat_rolling` — flat rolling of a strip (one quarter);
 * :mod:`fxcontact.processes.bar_rolling` — three-roll rolling of a round bar (a third or the
   whole bar);
-* :mod:`fxcontact.processes.monitor` — the run-until-steady loop and its stop rules, shared by
-  the processes.
+* shared pieces: :mod:`fxcontact.processes.monitor` (the run-until-steady loop and its stop
+  rules), :mod:`fxcontact.processes.common` (gathers, power balance, sections and curves),
+  :mod:`fxcontact.processes.die` (the bar's nose, the die and its faceted sectors).
 """
 
 from fxcontact.processes import bar_rolling, flat_rolling
 from fxcontact.processes.bar_rolling import BarRollingCase, BarRollingResult, BarRollingSetup
+from fxcontact.processes.drawing import DrawingCase, DrawingResult, DrawingSetup
+from fxcontact.processes.drawing import build as build_drawing
+from fxcontact.processes.drawing import run as run_drawing
+from fxcontact.processes.extrusion import ExtrusionCase, ExtrusionResult, ExtrusionSetup
+from fxcontact.processes.extrusion import build as build_extrusion
+from fxcontact.processes.extrusion import run as run_extrusion
 from fxcontact.processes.flat_rolling import FlatRollingCase, FlatRollingResult, FlatRollingSetup
 from fxcontact.processes.monitor import (STATUSES, RunNumerics, SteadyMonitor, SteadyRun,
                                          StopRules, window_increments)
 
 __all__ = ["bar_rolling", "flat_rolling",
            "BarRollingCase", "BarRollingResult", "BarRollingSetup",
+           "DrawingCase", "DrawingResult", "DrawingSetup", "build_drawing", "run_drawing",
+           "ExtrusionCase", "ExtrusionResult", "ExtrusionSetup", "build_extrusion",
+           "run_extrusion",
            "FlatRollingCase", "FlatRollingResult", "FlatRollingSetup",
            "STATUSES", "RunNumerics", "SteadyMonitor", "SteadyRun", "StopRules", "window_increments"]

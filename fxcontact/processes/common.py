@@ -1,0 +1,390 @@
+"""Pieces shared by the forming processes: nodal gathers, the numerics columns of a history
+row and their summary, steady values over a window, the power balance of an increment, a
+meridian (symmetry-face) section of cell fields, curve and section pictures, the CSV of the
+rows.
+
+Every function that communicates is collective (call it on every rank); the pictures are drawn
+on rank 0 only (matplotlib, no VTK).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Callable, Dict, Optional, Sequence
+
+import numpy as np
+from mpi4py import MPI
+
+import dolfinx.mesh
+
+from fxcontact import compat
+from fxcontact.power import PlasticDissipation, PressurePower, on_configuration, penalty_power
+from fxcontact.simulation import IncrementError, wall_split
+from fxcontact.steady import steady_window
+
+__all__ = ["CaseBase", "script_main", "gather", "contact_nodes_on", "contact_force_on_body", "numerics_columns", "run_summary", "steady_values", "run_increments",
+           "ProcessResult", "PowerBalance", "meridian_section", "vertex_field", "plot_sections",
+           "plot_curves", "write_rows"]
+
+
+class CaseBase:
+    """What the process cases (frozen dataclasses) share: :meth:`quick` (the reduced size of
+    the tests, the class's ``QUICK`` fields), :meth:`replace` and the checks of their common
+    fields, each a ``ValueError`` naming the field."""
+
+    QUICK: Dict[str, object] = {}
+
+    @classmethod
+    def quick(cls, **changes):
+        """The reduced case of the tests (``QUICK``), with ``changes``."""
+        return cls(**{**cls.QUICK, **changes})
+
+    def replace(self, **changes):
+        """A copy with ``changes`` (checked)."""
+        return dataclasses.replace(self, **changes)
+
+    def check_positive(self, names):
+        """ValueError naming the first of the fields ``names`` that is not a finite number
+        > 0."""
+        for key in names:
+            v = getattr(self, key)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{key} must be a finite number > 0, got {v!r}")
+
+    def check_bar_and_die(self, alpha_max: float):
+        """R1 < R0, the die semi-angle alpha in (0, alpha_max) degrees, the nose ratio in
+        (0, 1), the Norton–Hoff m in (0, 1]."""
+        if not self.R1 < self.R0:
+            raise ValueError(f"R1 ({self.R1}) must be smaller than R0 ({self.R0})")
+        if not 0 < self.alpha < alpha_max:
+            raise ValueError(f"alpha (die semi-angle, degrees) must be in (0, {alpha_max:g}), "
+                             f"got {self.alpha}")
+        if not 0 < self.nose_ratio < 1:
+            raise ValueError(f"nose_ratio must be in (0, 1), got {self.nose_ratio}")
+        if not 0 < self.m <= 1:
+            raise ValueError(f"m must be in (0, 1], got {self.m}")
+
+
+def script_main(parser, case_type, run, default=None, argv=None, output_dir="results"):
+    """The command line of a process script: ``parser`` with the script's own options (each
+    named after a field of ``case_type``) gets ``--quick`` (the case's :meth:`quick`),
+    ``--vtk_every``, ``--no-pictures``, ``--output-dir`` and ``--verbose``/``--quiet``; the
+    case is ``default`` (or the quick one) with the fields given; ``run(case, ...)`` is run and
+    its ``report()`` printed on rank 0. Returns the result."""
+    from fxcontact.console import add_verbosity_arguments, configure_logging
+
+    parser.add_argument("--quick", action="store_true", help="the reduced size of the tests")
+    parser.add_argument("--vtk_every", type=int, default=0)
+    parser.add_argument("--no-pictures", dest="pictures", action="store_false")
+    parser.add_argument("--output-dir", dest="output_dir", default=output_dir)
+    add_verbosity_arguments(parser)
+    a = parser.parse_args(argv)
+    configure_logging(verbose=a.verbose, quiet=a.quiet)
+    changes = {k: v for k, v in vars(a).items()
+               if k in case_type.__dataclass_fields__ and v is not None}
+    base = case_type.quick() if a.quick else (default or case_type())
+    res = run(base.replace(**changes), output_dir=a.output_dir, pictures=a.pictures,
+              vtk_every=a.vtk_every)
+    if MPI.COMM_WORLD.rank == 0:
+        print(res.report())
+    return res
+
+
+def gather(comm, arr) -> np.ndarray:
+    """The ranks' arrays concatenated, on every rank (rank order)."""
+    parts = comm.allgather(np.asarray(arr))
+    return np.concatenate(parts) if parts else np.asarray(arr)
+
+
+def contact_nodes_on(contact, facets) -> np.ndarray:
+    """Mask of the contact's nodes that are vertices of ``facets`` (local facet indices)."""
+    msh = contact.boundary.mesh
+    verts = dolfinx.mesh.compute_incident_entities(msh, np.asarray(facets, np.int32),
+                                             msh.topology.dim - 1, 0)
+    return np.isin(contact.boundary.vertices, verts)
+
+
+def contact_force_on_body(contact, mask) -> np.ndarray:
+    """Force (gdim,) of the contact (pressure and friction) on the body at the contact nodes of
+    ``mask`` (:func:`contact_nodes_on`), at its last evaluation, summed over ranks.
+
+    A face driven by a velocity condition whose vertices are also contact nodes (the punched
+    face's rim, which slides on the container) takes these forces too: the reaction of
+    :meth:`~fxcontact.Simulation.add_reaction` sums the internal forces at the face's velocity
+    dofs only, so the force that drives the face is the reaction *minus* this force."""
+    r = contact._r + contact._rf                      # on the tool, per node
+    local = np.sum(r[mask], axis=0) if np.any(mask) else np.zeros(r.shape[1])
+    return -contact.boundary.comm.allreduce(local, op=MPI.SUM)
+
+
+def numerics_columns(r: dict) -> Dict[str, float]:
+    """The numerics of an increment from a :class:`~fxcontact.Simulation` history row: Newton
+    iterations (all attempts, and of the converged one with its Krylov iterations), cut-backs,
+    wall time split, volume change, smallest element quality, symmetry violation."""
+    return dict(newton_iterations=r["newton_iterations_all"], cutbacks=r["cutbacks"],
+                linear_iterations=r["linear_iterations"],
+                newton_iterations_converged=r["newton_iterations"],
+                wall=r["wall_increment_all"], wall_assembly=r["wall_assembly"],
+                wall_linear_solve=r["wall_linear_solve"], wall_contact=r["wall_contact"],
+                volume_change=r["volume_change"], min_quality=r["min_quality"],
+                symmetry_violation=r.get("symmetry_violation", 0.0))
+
+
+def run_summary(rows: Sequence[dict]) -> dict:
+    """Over the rows (with :func:`numerics_columns`): largest |volume change|, smallest
+    quality, Newton mean and max, cut-backs, wall split."""
+    return dict(max_volume_change=max(abs(q["volume_change"]) for q in rows),
+                min_quality=min(q["min_quality"] for q in rows),
+                newton_mean=float(np.mean([q["newton_iterations"] for q in rows])),
+                newton_max=int(max(q["newton_iterations"] for q in rows)),
+                cutbacks=int(sum(q["cutbacks"] for q in rows)),
+                wall_split=wall_split(rows))
+
+
+def run_increments(sim, dt: float, t_end: float, max_cutbacks: int, row: Callable,
+                   steady_keys: Sequence[str], window: int, tol: float,
+                   settled: Callable[[float], bool], stop_at_steady: bool = False,
+                   progress: Optional[Callable[[dict], None]] = None):
+    """Step ``sim`` to ``t_end`` by ``dt``; after each increment ``row(history_row)`` makes the
+    process's row (collective) and ``progress(row)`` may log it. Once ``settled(t)``, the run
+    is steady when the means of ``steady_keys`` over the last ``window`` increments and the
+    window before agree within ``tol`` (:func:`fxcontact.steady.steady_window`); with
+    ``stop_at_steady`` it stops there. An :class:`~fxcontact.IncrementError` ends the run
+    (status "failed", its message kept).
+
+    Returns ``(rows, status, message, steady)``, ``steady = (first, last)`` row indices of the
+    steady window or None."""
+    rows, steady = [], None
+    status, message = "completed", ""
+    while sim.t < t_end - 1e-9 * dt:
+        try:
+            res = sim.step(min(dt, t_end - sim.t), max_cutbacks=int(max_cutbacks))
+        except IncrementError as err:   # MeshInversionError included
+            status, message = "failed", str(err)
+            break
+        rows.append(row(res.row))
+        if progress is not None:
+            progress(rows[-1])
+        if steady is None and settled(sim.t):
+            first = steady_window(rows, steady_keys, window, tol)
+            if first is not None:
+                steady = (first, len(rows) - 1)
+                if stop_at_steady:
+                    break
+    return rows, status, message, steady
+
+
+@dataclass
+class ProcessResult:
+    """What every process run returns: status, the history (one dict per increment), the
+    theory band, the size of the model and the numerics over the run; the steady window (row
+    indices and times) and the power balance over it (else at the last increment); the
+    outputs' paths. Each process adds its steady values."""
+
+    status: str = "completed"
+    message: str = ""
+    history: list = field(default_factory=list)
+    theory: dict = field(default_factory=dict)
+    dofs: int = 0
+    h: float = math.nan
+    wall: float = math.nan
+    time: float = 0.0
+    ranks: int = 1
+    increments: int = 0
+    max_volume_change: float = math.nan
+    min_quality: float = math.nan
+    newton_mean: float = math.nan
+    newton_max: int = 0
+    cutbacks: int = 0
+    wall_split: dict = field(default_factory=dict)
+    steady_from: Optional[int] = None
+    steady_to: Optional[int] = None
+    steady_time: Optional[tuple] = None
+    power_balance: Optional[float] = None
+    #: the same with the penalty work: the discrete virtual-power identity (≈ round-off)
+    power_balance_penalty: Optional[float] = None
+    pictures: list = field(default_factory=list)
+    csv: Optional[str] = None
+    vtk: Optional[str] = None
+
+    def numerics_lines(self) -> list:
+        """The report's lines on the power balance and the numerics."""
+        from fxcontact.simulation import format_wall_split
+
+        return [f"power balance P_in / (D + P_f) - 1 = {100 * self.power_balance:.2f} % "
+                f"(with the penalty work {self.power_balance_penalty:.1e})",
+                f"Newton its mean {self.newton_mean:.1f} max {self.newton_max}, cut-backs "
+                f"{self.cutbacks}; wall {self.wall:.0f} s: "
+                f"{format_wall_split(self.wall_split)}",
+                f"max |dV/V| {self.max_volume_change:.2e}; min element quality "
+                f"{self.min_quality:.3f}"]
+
+
+def finish_run(comm, sim, res, output_dir, name, pictures, vtk_every, draw):
+    """End a process run: with ``output_dir`` the rows of ``res.history`` as
+    ``{name}_diagnostics.csv``, the pictures (``draw()`` returns their paths) and the VTK series'
+    path; close the simulation. Returns ``res``."""
+    if output_dir and res.history:
+        res.csv = write_rows(comm, os.path.join(output_dir, f"{name}_diagnostics.csv"),
+                             res.history)
+        if pictures:
+            res.pictures = draw()
+        if vtk_every:
+            res.vtk = os.path.join(output_dir, f"{name}.pvd")
+    sim.close()
+    return res
+
+
+def steady_values(rows: Sequence[dict], first: int, last: int, keys: Sequence[str]) -> dict:
+    """Means of ``keys`` over the rows ``first..last`` (the steady window), the half
+    peak-to-peak oscillation of each relative to its mean (``{key}_oscillation``), and the
+    window itself (``steady_from``, ``steady_to``, ``steady_time``)."""
+    sel = rows[first:last + 1]
+    out = dict(steady_from=first, steady_to=last,
+               steady_time=(rows[first]["time"], rows[last]["time"]))
+    for key in keys:
+        vals = [q[key] for q in sel]
+        mean = float(np.mean(vals))
+        out[key] = mean
+        out[f"{key}_oscillation"] = float(np.ptp(vals) / (2.0 * abs(mean))) if mean else 0.0
+    return out
+
+
+class PowerBalance:
+    """The power balance of a forming increment (THEORY §14.5): the power the tools and the
+    prescribed velocities put in against the plastic dissipation ∫ s:D dV (less the pressure
+    power of the volume correction, THEORY §1.5), the friction power of the ``contacts`` and,
+    apart, their penalty work. Collective; call after each increment (``sim.step``).
+
+    The dissipation is taken on the configuration the increment was solved on (the start of
+    the increment, ``X − dt v``), like the history's forces."""
+
+    def __init__(self, sim, contacts):
+        self.sim = sim
+        self.contacts = list(contacts)
+        self._dissipation = PlasticDissipation(sim)
+        self._pressure = PressurePower(sim)
+
+    def __call__(self, row: dict, power_in: float, losses: float = 0.0) -> Dict[str, float]:
+        """``row``: the increment's history row; ``power_in``: the power of the tools and
+        prescribed velocities on the body; ``losses``: other dissipated power (a damper).
+        Returns ``dissipation``, ``friction_power``, ``penalty_power``, ``power_in``,
+        ``power_balance`` = P_in/(D + P_f + losses) − 1 and ``power_balance_penalty`` (the
+        same with the penalty work in the denominator)."""
+        sim = self.sim
+        X = sim.vertex_positions()
+        v = sim.w.x.array[sim.space.vertex_dofs]
+        X0 = X - row["dt"] * v
+        D = on_configuration(sim, X0, self._dissipation)
+        D -= on_configuration(sim, X0, self._pressure)
+        Pf = sum(row.get(f"{c.name}_friction_power", 0.0) for c in self.contacts)
+        Pp = sum(penalty_power(c, v, sim.t) for c in self.contacts)
+        out = D + Pf + losses
+        return dict(dissipation=D, friction_power=Pf, penalty_power=Pp, power_in=power_in,
+                    power_balance=power_in / out - 1.0 if out > 0 else math.nan,
+                    power_balance_penalty=power_in / (out + Pp) - 1.0 if out > 0 else math.nan)
+
+
+def vertex_field(sim, values) -> np.ndarray:
+    """Per-vertex ``values`` (local vertices, e.g. ``sim.w.x.array[sim.space.vertex_dofs]``)
+    as an array over the mesh's geometry nodes, for :func:`meridian_section`."""
+    out = np.zeros((sim.mesh.geometry.x.shape[0],) + np.shape(values)[1:])
+    out[sim.space.vertex_geometry] = values
+    return out
+
+
+def meridian_section(comm, sim, facet_tags, tag, fields) -> tuple:
+    """The triangles of a symmetry face through the axis (z): the (z, r) coordinates of their
+    vertices, (N, 3, 2), and per triangle the value of each of ``fields``: a cell function
+    (the cell behind the triangle) or an array over the geometry nodes
+    (:func:`vertex_field`, averaged over the triangle's vertices); gathered on every rank."""
+    msh = sim.mesh
+    facets = facet_tags.indices[facet_tags.values == tag]
+    msh.topology.create_connectivity(2, 3)
+    f2c = msh.topology.connectivity(2, 3)
+    tri = compat.entities_to_geometry(msh, 2, facets)
+    x = msh.geometry.x
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int64)
+    zr = np.stack([x[tri][..., 2], np.hypot(x[tri][..., 0], x[tri][..., 1])], -1)
+    vals = [f[tri].mean(axis=1) if isinstance(f, np.ndarray) else f.x.array[cells]
+            for f in fields]
+    return gather(comm, zr.reshape(-1, 3, 2)), [gather(comm, v) for v in vals]
+
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def plot_sections(path, zr, panels, outline=None, title="", r_max=None, dpi=120,
+                  xlabel="z [mm]"):
+    """Meridian sections (rank 0): one panel per ``(values, label, colormap)`` or ``(values,
+    label, colormap, (vmin, vmax))`` of the triangles ``zr`` of :func:`meridian_section`, each
+    with the ``outline`` curve ``(s, r, label)`` (a tool's profile), equal axes, the figure
+    sized to the section; saved to ``path``."""
+    plt = _pyplot()
+    from matplotlib.collections import PolyCollection
+
+    z0, z1 = zr[..., 0].min() - 1, zr[..., 0].max() + 1
+    r1 = r_max or 1.1 * zr[..., 1].max()
+    width = 11.0
+    height = len(panels) * (0.8 + 0.8 * width * r1 / (z1 - z0)) + 0.6
+    fig, axs = plt.subplots(len(panels), 1, figsize=(width, height), sharex=True,
+                            squeeze=False)
+    axs = axs[:, 0]
+    for ax, (val, lab, cmap, *lim) in zip(axs, panels):
+        pc = PolyCollection(zr, array=val, cmap=cmap, edgecolors="face", linewidths=0.2)
+        if lim:
+            pc.set_clim(*lim[0])
+        ax.add_collection(pc)
+        fig.colorbar(pc, ax=ax, label=lab, fraction=0.05, pad=0.01)
+        if outline is not None:
+            ax.plot(outline[0], outline[1], "k-", lw=1.5, label=outline[2])
+            ax.legend(loc="upper left", fontsize=8)
+        ax.set_ylim(0, r1)
+        ax.set_aspect("equal")
+        ax.set_ylabel("r [mm]")
+    axs[0].set_xlim(z0, z1)
+    axs[-1].set_xlabel(xlabel)
+    axs[0].set_title(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
+def plot_curves(ax, t, curves, bands=(), window=None, ylabel="", ylim=None):
+    """One axis of history curves: ``curves`` ``[(values, style, label)]`` against ``t``,
+    horizontal ``bands`` ``[(value, style, label)]`` (theory), the steady ``window``
+    ``(t0, t1)`` shaded."""
+    for vals, style, label in curves:
+        ax.plot(t, vals, style, label=label)
+    for val, style, label in bands:
+        ax.axhline(val, color="k", ls=style, label=label)
+    if window is not None:
+        ax.axvspan(window[0], window[1], color="y", alpha=0.3, label="steady window")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel(ylabel)
+    if ylim is not None:
+        ax.set_ylim(*ylim)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.grid(alpha=0.3)
+
+
+def write_rows(comm, path: Optional[str], rows: Sequence[dict]) -> Optional[str]:
+    """The rows as a CSV file (rank 0 writes; the directory is created)."""
+    if not path or not rows:
+        return None
+    if comm.rank == 0:
+        os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
+        with open(path, "w", newline="") as fh:
+            wr = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            wr.writeheader()
+            wr.writerows(rows)
+    return path

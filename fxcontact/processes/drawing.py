@@ -1,0 +1,402 @@
+"""Wire (bar) drawing through a conical die (THEORY §12.2, §14.2): the case, the set-up and the
+run to steady state.
+
+A round bar (one sector about its axis, symmetry planes at θ = 0 and θ = ``sector``, the second
+one inclined and imposed exactly) with a pointed nose already through the die is pulled at its
+front face along +z; the back face is free (no back tension). The die is the analytic surface
+of revolution :class:`fxcontact.RevolvedProfile` (entry cone, fillet, bearing land, exit
+relief), or its sector triangulated and projected on flat facets or Nagata patches. Nodal
+penalty contact on the lateral surface, optional Tresca or Coulomb friction.
+
+Measured per increment: the drawing force (reaction on the pulled face) and stress F/A₁, the
+true penetration against the exact die, contact nodes, the power balance, Newton iterations,
+wall time, volume change and element quality. Steady state: after ``settle`` mm of pull, the
+mean drawing force over the last ``window`` mm of pull and over the window before agree within
+``steady_tol`` (:func:`fxcontact.steady.steady_window`). The steady drawing stress is compared
+with the band of :func:`fxcontact.forming.drawing_theory` (ideal work, Sachs, Avitzur).
+
+Example::
+
+    from fxcontact.processes import DrawingCase, run_drawing
+    res = run_drawing(DrawingCase.quick(alpha=15.0))
+    print(res.report())
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import os
+import time
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+from mpi4py import MPI
+
+from fxcontact import forming
+from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.friction import Coulomb, Tresca
+from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
+from fxcontact.meshing import DRAWING_BAR_TAGS
+from fxcontact.processes.common import (CaseBase, PowerBalance, ProcessResult, contact_force_on_body,
+                                        contact_nodes_on, gather, meridian_section, numerics_columns, plot_curves,
+                                        plot_sections, run_increments, run_summary,
+                                        steady_values, finish_run)
+from fxcontact.processes.die import (DIE_MESHES, DIES, bar_simulation, die_profile_tool, die_radius, die_tool,
+                                     nose_layout, true_penetration)
+from fxcontact.simulation import Simulation
+from fxcontact.solver import SolverOptions
+
+__all__ = ["DrawingCase", "DrawingSetup", "DrawingResult", "build", "run"]
+
+log = logging.getLogger("fxcontact.processes.drawing")
+
+
+@dataclass(frozen=True)
+class DrawingCase(CaseBase):
+    """A wire-drawing case: lengths mm, stresses MPa, times s, angles degrees.
+
+    The defaults are the thesis's case (Annex A2.1: R₀ 10 → 7.5 mm, L = 38 mm, one third,
+    Norton–Hoff K = 445 MPa·s^m, m = 0.016 without the thesis's elastic part, frictionless,
+    100 mm/s) with our die (10° cone, 2 mm fillet, 2 mm land, 20° relief 1 mm long).
+    :meth:`quick` is the reduced size of the tests. Bad values raise ``ValueError`` naming the
+    field."""
+
+    # geometry: bar and die
+    R0: float = 10.0                 #: bar radius
+    R1: float = 7.5                  #: die exit (bearing) radius
+    length: float = 38.0             #: bar length (back face to the nose's front face)
+    sector: float = 120.0            #: modelled sector about the axis (degrees)
+    alpha: float = 10.0              #: die cone semi-angle (degrees, < 45)
+    land: float = 2.0                #: bearing land length
+    fillet: float = 2.0              #: cone–land fillet radius (0: sharp)
+    relief_angle: float = 20.0       #: exit relief semi-angle (0: no relief)
+    relief_length: float = 1.0       #: exit relief axial length
+    nose_ratio: float = 0.96         #: nose radius over R1
+    # material (Norton–Hoff)
+    K: float = 445.0
+    m: float = 0.016
+    # friction on the die: Coulomb mu (limited by Tresca mbar, default 1) or Tresca mbar
+    mu: float = 0.0
+    mbar: float = 0.0
+    # kinematics
+    speed: float = 100.0             #: pulling speed of the front face
+    dt: float = 2.5e-3
+    t_end: float = 0.37
+    # numerics
+    h: float = 0.75                  #: bar element size (divided by size)
+    facet: float = 0.5               #: faceted die's facet size (divided by size)
+    size: float = 1.0
+    die: str = "exact"               #: "exact", "flat" or "nagata"
+    die_mesh: str = "gmsh"           #: faceted die: "gmsh" (unstructured) or "structured"
+    scheme: str = "implicit"
+    penalty: str = "gap"             #: "gap": k = rho(beta)/penalty_dt; "velocity": beta
+    beta: float = 100.0
+    penalty_dt: Optional[float] = None
+    max_it: int = 60
+    line_search: str = "bt"
+    penalty_continuation: Optional[float] = None
+    active_set_prediction: object = "auto"
+    material_tangent: str = "auto"
+    linear_solver: str = "auto"
+    max_cutbacks: int = 4
+    # steady state: two windows of `window` mm of pull agree within steady_tol, after `settle`
+    # mm (default one element)
+    window: float = 3.0
+    steady_tol: float = 0.02
+    settle: Optional[float] = None
+    stop_at_steady: bool = False
+
+    #: the reduced size of the tests: R₀ 5 → 3.75 mm (same reduction), h = 1.5 mm, a short bar,
+    #: 5 ms increments, stop at steady state
+    QUICK = dict(R0=5.0, R1=3.75, length=18.0, h=1.5, facet=1.0, dt=5e-3, t_end=0.1, land=1.0,
+                 fillet=1.0, relief_length=0.5, window=1.5, steady_tol=0.02,
+                 stop_at_steady=True)
+
+    def __post_init__(self):
+        self.check_positive(("R0", "R1", "length", "K", "speed", "alpha", "land", "h", "facet",
+                             "size", "dt", "t_end", "window", "steady_tol", "sector"))
+        self.check_bar_and_die(alpha_max=45.0)
+        if self.die not in DIES:
+            raise ValueError(f"die must be one of {DIES}, got {self.die!r}")
+        if self.die_mesh not in DIE_MESHES:
+            raise ValueError(f"die_mesh must be 'structured' or 'gmsh', got {self.die_mesh!r}")
+        if self.scheme not in SCHEMES:
+            raise ValueError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
+        if self.scheme == "implicit-exact" and self.die == "flat":
+            raise ValueError("implicit-exact needs the gap Hessian: die 'exact' or 'nagata'")
+        if self.penalty not in ("gap", "velocity"):
+            raise ValueError(f"penalty must be 'gap' or 'velocity', got {self.penalty!r}")
+        if not (self.beta > 0 and (self.penalty_dt is None or self.penalty_dt > 0)):
+            raise ValueError(f"need beta > 0 and penalty_dt > 0 (or None), got {self.beta}, "
+                             f"{self.penalty_dt}")
+        if self.mu < 0 or not 0 <= self.mbar <= 1:
+            raise ValueError(f"need mu >= 0 and 0 <= mbar <= 1, got {self.mu}, {self.mbar}")
+        self.layout()       # the bar must hold the nose
+
+    def layout(self):
+        """The nose and die placement (:class:`~fxcontact.processes.die.NoseLayout`)."""
+        return nose_layout(self.R0, self.R1, self.alpha, self.land, self.fillet,
+                           self.relief_angle, self.relief_length, self.nose_ratio,
+                           self.h / self.size, self.facet / self.size, self.length, self.sector)
+
+    def friction_references(self):
+        """(μ, m̄) of the references: Sachs needs a Coulomb μ, Avitzur a Tresca m̄; the other
+        one is converted with the pressure p ≈ σ₀ in the die (τ = μp = m̄σ₀/√3, an
+        approximation): Coulomb μ gives m̄ = min(m̄_cap, √3 μ), Tresca m̄ gives μ = m̄/√3."""
+        if self.mu > 0:
+            return self.mu, min(self.mbar or 1.0, math.sqrt(3) * self.mu)
+        return self.mbar / math.sqrt(3), self.mbar
+
+    def theory(self) -> dict:
+        """The band of THEORY §14.2 (:func:`fxcontact.forming.drawing_theory`) with the
+        reference friction (``mu_ref``, ``mbar_ref``)."""
+        mu_ref, mbar_ref = self.friction_references()
+        th = forming.drawing_theory(self.K, self.m, self.R0, self.R1, math.radians(self.alpha),
+                                    self.speed, mu=mu_ref, mbar=mbar_ref,
+                                    land_length=self.land)
+        th.update(mu_ref=mu_ref, mbar_ref=mbar_ref)
+        return th
+
+    def friction_law(self):
+        """The die's friction law (None: frictionless)."""
+        if self.mu > 0:
+            return Coulomb(self.mu, mbar=self.mbar or 1.0)
+        if self.mbar > 0:
+            return Tresca(self.mbar)
+        return None
+
+    def solver_options(self) -> SolverOptions:
+        return SolverOptions(max_it=int(self.max_it), line_search=self.line_search,
+                             active_set_prediction=self.active_set_prediction,
+                             material_tangent=self.material_tangent,
+                             penalty_continuation=self.penalty_continuation,
+                             linear_solver=self.linear_solver)
+
+
+@dataclass
+class DrawingSetup:
+    """A ready drawing :class:`~fxcontact.Simulation` and its handles."""
+
+    case: DrawingCase
+    sim: Simulation
+    contact: NodalContact
+    exact_die: object            #: the analytic die (the true penetration is measured on it)
+    die: object                  #: the die used (the exact one or a faceted sector)
+    facet_sag: float
+    facet_tags: object
+    layout: object
+    theory: dict
+    dofs: int
+
+
+def build(case: DrawingCase, comm=None, output_dir: Optional[str] = None,
+          vtk_every: int = 0, name: str = "wire_drawing") -> DrawingSetup:
+    """Mesh the bar, make the die, the contact and the :class:`~fxcontact.Simulation` (not
+    run): symmetry planes ``sym0``/``sym1``, the pulled front face (reaction ``pull``), the
+    contact ``contact`` on the lateral surface. The VTK series is written every ``vtk_every``
+    increments into ``output_dir`` (0: none)."""
+    comm = comm or MPI.COMM_WORLD
+    g = case.layout()
+    theory = case.theory()
+    sim, ft, f, mat = bar_simulation(case, g, comm, theory["strain_rate"],
+                                     case.solver_options(), "front", "pull", output_dir,
+                                     vtk_every, name)
+    space = sim.space
+    exact = die_profile_tool(g, case.R1, case.alpha, case.land, case.fillet,
+                             case.relief_length)
+    die, sag = die_tool(exact, case.die, case.die_mesh, case.sector, g.facet, g.h, case.R0,
+                        case.R1, case.fillet, comm)
+    if case.penalty == "gap":
+        # a stiffness on the end-of-increment gap, k = ρ(β)/dt_ref: the penalty penetration
+        # p/k does not depend on dt (the thesis's implicit penetration does not change with
+        # 4 dt); ρ(β) = β η(ε̄̇_mean)/h (THEORY §2.5) at the die's mean strain rate
+        rho = penalty_from_beta(mat, float(case.beta), g.h, strain_rate=theory["strain_rate"])
+        kw = {"gap_stiffness": rho / float(case.penalty_dt or case.dt)}
+    else:
+        kw = {"beta": float(case.beta)}
+    contact = NodalContact(ContactBoundary(space, ft, DRAWING_BAR_TAGS["lateral"]), die,
+                           scheme=case.scheme, friction=case.friction_law(), name="contact",
+                           **kw)
+    sim.add_contributor(contact)
+    dofs = space.W.dofmap.index_map.size_global * space.W.dofmap.index_map_bs
+    return DrawingSetup(case, sim, contact, exact, die, sag, ft, g, theory, dofs)
+
+
+@dataclass
+class DrawingResult(ProcessResult):
+    """The outcome of :func:`run` (:class:`~fxcontact.processes.common.ProcessResult`) and the
+    drawing's own values; the steady ones are None without a steady state."""
+
+    case: Optional[DrawingCase] = None
+    facet: float = math.nan
+    facet_sag: float = 0.0
+    A1: float = math.nan
+    max_penetration: float = math.nan       #: true, against the exact die, over the run
+    max_penetration_tool: float = math.nan  #: against the die used
+    contact_nodes_01: int = -1              #: at t = 0.1 s (or the last increment before)
+    time_01: float = math.nan
+    steady_stress: Optional[float] = None   #: σ_d = F/A₁ over the steady window
+    steady_force: Optional[float] = None
+    steady_oscillation: Optional[float] = None
+    ratio_ideal: Optional[float] = None
+    ratio_avitzur: Optional[float] = None
+
+    def report(self) -> str:
+        """A summary for the console."""
+        c, th = self.case, self.theory
+        lines = [
+            f"wire drawing R0 {c.R0:g} -> {c.R1:g} mm (reduction {100 * th['reduction']:.2f} "
+            f"%), alpha {c.alpha:g} deg, land {c.land:g} mm, die {c.die}, scheme {c.scheme}, "
+            f"mu {c.mu:g}, mbar {c.mbar:g}; h {self.h:.3g} mm, facets {self.facet:.3g} mm, "
+            f"{self.dofs} dofs, {self.ranks} rank(s)",
+            f"status: {self.status} {self.message}; {self.increments} increments of "
+            f"{c.dt:g} s to t = {self.time:.4g} s",
+            f"theory (THEORY 14.2): sigma0 = {th['sigma0']:.1f} MPa at the die's mean strain "
+            f"rate {th['strain_rate']:.3f} 1/s; ideal {th['ideal']:.1f}, Sachs "
+            f"{th['sachs']:.1f}, Avitzur {th['avitzur']:.1f} MPa (1.1 x Avitzur "
+            f"{1.1 * th['avitzur']:.1f})"
+            + (f"; friction of the references mu {th['mu_ref']:.3g} (Sachs), mbar "
+               f"{th['mbar_ref']:.3g} (Avitzur), converted with p = sigma0"
+               if th["mu_ref"] > 0 else "")]
+        if self.steady_stress is not None:
+            t0, t1 = self.steady_time
+            lines.append(f"steady drawing stress F/A1 = {self.steady_stress:.1f} MPa (t "
+                         f"{t0:.3f}-{t1:.3f} s): / ideal {self.ratio_ideal:.3f}, / Avitzur "
+                         f"{self.ratio_avitzur:.3f}; force on the sector "
+                         f"{self.steady_force:.0f} N, oscillation "
+                         f"+-{100 * self.steady_oscillation:.1f} %")
+        else:
+            last = self.history[-1]["drawing_stress"] if self.history else float("nan")
+            lines.append(f"no steady state detected; last drawing stress {last:.1f} MPa")
+        if self.history:
+            lines += [
+                f"max true penetration (exact die) {self.max_penetration:.3g} mm, against the "
+                f"die used {self.max_penetration_tool:.3g} mm (facet sag "
+                f"{self.facet_sag:.2g}); contact nodes at t = {self.time_01:.3g} s: "
+                f"{self.contact_nodes_01}"] + self.numerics_lines()
+        if self.pictures:
+            lines.append("pictures: " + ", ".join(self.pictures))
+        return "\n".join(lines)
+
+
+def run(case: DrawingCase, comm=None, output_dir: Optional[str] = None, pictures: bool = True,
+        vtk_every: int = 0) -> DrawingResult:
+    """Draw the bar to ``case.t_end`` (or to steady state with ``case.stop_at_steady``).
+    With ``output_dir``: ``wire_drawing_diagnostics.csv``, the pictures
+    (``wire_drawing_strain.png``, ``wire_drawing_contact.png``) and, with ``vtk_every``, the
+    VTK series ``wire_drawing.pvd``."""
+    comm = comm or MPI.COMM_WORLD
+    s = build(case, comm, output_dir, vtk_every)
+    sim, contact, g = s.sim, s.contact, s.layout
+    balance = PowerBalance(sim, [contact])
+    win = max(3, int(math.ceil(case.window / (case.speed * case.dt) - 1e-9)))
+    settle = case.settle if case.settle is not None else g.h
+
+    front = contact_nodes_on(contact, sim.facets(s.facet_tags, DRAWING_BAR_TAGS["front"]))
+
+    def row(r):
+        # the pull: the front face's reaction, less the die's force on the face's rim (nil
+        # while the nose does not touch the die)
+        Fz = r["pull_z"] - contact_force_on_body(contact, front)[2]
+        return dict(
+            increment=r["increment"], time=r["time"], dt=r["dt"], drawing_force=Fz,
+            drawing_stress=Fz / g.A1,
+            penetration_true=true_penetration(comm, s.exact_die, contact, sim),
+            penetration_tool=r["contact_penetration_true"], contact_nodes=r["contact_nodes"],
+            **numerics_columns(r), **balance(r, Fz * case.speed))
+
+    def progress(q):
+        if comm.rank == 0:   # progress of a long run
+            log.info("wire drawing: t = %.4g / %.4g s, F/A1 = %.1f MPa, %d Newton its, %.1f s",
+                     q["time"], case.t_end, q["drawing_stress"], q["newton_iterations"],
+                     q["wall"])
+
+    wall0 = time.perf_counter()
+    # steady state: two consecutive windows of `window` mm of pull with the same mean force
+    # (each window spans element passages: the nodal force oscillates with them)
+    rows, status, message, steady = run_increments(
+        sim, case.dt, case.t_end, case.max_cutbacks, row, ("drawing_force",), win,
+        case.steady_tol, lambda t: case.speed * t >= settle, case.stop_at_steady, progress)
+    out = DrawingResult(case=case, status=status, message=message, history=rows,
+                        theory=s.theory, dofs=s.dofs, h=g.h, facet=g.facet,
+                        facet_sag=s.facet_sag, A1=g.A1, wall=time.perf_counter() - wall0,
+                        time=sim.t, ranks=comm.size, increments=len(rows))
+    if rows:
+        before = [q for q in rows if q["time"] <= 0.1 + 1e-9] or rows
+        out = dataclasses.replace(
+            out, max_penetration=max(q["penetration_true"] for q in rows),
+            max_penetration_tool=max(q["penetration_tool"] for q in rows),
+            contact_nodes_01=before[-1]["contact_nodes"], time_01=before[-1]["time"],
+            power_balance=rows[-1]["power_balance"],
+            power_balance_penalty=rows[-1]["power_balance_penalty"], **run_summary(rows))
+    if steady is not None:
+        st = steady_values(rows, *steady,
+                           ("drawing_stress", "power_balance", "power_balance_penalty"))
+        sd = st["drawing_stress"]
+        out = dataclasses.replace(
+            out, steady_from=st["steady_from"], steady_to=st["steady_to"],
+            steady_time=st["steady_time"], steady_stress=sd, steady_force=sd * g.A1,
+            ratio_ideal=sd / s.theory["ideal"], ratio_avitzur=sd / s.theory["avitzur"],
+            steady_oscillation=st["drawing_stress_oscillation"],
+            power_balance=st["power_balance"],
+            power_balance_penalty=st["power_balance_penalty"])
+    return finish_run(comm, sim, out, output_dir, "wire_drawing", pictures, vtk_every,
+                      lambda: _pictures(comm, s, out, output_dir))
+
+
+def _pictures(comm, s: DrawingSetup, res: DrawingResult, out: str):
+    """The strain and strain rate on the θ = 0 section; the contact zone and the drawing
+    stress against the band (rank 0 draws; every rank returns the paths)."""
+    sim, contact, exact = s.sim, s.contact, s.exact_die
+    zr, (eps, rate) = meridian_section(comm, sim, s.facet_tags,
+                                       DRAWING_BAR_TAGS["symmetry_0"],
+                                       (sim.strain, sim.strain_rate))
+    X = gather(comm, sim.vertex_positions()[contact.boundary.vertices])
+    p = gather(comm, contact.pressures())
+    f1 = os.path.join(out, "wire_drawing_strain.png")
+    f2 = os.path.join(out, "wire_drawing_contact.png")
+    if comm.rank != 0:
+        return [f1, f2]
+    c, th = res.case, res.theory
+    sz = np.linspace(zr[..., 0].min() - 2, zr[..., 0].max() + 2, 800)
+    sd = res.steady_stress if res.steady_stress is not None else float("nan")
+    plot_sections(f1, zr, [(eps, "equivalent strain", "viridis"),
+                           (rate, "equivalent strain rate [1/s]", "magma")],
+                  outline=(sz, die_radius(exact, sz), "die (exact profile)"),
+                  r_max=1.25 * c.R0, xlabel="z [mm] (drawing direction →)",
+                  title=f"Drawing R₀ {c.R0:g} → {c.R1:g} mm, α = {c.alpha:g}°, t = "
+                        f"{res.time:.3f} s, die {c.die}, {c.scheme}: θ = 0 section; σ_d = "
+                        f"{sd:.0f} MPa (ideal {th['ideal']:.0f}, Avitzur {th['avitzur']:.0f})")
+    import matplotlib.pyplot as plt
+    fig, axs = plt.subplots(1, 2, figsize=(12, 4.2))
+    act = p > 0
+    th_deg = np.degrees(np.arctan2(X[:, 1], X[:, 0]))
+    axs[0].scatter(X[~act, 2], th_deg[~act], s=3, c="0.8", label="lateral nodes")
+    sc = axs[0].scatter(X[act, 2], th_deg[act], s=14, c=p[act], cmap="plasma",
+                        label="contact nodes")
+    fig.colorbar(sc, ax=axs[0], label="contact pressure [MPa]")
+    for zz in exact.points[:, 0]:
+        axs[0].axvline(zz, color="k", lw=0.5, ls=":")
+    lo = max(X[act, 2].min() - 3 * res.h, X[:, 2].min()) if np.any(act) else X[:, 2].min()
+    hi = min(X[act, 2].max() + 3 * res.h, X[:, 2].max()) if np.any(act) else X[:, 2].max()
+    axs[0].set_xlim(lo, hi)
+    axs[0].set_xlabel("z [mm] (dotted: die profile points)")
+    axs[0].set_ylabel("θ [deg]")
+    axs[0].set_title(f"contact zone at t = {res.time:.3f} s ({int(np.sum(act))} nodes)",
+                     fontsize=9)
+    hist = res.history
+    bands = [(th["ideal"], "--", f"ideal {th['ideal']:.0f} MPa"),
+             (th["avitzur"], "-.", f"avitzur {th['avitzur']:.0f} MPa")]
+    if th["mu_ref"] > 0:
+        bands.append((th["sachs"], ":", f"Sachs {th['sachs']:.0f} MPa"))
+    plot_curves(axs[1], [q["time"] for q in hist],
+                [([q["drawing_stress"] for q in hist], "b.-", "FE σ_d = F/A₁")], bands,
+                window=res.steady_time, ylabel="drawing stress [MPa]",
+                ylim=(0, 1.3 * th["avitzur"]))
+    fig.tight_layout()
+    fig.savefig(f2, dpi=110)
+    plt.close(fig)
+    return [f1, f2]

@@ -1,0 +1,420 @@
+"""Forward extrusion through a conical die (THEORY §14.2): the case, the set-up and the run.
+
+A billet of radius R₀ in a container is pushed by a punch (a velocity condition on its back
+face, reaction ``punch``) through a conical die to the radius R₁; one sector about the axis is
+modelled, with symmetry planes like the drawing. The billet is meshed with a nose already
+through the die (:func:`fxcontact.processes.die.nose_layout`: the die's entry is at the
+container's radius; the corner where the container meets the cone is rounded by an arc of
+radius ``entry_fillet``). Tresca friction on the die and on the container.
+
+**Tools** (``container``): ``"separate"`` (default) — the container is its own tool, a
+:class:`~fxcontact.RevolvedProfile` of one straight line at R₀ (an infinite bore), and the die
+another (its entry face perpendicular to the axis at the container's end, the entry fillet, the
+cone, the fillet, the land and the exit relief), two tools of one
+:class:`~fxcontact.NodalContact`, each with its own friction law; the container's force is then a history column of its own. ``"profile"``
+— one profile: the container's segment followed by the die's (one tool, one friction law: the
+two friction factors must then be equal). How a node chooses among the tools of one contact
+(``NodalContact._project_all``): every node is projected on every tool and keeps the tool with
+the **smallest signed gap** (the deepest penetration, or the nearest surface), the first tool on
+a tie; its friction law is that tool's. For a container and a die this is the exact distance
+to the union of the two bodies (where they meet, the corner is concave seen from the billet and
+the two gaps meet on its bisector), the same as one profile: both give the same iterates and
+converge alike (``benchmarks/bench_extrusion.py``, ``tests/test_extrusion.py``). Two tools that
+coincide over a stretch (a die continued backwards along the container's radius) would leave
+the choice there to round-off: the die here starts with its entry face, so the container is
+strictly the nearer tool upstream.
+
+**Which k the Tresca friction uses.** τ = m̄ k with k = K (√3 ε̄̇)^m taken at each contact
+node from its own strain rate (averaged over the adjacent cells, with the material's
+regularisation) — on the container wall the billet moves rigidly, so k there is far below the
+k = σ₀/√3 of the die's mean strain rate that the theory uses. ``container_shear_limit`` gives
+the container's law a fixed k (``Tresca(m̄, shear_limit=k)``): the container force must then
+equal 2 m̄ k L_c/R₀ times the punch area (the check of the tests). The die's law always takes
+the local k.
+
+Measured per increment: punch force and pressure F/A₀, the container's axial force and its
+theory, the die pressure (punch minus container), penetration, contact nodes, the power
+balance, Newton iterations, volume change and element quality. Steady state on the die
+pressure (the container's share falls as the billet shortens).
+
+Example::
+
+    from fxcontact.processes import ExtrusionCase, run_extrusion
+    res = run_extrusion(ExtrusionCase.quick(alpha=30.0))
+    print(res.report())
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import os
+import time
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+from mpi4py import MPI
+
+from fxcontact import forming
+from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.friction import Tresca
+from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
+from fxcontact.meshing import DRAWING_BAR_TAGS
+from fxcontact.processes.common import (CaseBase, PowerBalance, ProcessResult,
+                                        contact_force_on_body, contact_nodes_on,
+                                        meridian_section, numerics_columns, plot_curves,
+                                        plot_sections, run_increments, run_summary,
+                                        steady_values, vertex_field, finish_run)
+from fxcontact.processes.die import bar_simulation, die_profile_tool, die_radius, nose_layout
+from fxcontact.simulation import Simulation
+from fxcontact.solver import SolverOptions
+from fxcontact.tools.revolved import RevolvedProfile
+
+__all__ = ["ExtrusionCase", "ExtrusionSetup", "ExtrusionResult", "CONTAINERS", "build", "run"]
+
+log = logging.getLogger("fxcontact.processes.extrusion")
+
+#: the container as a tool of its own, or the first segment of the die's profile
+CONTAINERS = ("separate", "profile")
+
+
+@dataclass(frozen=True)
+class ExtrusionCase(CaseBase):
+    """A forward-extrusion case: lengths mm, stresses MPa, times s, angles degrees.
+
+    Defaults: a hot aluminium billet R₀ 10 → 6 mm (64 % reduction, extrusion ratio 2.8)
+    through a 20° die, Norton–Hoff K = 40 MPa·s^m, m = 0.1 (σ₀ ≈ 80 MPa at the die's rate),
+    punch at 10 mm/s, Tresca m̄ 0.1 on the die and 0.3 on the container, one quarter.
+    :meth:`quick` is the reduced size of the tests. Bad values raise ``ValueError`` naming the
+    field."""
+
+    # geometry: billet, container, die
+    R0: float = 10.0                 #: billet and container radius
+    R1: float = 6.0                  #: die exit (bearing) radius
+    length: float = 30.0             #: billet length (back face to the nose's front face)
+    sector: float = 90.0             #: modelled sector about the axis (degrees)
+    alpha: float = 20.0              #: die cone semi-angle (degrees, < 90)
+    land: float = 1.0                #: bearing land length
+    fillet: float = 1.0              #: cone–land fillet radius (0: sharp)
+    relief_angle: float = 20.0       #: exit relief semi-angle (0: no relief)
+    relief_length: float = 1.0
+    nose_ratio: float = 0.96         #: nose radius over R1
+    entry_fillet: float = 1.0        #: radius rounding the container–die corner (0: sharp)
+    container: str = "separate"      #: "separate" tools or one "profile"
+    # material (Norton–Hoff)
+    K: float = 40.0
+    m: float = 0.1
+    # friction (Tresca); the container's k: None = local nodal strain rate, or a given k
+    mbar_die: float = 0.1
+    mbar_container: float = 0.3
+    container_shear_limit: Optional[float] = None
+    # kinematics
+    speed: float = 10.0              #: punch speed
+    dt: float = 0.025
+    t_end: float = 1.0
+    # numerics
+    h: float = 1.0
+    scheme: str = "implicit"
+    beta: float = 100.0              #: gap stiffness k = rho(beta)/dt (as the drawing)
+    max_it: int = 60
+    max_cutbacks: int = 4
+    # steady state of the die pressure: two windows of `window` mm of punch travel agree within
+    # steady_tol, after `settle` mm (default 2 elements)
+    window: float = 1.5
+    steady_tol: float = 0.02
+    settle: Optional[float] = None
+    stop_at_steady: bool = False
+
+    #: the reduced size of the tests: R₀ 5 → 3.5 mm, h = 1 mm, a short billet
+    QUICK = dict(R0=5.0, R1=3.5, length=14.0, h=1.0, land=0.5, fillet=0.5, relief_length=0.5,
+                 entry_fillet=0.5, t_end=0.6, window=1.0, stop_at_steady=True)
+
+    def __post_init__(self):
+        self.check_positive(("R0", "R1", "length", "K", "speed", "alpha", "land", "h", "dt",
+                             "t_end", "window", "steady_tol", "sector", "beta"))
+        self.check_bar_and_die(alpha_max=90.0)
+        if not (math.isfinite(self.entry_fillet) and self.entry_fillet >= 0):
+            raise ValueError(f"entry_fillet must be finite and >= 0, got {self.entry_fillet}")
+        for key in ("mbar_die", "mbar_container"):
+            if not 0 <= getattr(self, key) <= 1:
+                raise ValueError(f"{key} must be in [0, 1], got {getattr(self, key)}")
+        if self.container_shear_limit is not None:
+            self.check_positive(("container_shear_limit",))
+        if self.container not in CONTAINERS:
+            raise ValueError(f"container must be one of {CONTAINERS}, got {self.container!r}")
+        if self.container == "profile" and (self.mbar_die != self.mbar_container
+                                            or self.container_shear_limit is not None):
+            raise ValueError("container 'profile' is one tool with one friction law: give "
+                             "mbar_die == mbar_container and no container_shear_limit, or "
+                             "container='separate'")
+        if self.scheme not in SCHEMES:
+            raise ValueError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
+        self.die_profile()      # the billet must hold the nose, the cone the fillets
+
+    def layout(self):
+        """The nose and die placement (:class:`~fxcontact.processes.die.NoseLayout`); the
+        die's entry at the container's radius R₀."""
+        return nose_layout(self.R0, self.R1, self.alpha, self.land, self.fillet,
+                           self.relief_angle, self.relief_length, self.nose_ratio, self.h, self.h,
+                           self.length, self.sector, entry_radius=self.R0)
+
+    def die_profile(self):
+        """``(points, arcs)`` of the die's meridian profile (:func:`fxcontact.die_profile`
+        placed by :meth:`layout`), its sharp entry corner at (s₀, R₀) rounded by an arc of
+        radius ``entry_fillet`` tangent to the container's line and to the cone (the die's
+        profile then starts parallel to the container)."""
+        g = self.layout()
+        die = die_profile_tool(g, self.R1, self.alpha, self.land, self.fillet,
+                               self.relief_length)
+        pts = np.asarray(die.points, float)
+        arcs = list(die.arcs or [None] * (len(pts) - 1))
+        if self.entry_fillet > 0:
+            a = math.radians(self.alpha)
+            t = self.entry_fillet * math.tan(0.5 * a)       # tangent length
+            if t >= np.hypot(*(pts[1] - pts[0])):
+                raise ValueError(f"entry_fillet {self.entry_fillet} is too large for the die's "
+                                 f"cone: give a smaller entry_fillet")
+            start = [pts[0, 0] - t, self.R0]
+            end = [pts[0, 0] + t * math.cos(a), self.R0 - t * math.sin(a)]
+            pts = np.vstack([start, end, pts[1:]])
+            arcs = [-self.entry_fillet] + arcs              # clockwise: towards the axis
+        return pts, arcs
+
+    def theory(self, container_length: float = 0.0) -> dict:
+        """:func:`fxcontact.forming.extrusion_theory` for ``container_length`` L_c of billet
+        in the container (k of the container's friction: ``container_shear_limit`` if given,
+        else σ₀/√3 at the die's mean rate)."""
+        return forming.extrusion_theory(self.K, self.m, self.R0, self.R1,
+                                        math.radians(self.alpha), self.speed, self.mbar_die,
+                                        self.mbar_container, container_length, self.land,
+                                        shear_yield=self.container_shear_limit)
+
+
+@dataclass
+class ExtrusionSetup:
+    """A ready extrusion :class:`~fxcontact.Simulation` and its handles."""
+
+    case: ExtrusionCase
+    sim: Simulation
+    contact: NodalContact
+    tools: list                  #: [container, die] or [profile]
+    profile: RevolvedProfile     #: container + die as one profile (the outline, pictures)
+    corner: float                #: axial position where the container ends (the die begins)
+    punch_nodes: np.ndarray      #: mask of the contact nodes on the punched face (its rim)
+    facet_tags: object
+    layout: object
+    dofs: int
+
+
+def _profile(case, g, name="die") -> RevolvedProfile:
+    """The container (a line at R₀ from behind the billet) and the die as one profile."""
+    pts, arcs = case.die_profile()
+    return RevolvedProfile(np.vstack([[g.s0 - case.length - 2.0 * case.h, case.R0], pts]),
+                           [None] + arcs, inside=True, name=name)
+
+
+def build(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
+          vtk_every: int = 0, name: str = "extrusion") -> ExtrusionSetup:
+    """Mesh the billet, make the tools, the contact and the :class:`~fxcontact.Simulation`
+    (not run): symmetry planes ``sym0``/``sym1``, the punch (velocity of the back face,
+    reaction ``punch``), the contact ``contact`` on the lateral surface."""
+    comm = comm or MPI.COMM_WORLD
+    g = case.layout()
+    th = case.theory()
+    sim, ft, f, mat = bar_simulation(case, g, comm, th["strain_rate"],
+                                     SolverOptions(max_it=int(case.max_it)), "back", "punch",
+                                     output_dir, vtk_every, name)
+    space = sim.space
+    profile = _profile(case, g)
+    if case.container == "separate":
+        container = RevolvedProfile(profile.points[:2], inside=True, name="container")
+        # the die's own profile starts with its entry face, perpendicular to the axis at the
+        # container's end: upstream of it the container is strictly the nearer tool (no tie
+        # between the container and a die extended backwards along R₀)
+        pts, arcs = case.die_profile()
+        die = RevolvedProfile(np.vstack([[pts[0, 0], 1.5 * case.R0], pts]), [None] + arcs,
+                              inside=True, name="die")
+        tools = [container, die]
+        friction = {"container": Tresca(case.mbar_container, case.container_shear_limit),
+                    "die": Tresca(case.mbar_die)}
+    else:
+        tools = [profile]
+        friction = Tresca(case.mbar_die)
+    friction = friction if case.mbar_die > 0 or case.mbar_container > 0 else None
+    # the drawing's penalty: a gap stiffness k = ρ(β)/dt at the die's mean strain rate
+    rho = penalty_from_beta(mat, float(case.beta), g.h, strain_rate=th["strain_rate"])
+    contact = NodalContact(ContactBoundary(space, ft, DRAWING_BAR_TAGS["lateral"]), tools,
+                           scheme=case.scheme, friction=friction, name="contact",
+                           gap_stiffness=rho / case.dt)
+    sim.add_contributor(contact)
+    dofs = space.W.dofmap.index_map.size_global * space.W.dofmap.index_map_bs
+    return ExtrusionSetup(case, sim, contact, tools, profile, float(profile.points[1, 0]),
+                          contact_nodes_on(contact, f["back"]), ft, g, dofs)
+
+
+@dataclass
+class ExtrusionResult(ProcessResult):
+    """The outcome of :func:`run` (:class:`~fxcontact.processes.common.ProcessResult`) and
+    the extrusion's own values, over the steady window (None without one). ``theory`` is
+    :meth:`ExtrusionCase.theory` at the window's mean container length."""
+
+    case: Optional[ExtrusionCase] = None
+    A0: float = math.nan
+    max_penetration: float = math.nan
+    punch_pressure: Optional[float] = None     #: F/A₀
+    die_pressure: Optional[float] = None       #: (F − container force)/A₀
+    container_length: Optional[float] = None   #: L_c
+    container_ratio: Optional[float] = None    #: container force / 2 m̄ k L_c A₀/R₀
+    steady_oscillation: Optional[float] = None
+
+    def report(self) -> str:
+        """A summary for the console."""
+        c, th = self.case, self.theory
+        k_c = ("given k = %.4g MPa" % c.container_shear_limit if c.container_shear_limit
+               else "k from the local nodal strain rate")
+        lines = [
+            f"forward extrusion R0 {c.R0:g} -> {c.R1:g} mm (reduction "
+            f"{100 * th['reduction']:.1f} %, ratio {th['extrusion_ratio']:.2f}), alpha "
+            f"{c.alpha:g} deg, mbar die {c.mbar_die:g} / container {c.mbar_container:g} "
+            f"({k_c}), tools {c.container}; h {self.h:.3g} mm, {self.dofs} dofs, "
+            f"{self.ranks} rank(s)",
+            f"status: {self.status} {self.message}; {self.increments} increments of {c.dt:g} s "
+            f"to t = {self.time:.4g} s ({c.speed * self.time:.3g} mm of punch travel)",
+            f"theory (THEORY 14.2): sigma0 = {th['sigma0']:.1f} MPa at the die's mean strain "
+            f"rate {th['strain_rate']:.3f} 1/s; ideal {th['ideal']:.1f}, Avitzur (die) "
+            f"{th['avitzur']:.1f}, container 2 mbar k Lc/R0 {th['container']:.1f} MPa "
+            f"(Lc {self.container_length or 0.0:.3g} mm, k {th['shear_yield']:.1f}); upper "
+            f"{th['upper']:.1f} (1.1 x {1.1 * th['upper']:.1f})"]
+        if self.punch_pressure is not None:
+            lines.append(
+                f"steady punch pressure {self.punch_pressure:.1f} MPa: / ideal "
+                f"{self.punch_pressure / th['ideal']:.3f}, / upper "
+                f"{self.punch_pressure / th['upper']:.3f}; die pressure {self.die_pressure:.1f}"
+                f" MPa (/ Avitzur {self.die_pressure / th['avitzur']:.3f}), oscillation "
+                f"+-{100 * self.steady_oscillation:.1f} %"
+                + (f"; container force / theory {self.container_ratio:.3f}"
+                   if self.container_ratio is not None else ""))
+        else:
+            last = self.history[-1]["punch_pressure"] if self.history else float("nan")
+            lines.append(f"no steady state detected; last punch pressure {last:.1f} MPa")
+        if self.history:
+            lines.append(f"max penetration {self.max_penetration:.3g} mm")
+            lines += self.numerics_lines()
+        if self.pictures:
+            lines.append("pictures: " + ", ".join(self.pictures))
+        return "\n".join(lines)
+
+
+def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
+        pictures: bool = True, vtk_every: int = 0) -> ExtrusionResult:
+    """Extrude to ``case.t_end`` (or to steady state with ``case.stop_at_steady``). With
+    ``output_dir``: ``extrusion_diagnostics.csv``, the pictures (``extrusion_flow.png``: the
+    axial velocity and the strain rate on the θ = 0 section, the dead-metal zone;
+    ``extrusion_pressure.png``) and, with ``vtk_every``, the VTK series ``extrusion.pvd``."""
+    comm = comm or MPI.COMM_WORLD
+    s = build(case, comm, output_dir, vtk_every)
+    sim, contact, g = s.sim, s.contact, s.layout
+    balance = PowerBalance(sim, [contact])
+    k_c = case.theory()["shear_yield"]
+    separate = case.container == "separate"
+
+    def row(r):
+        # the punch's force: the back face's reaction, less the container's friction on the
+        # face's rim (its nodes are driven by the punch and slide on the container)
+        F = r["punch_z"] - contact_force_on_body(contact, s.punch_nodes)[2]
+        Lc = max(s.corner - case.speed * r["time"], 0.0)
+        Fc = r["container_force_z"] if separate else math.nan
+        Fc_th = case.mbar_container * k_c * math.radians(case.sector) * case.R0 * Lc
+        return dict(
+            increment=r["increment"], time=r["time"], dt=r["dt"], punch_force=F,
+            punch_pressure=F / g.A0, container_length=Lc, container_force=Fc,
+            container_force_theory=Fc_th,
+            die_pressure=(F - Fc) / g.A0 if separate else F / g.A0,
+            penetration=r["contact_penetration_true"], contact_nodes=r["contact_nodes"],
+            **numerics_columns(r), **balance(r, F * case.speed))
+
+    def progress(q):
+        if comm.rank == 0:
+            log.info("extrusion: t = %.4g / %.4g s, p = %.1f MPa, %d Newton its, %.1f s",
+                     q["time"], case.t_end, q["punch_pressure"], q["newton_iterations"],
+                     q["wall"])
+
+    win = max(3, int(math.ceil(case.window / (case.speed * case.dt) - 1e-9)))
+    settle = case.settle if case.settle is not None else 2.0 * g.h
+    wall0 = time.perf_counter()
+    rows, status, message, steady = run_increments(
+        sim, case.dt, case.t_end, case.max_cutbacks, row, ("die_pressure",), win,
+        case.steady_tol, lambda t: case.speed * t >= settle, case.stop_at_steady, progress)
+    out = ExtrusionResult(case=case, status=status, message=message, history=rows,
+                          theory=case.theory(), dofs=s.dofs, h=g.h, A0=g.A0,
+                          wall=time.perf_counter() - wall0, time=sim.t, ranks=comm.size,
+                          increments=len(rows))
+    if rows:
+        out = dataclasses.replace(out, max_penetration=max(q["penetration"] for q in rows),
+                                  theory=case.theory(rows[-1]["container_length"]),
+                                  container_length=rows[-1]["container_length"],
+                                  power_balance=rows[-1]["power_balance"],
+                                  power_balance_penalty=rows[-1]["power_balance_penalty"],
+                                  **run_summary(rows))
+    if steady is not None:
+        first, last = steady
+        st = steady_values(rows, first, last, ("punch_pressure", "die_pressure",
+                                               "container_length", "power_balance",
+                                               "power_balance_penalty"))
+        sel = rows[first:last + 1]
+        ratio = None
+        if separate and case.mbar_container > 0:
+            ratio = float(np.mean([q["container_force"] / q["container_force_theory"]
+                                   for q in sel]))
+        out = dataclasses.replace(
+            out, steady_from=first, steady_to=last, steady_time=st["steady_time"],
+            theory=case.theory(st["container_length"]), punch_pressure=st["punch_pressure"],
+            die_pressure=st["die_pressure"], container_length=st["container_length"],
+            container_ratio=ratio, steady_oscillation=st["die_pressure_oscillation"],
+            power_balance=st["power_balance"],
+            power_balance_penalty=st["power_balance_penalty"])
+    return finish_run(comm, sim, out, output_dir, "extrusion", pictures, vtk_every,
+                      lambda: _pictures(comm, s, out, output_dir))
+
+
+def _pictures(comm, s: ExtrusionSetup, res: ExtrusionResult, out: str):
+    """The axial velocity over the punch speed and the equivalent strain rate on the θ = 0
+    section (the dead-metal zone: the still corner between the container and the die); the
+    punch and die pressures against the band (rank 0 draws; every rank returns the paths)."""
+    sim, c = s.sim, res.case
+    vz = vertex_field(sim, sim.w.x.array[sim.space.vertex_dofs][:, 2] / c.speed)
+    zr, (v, rate) = meridian_section(comm, sim, s.facet_tags, DRAWING_BAR_TAGS["symmetry_0"],
+                                     (vz, sim.strain_rate))
+    f1 = os.path.join(out, "extrusion_flow.png")
+    f2 = os.path.join(out, "extrusion_pressure.png")
+    if comm.rank != 0:
+        return [f1, f2]
+    th = res.theory
+    sz = np.linspace(zr[..., 0].min() - 1, zr[..., 0].max() + 1, 800)
+    plot_sections(f1, zr, [(v, "axial velocity / punch speed", "turbo",
+                            (0.0, th["extrusion_ratio"])),
+                           (rate, "equivalent strain rate [1/s]", "magma")],
+                  outline=(sz, die_radius(s.profile, sz), "container and die"),
+                  r_max=1.3 * c.R0, xlabel="z [mm] (extrusion direction →)",
+                  title=f"Extrusion R₀ {c.R0:g} → {c.R1:g} mm, α = {c.alpha:g}°, m̄ die "
+                        f"{c.mbar_die:g} / container {c.mbar_container:g}, t = {res.time:.3g}"
+                        f" s: θ = 0 section; the slow corner between the container and the die: "
+                        f"dead-metal zone")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    hist = res.history
+    t = [q["time"] for q in hist]
+    upper = [c.theory(q["container_length"])["upper"] for q in hist]
+    plot_curves(ax, t, [([q["punch_pressure"] for q in hist], "b.-", "FE punch pressure F/A₀"),
+                        ([q["die_pressure"] for q in hist], "g.-", "FE die pressure"),
+                        (upper, "k-", "Avitzur + container friction (L_c(t))")],
+                [(th["ideal"], "--", f"ideal {th['ideal']:.0f} MPa"),
+                 (th["avitzur"], "-.", f"Avitzur (die) {th['avitzur']:.0f} MPa")],
+                window=res.steady_time, ylabel="pressure [MPa]",
+                ylim=(0, 1.3 * max(upper)))
+    fig.tight_layout()
+    fig.savefig(f2, dpi=110)
+    plt.close(fig)
+    return [f1, f2]

@@ -1,0 +1,100 @@
+"""Forward extrusion (``fxcontact.processes.extrusion``) at the reduced size of
+``ExtrusionCase.quick()``: R₀ 5 → 3.5 mm through a 20° die, h = 1 mm, one quarter, Tresca
+friction on the die and the container.
+
+Checked: the steady punch pressure lies between the ideal work and 1.1 × (Avitzur's die bound
++ the container friction 2 m̄ k L_c/R₀); with k given in the container's law, the container's
+force equals 2 m̄ k L_c/R₀ × A₀ within 3 %; volume, element quality and the power balance; the
+container and the die as two tools of one contact give the answer of one profile; 1 vs 2 ranks.
+Other angles and reductions: ``benchmarks/bench_extrusion.py``."""
+
+import pytest
+from mpi4py import MPI
+
+from fxcontact.processes import ExtrusionCase, run_extrusion
+
+
+@pytest.fixture(scope="module")
+def given_k():
+    """The quick case to steady state with the container's k given: σ₀/√3 at the die's rate."""
+    k = ExtrusionCase.quick().theory()["shear_yield"]
+    res = run_extrusion(ExtrusionCase.quick(container_shear_limit=k), pictures=False)
+    if MPI.COMM_WORLD.rank == 0:
+        print("\n" + res.report())
+    return res
+
+
+@pytest.mark.serial   # a run to steady state; the MPI path: test_one_and_two_ranks_agree
+def test_punch_pressure_in_band(given_k):
+    res = given_k
+    assert res.status == "completed", res.message
+    assert res.punch_pressure is not None, "no steady state"
+    th = res.theory
+    assert th["ideal"] < res.punch_pressure < 1.1 * th["upper"], (res.punch_pressure, th)
+    assert th["ideal"] < res.die_pressure < 1.1 * th["avitzur"]
+    assert res.max_volume_change < 5e-3
+    assert res.min_quality > 0.1
+    # the punch's power = plastic dissipation + friction, to the discretisation error (the
+    # penalty work oscillates as nodes enter the die); with the penalty work, the discrete
+    # virtual-power identity (the punch force includes the friction on the punched face's rim)
+    assert abs(res.power_balance) < 0.05, res.power_balance
+    assert abs(res.power_balance_penalty) < 1e-6, res.power_balance_penalty
+
+
+@pytest.mark.serial
+def test_container_force_with_given_k(given_k):
+    """The billet slides rigidly in the container: with k fixed, its axial force is the
+    Tresca stress m̄ k over the wall still in the container."""
+    assert given_k.container_ratio == pytest.approx(1.0, abs=0.03)
+
+
+def _histories_agree(a, b, keys, rtol=1e-8):
+    assert len(a) == len(b)
+    for qa, qb in zip(a, b):
+        for k in keys:
+            assert abs(qa[k] - qb[k]) <= rtol * abs(qb[k]), (k, qa[k], qb[k])
+        assert qa["contact_nodes"] == qb["contact_nodes"]
+
+
+@pytest.mark.serial
+def test_separate_tools_equal_one_profile():
+    """A container and a die as two tools of one contact: each node takes the tool with the
+    smallest gap, the exact distance to the two bodies — the profile with a kink at the corner
+    gives the same answer, Newton iterations included."""
+    runs = [run_extrusion(ExtrusionCase.quick(container=c, mbar_container=0.1, t_end=0.075,
+                                              stop_at_steady=False), pictures=False)
+            for c in ("separate", "profile")]
+    _histories_agree(runs[0].history, runs[1].history, ("punch_force", "penetration"))
+    assert [q["newton_iterations"] for q in runs[0].history] == \
+        [q["newton_iterations"] for q in runs[1].history]
+
+
+def test_one_and_two_ranks_agree():
+    """Three increments on all ranks and on COMM_SELF agree to 1e-8 (meaningful under
+    ``mpirun -n 2``)."""
+    if MPI.COMM_WORLD.size == 1:
+        pytest.skip("compares the ranks of COMM_WORLD with one rank: run under mpirun -n 2")
+    case = ExtrusionCase.quick(t_end=3 * ExtrusionCase.quick().dt, stop_at_steady=False)
+    a, b = (run_extrusion(case, comm=c, pictures=False).history
+            for c in (MPI.COMM_WORLD, MPI.COMM_SELF))
+    assert len(a) == 3
+    _histories_agree(a, b, ("punch_force", "container_force", "dissipation"))
+    for qa, qb in zip(a, b):
+        assert abs(qa["volume_change"] - qb["volume_change"]) <= 1e-11
+
+
+def test_bad_case():
+    with pytest.raises(ValueError, match="R1"):
+        ExtrusionCase.quick(R1=6.0)
+    with pytest.raises(ValueError, match="alpha"):
+        ExtrusionCase.quick(alpha=90.0)
+    with pytest.raises(ValueError, match="mbar_container"):
+        ExtrusionCase.quick(mbar_container=1.5)
+    with pytest.raises(ValueError, match="one friction law"):
+        ExtrusionCase.quick(container="profile", mbar_container=0.3, mbar_die=0.1)
+    with pytest.raises(ValueError, match="container must be"):
+        ExtrusionCase.quick(container="cylinder")
+    with pytest.raises(ValueError, match="container_shear_limit"):
+        ExtrusionCase.quick(container_shear_limit=-1.0)
+    with pytest.raises(ValueError, match="too short"):
+        ExtrusionCase.quick(length=6.0)
