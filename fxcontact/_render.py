@@ -1,6 +1,7 @@
 """Offscreen pyvista rendering in a clean process (see :func:`fxcontact.io.render_png`).
 
-Usage: ``python -m fxcontact._render spec.json``. Never imports dolfinx.
+Usage: ``python path/to/fxcontact/_render.py spec.json`` (by its path: ``-m`` would import the
+package, and with it dolfinx). Never imports dolfinx.
 """
 
 import json

@@ -240,7 +240,10 @@ def render_png(msh, path: str, cell_values: Optional[np.ndarray] = None,
         for k in list(env):  # the child is not an MPI process
             if k.startswith(("OMPI_COMM", "PMIX_", "OMPI_MCA_ess", "OMPI_MCA_orte")):
                 env.pop(k)
-        r = subprocess.run([sys.executable, "-m", "fxcontact._render", spec], env=env,
+        # the script by its path, not ``-m fxcontact._render``: that would import the package
+        # first, and with it dolfinx
+        script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "_render.py")
+        r = subprocess.run([sys.executable, script, spec], env=env,
                            capture_output=True, text=True, timeout=300)
     if r.returncode != 0 or not os.path.exists(out):
         log.warning("picture %s not written: %s", path, r.stderr[-2000:])
