@@ -7,17 +7,21 @@ pictures, ``report()``).
 * :mod:`fxcontact.processes.flat_rolling` — flat rolling of a strip (one quarter);
 * :mod:`fxcontact.processes.bar_rolling` — three-roll rolling of a round bar (a third or the
   whole bar);
+* :mod:`fxcontact.processes.ring_rolling` — radial ring rolling (driven main roll, idle
+  mandrel fed towards it, guide rolls, optional cone rolls; pictures in ``ring_pictures``);
 * :mod:`fxcontact.processes.monitor` — the run-until-steady loop and its stop rules, shared by
   the processes.
 """
 
-from fxcontact.processes import bar_rolling, flat_rolling
+from fxcontact.processes import bar_rolling, flat_rolling, ring_rolling
 from fxcontact.processes.bar_rolling import BarRollingCase, BarRollingResult, BarRollingSetup
 from fxcontact.processes.flat_rolling import FlatRollingCase, FlatRollingResult, FlatRollingSetup
 from fxcontact.processes.monitor import (STATUSES, RunNumerics, SteadyMonitor, SteadyRun,
                                          StopRules, window_increments)
+from fxcontact.processes.ring_rolling import RingRollingCase, RingRollingResult, RingRollingSetup
 
-__all__ = ["bar_rolling", "flat_rolling",
+__all__ = ["bar_rolling", "flat_rolling", "ring_rolling",
            "BarRollingCase", "BarRollingResult", "BarRollingSetup",
            "FlatRollingCase", "FlatRollingResult", "FlatRollingSetup",
+           "RingRollingCase", "RingRollingResult", "RingRollingSetup",
            "STATUSES", "RunNumerics", "SteadyMonitor", "SteadyRun", "StopRules", "window_increments"]
