@@ -468,7 +468,7 @@ class _Measure:
         return self.comm.allreduce(int(np.sum((ct._tool == k) & (ct._h > 0))), op=MPI.SUM)
 
     def __call__(self, res) -> dict:
-        s, comm = self.s, self.comm
+        s = self.s
         sim, c, t_rev = s.sim, s.case, s.case.t_rev
         q = res.row
         ctr = np.array([q["ring_center_x"], q["ring_center_y"], q["ring_center_z"]])
