@@ -114,7 +114,7 @@ def test_main_roll_force_order_of_2kHLQ(short):
     estimate uses σ₀ at a nominal strain rate; the first increments are not steady)."""
     F = short.history[-1]["main_force_x"]      # the ring pushes the main roll towards +x
     ratio = F / short.force_estimate
-    print(f"main roll force {F / 1e3:.0f} kN, 2kHLQ {short['force_estimate'] / 1e3:.0f} kN, "
+    print(f"main roll force {F / 1e3:.0f} kN, 2kHLQ {short.force_estimate / 1e3:.0f} kN, "
           f"ratio {ratio:.2f}")
     assert 1.0 / 3.0 < ratio < 3.0
 
