@@ -161,7 +161,19 @@ def add_verbosity_arguments(parser):
 
 
 #: argparse types of the annotations of a process case's fields
-_CASE_TYPES = {"float": float, "Optional[float]": float, "int": int, "str": str}
+def on_off(value: str) -> bool:
+    """argparse ``type=`` for a boolean field of a case: ``on|off`` (or true/false, 1/0)."""
+    v = str(value).strip().lower()
+    if v in ("on", "true", "1"):
+        return True
+    if v in ("off", "false", "0"):
+        return False
+    import argparse
+    raise argparse.ArgumentTypeError(f"expected on or off, got {value!r}")
+
+
+_CASE_TYPES = {"float": float, "Optional[float]": float, "int": int, "str": str,
+               "bool": on_off}
 
 
 def case_parser(case_type, description: str, output_dir: str):
