@@ -1,7 +1,7 @@
 """Checkpoints of a ring-rolling run (fxcontact.processes.ring_rolling): the mill's controllers
-(guide rolls placed by :class:`~fxcontact.mill.RingCentring`, the idle mandrel's ω, the
-cones of :class:`~fxcontact.mill.AxialRolls`, the controlled tool motions, the ring's centre
-of the cylindrical update) are saved and restored,
+(guide rolls placed by :class:`~fxcontact.processes.ring_mill.RingCentring`, the idle
+mandrel's ω, the cones of :class:`~fxcontact.processes.ring_mill.AxialRolls`, the controlled
+tool motions, the ring's centre of the cylindrical update) are saved and restored,
 so a resumed run equals the uninterrupted one; a checkpoint is refused, with a clear
 ValueError, by a simulation with other controllers."""
 

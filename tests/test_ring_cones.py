@@ -1,6 +1,6 @@
 """Axial cone rolls of ring rolling (fxcontact.processes.ring_rolling, cones=True;
-fxcontact.mill.AxialRolls) on a short coarse run of the thesis's case 1: the cone bears on the
-top face and holds its height, its apex follows the ring's centre on the mill line, its gap
+fxcontact.processes.ring_mill.AxialRolls) on a short coarse run of the thesis's case 1: the
+cone bears on the top face and holds its height, its apex follows the ring's centre on the mill line, its gap
 opens at the prescribed speed, its idle ω is the rolling speed of the face, its axial force is
 of the order of ring-rolling theory; volume kept, no inverted element, 1 and 2 ranks agree."""
 

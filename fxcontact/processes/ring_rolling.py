@@ -6,9 +6,9 @@ main roll's axis is at x = R + R₁ (driven, turning clockwise at ``rpm``), the 
 x = r − R₂ + v_f t (fed at ``feed_speed``, idle: its ω is found at each increment from zero
 torque about its axis, :class:`fxcontact.IdleRotation`); both start ``initial_bite`` into the
 ring. Two frictionless guide rolls at ± ``guide_angle`` from the mill line on the main-roll side
-follow the growing ring (:class:`fxcontact.mill.RingCentring`). Forces and torques are those of
-the whole ring (twice the half model's). The configuration update is cylindrical about the
-ring's centroid (:class:`fxcontact.mill.RingAxisUpdate`, THEORY §5) or cartesian.
+follow the growing ring (:class:`~fxcontact.processes.ring_mill.RingCentring`). Forces and
+torques are those of the whole ring (twice the half model's). The configuration update is cylindrical about the
+ring's centroid (:class:`~fxcontact.kinematics.RingAxisUpdate`, THEORY §5) or cartesian.
 
 **Material.** The thesis's academic cases print Norton–Hoff K = 1900 MPa·s^m, m = 0.14 for a
 hot-rolled 42CrMo4 ring (:data:`K_THESIS`). Taken literally that is σ₀ ≈ 4070 MPa at the
@@ -46,9 +46,10 @@ from mpi4py import MPI
 
 import fxcontact as fx
 from fxcontact import compat, forming
-from fxcontact.mill import AxialRolls, ControlledMotion, IdleRotation, RingAxisUpdate, \
-    RingCentring
+from fxcontact.kinematics import RingAxisUpdate
+from fxcontact.mill import ControlledMotion, IdleRotation
 from fxcontact.processes.monitor import RunNumerics, SteadyRun, is_number
+from fxcontact.processes.ring_mill import AxialRolls, RingCentring
 
 __all__ = ["RingRollingCase", "RingRollingSetup", "RingRollingResult", "build", "run",
            "K_THESIS", "K_HOT", "QUICK", "TOOLS", "UPDATES"]
@@ -246,10 +247,10 @@ class RingRollingSetup:
     outer: object                   #: ContactBoundary of the outer surface
     inner: object                   #: ... of the bore
     top: object                     #: ... of the top face
-    centring: object                #: :class:`fxcontact.mill.RingCentring`
+    centring: object                #: :class:`~fxcontact.processes.ring_mill.RingCentring`
     idle: object                    #: :class:`fxcontact.IdleRotation`
-    axial: object = None            #: :class:`fxcontact.mill.AxialRolls` (cones)
-    update: object = None           #: :class:`fxcontact.mill.RingAxisUpdate` or None
+    axial: object = None            #: :class:`~fxcontact.processes.ring_mill.AxialRolls` (cones)
+    update: object = None           #: :class:`~fxcontact.kinematics.RingAxisUpdate` or None
     theory: dict = field(default_factory=dict)   #: feed window, L, rate, σ₀, 2kHLQ
     dt: float = math.nan
     n_increments: int = 0
