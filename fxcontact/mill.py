@@ -6,7 +6,8 @@ axis), and guide (centring) rolls that keep the ring on the mill line. This modu
 
 * :class:`ControlledMotion` — a rigid motion whose translation velocity and rotation speed are
   piecewise constant and set by a controller at the start of each increment (integrated
-  exactly; any analytic or faceted tool moved by it through :class:`~fxcontact.tools.MovedTool`).
+  exactly; any analytic or faceted tool moved by it through :class:`~fxcontact.tools.MovedTool`;
+  defined in :mod:`fxcontact.tools.base` with the other motions).
 * :class:`IdleRotation` — the rotation speed ω of an idle tool, found at each increment such that
   the torque of the contact and friction forces about the tool's own axis vanishes.
 * the ring's own pieces, kept importable from here: :class:`RingCentring` (guide rolls
@@ -65,17 +66,9 @@ oscillates. Two methods are implemented (``IdleRotation(..., method=...)``):
   the mean lever arm of its contact nodes) with ``torque_rtol`` not below 10× the Newton
   tolerance. One tool per controller.
 
-Measured (``demos/demo_ring_rolling.py --case 2``, one rank of a shared 2-core machine, the
-same command with ``--idle_method outer`` / ``bordered``; ``benchmarks/README.md``): at the
-quick size (``--quick --revolutions 0.06``, 3 increments) the outer method needed 3–4 Newton
-solves per increment, 30–34 Newton iterations in all, the bordered one 18–26 iterations in one
-solve (fewer residual and Jacobian evaluations: 183 against 254 over the 3 increments; CPU
-time 19 s against 26 s); the same mandrel ω to 1e-9 relative, its torque 5e-7 N mm against
-0.2–2 N mm (tolerance 40–55 N mm). At the demo's default size (``--revolutions 0.05``, 3
-increments): outer 5–9 solves, 46–72 Newton iterations per increment; bordered 17–28 in one
-solve; CPU time of the run 55 s against 112 s; ω equal to 1.4e-7 relative (the outer
-method's torque tolerance), forces to 7e-7. The wall time per increment follows the
-iteration count (noisy on the shared machine).
+Measured (the ring-rolling process, ``idle_method="outer"`` against ``"bordered"``;
+``benchmarks/README.md``): the same mandrel ω to 1e-9–1e-7 relative (the outer method's torque
+tolerance), 1.3–2.7× fewer Newton iterations and about half the CPU time with the bordered one.
 
 **Frictionless idle tool**: the torque is zero for every ω (normal forces pass through the
 axis), ω is undetermined and has no effect; it is set after the solve to ω_free (the ring's
@@ -86,134 +79,17 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
-from typing import Dict, Optional
+from typing import Dict
 
 import numpy as np
 from mpi4py import MPI
 
 from fxcontact.contact.friction import LAW_NONE
-from fxcontact.tools.base import RigidMotion, Tool, unit_vector
+from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
 
 __all__ = ["ControlledMotion", "IdleRotation", "rolling_speed"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class ControlledMotion(RigidMotion):
-    """Rigid motion with piecewise-constant rates set by a controller (integrated exactly).
-
-    Args:
-        velocity: initial translation velocity (3-vector).
-        angular_velocity: initial rotation speed ω [rad/s] about ``axis``.
-        axis_point, axis: rotation axis at ``t = 0`` (it translates with the tool).
-
-    :meth:`set_rates` starts a new stage of constant rates at time t (the start of an
-    increment); called again at the same t (another trial of the same increment, a cut-back)
-    it overwrites that stage's rates. Rates are right-continuous: at a stage start the new
-    rates apply (what the explicit schemes take at the start of the increment).
-    """
-
-    _st: dict = field(init=False, repr=False, compare=False)
-
-    def __post_init__(self):
-        v0 = np.asarray(self.velocity, dtype=np.float64).reshape(-1)
-        if callable(self.velocity) or callable(self.angular_velocity):
-            raise ValueError("ControlledMotion takes constant initial rates (a controller sets "
-                             "them per increment)")
-        w0 = float(self.angular_velocity)
-        if v0.shape != (3,) or not np.all(np.isfinite(v0)) or not math.isfinite(w0):
-            raise ValueError(f"velocity must be a finite 3-vector and angular_velocity finite, "
-                             f"got {self.velocity!r}, {self.angular_velocity!r}")
-        object.__setattr__(self, "_st", {"t": [0.0], "c": [np.zeros(3)], "th": [0.0],
-                                         "v": [v0], "w": [w0]})
-        object.__setattr__(self, "velocity", lambda s: self._st["v"][self._stage(s)].copy())
-        object.__setattr__(self, "angular_velocity",
-                           lambda s: float(self._st["w"][self._stage(s)]))
-        super().__post_init__()
-
-    def _stage(self, t: float) -> int:
-        ts = self._st["t"]
-        tol = 1e-12 * max(1.0, abs(ts[-1]))
-        k = int(np.searchsorted(np.asarray(ts), float(t) + tol, side="right")) - 1
-        return max(k, 0)
-
-    def set_rates(self, t: float, velocity=None, angular_velocity: Optional[float] = None):
-        """Rates from time ``t`` on (``None`` keeps the current one)."""
-        st = self._st
-        t = float(t)
-        last = st["t"][-1]
-        tol = 1e-12 * max(1.0, abs(last))
-        if t < last - tol:
-            raise ValueError(f"cannot set the rates at t = {t:.6g}, before the current stage "
-                             f"(started at t = {last:.6g})")
-        v = st["v"][-1] if velocity is None else np.asarray(velocity, dtype=np.float64)
-        w = st["w"][-1] if angular_velocity is None else float(angular_velocity)
-        if v.shape != (3,) or not np.all(np.isfinite(v)) or not math.isfinite(w):
-            raise ValueError(f"rates must be a finite 3-vector and a finite ω, got {velocity!r}, "
-                             f"{angular_velocity!r}")
-        if t <= last + tol:
-            st["v"][-1], st["w"][-1] = v.copy(), w
-            return
-        d = t - last
-        st["c"].append(st["c"][-1] + st["v"][-1] * d)
-        st["th"].append(st["th"][-1] + st["w"][-1] * d)
-        st["t"].append(t)
-        st["v"].append(v.copy())
-        st["w"].append(w)
-
-    @property
-    def is_static(self) -> bool:
-        return False
-
-    @property
-    def rotates(self) -> bool:
-        return True
-
-    def translation(self, t: float) -> np.ndarray:
-        k = self._stage(t)
-        st = self._st
-        return st["c"][k] + st["v"][k] * (float(t) - st["t"][k])
-
-    def angle(self, t: float) -> float:
-        k = self._stage(t)
-        st = self._st
-        return float(st["th"][k] + st["w"][k] * (float(t) - st["t"][k]))
-
-    def current_angular_velocity(self) -> float:
-        return float(self._st["w"][-1])
-
-    def checkpoint_state(self) -> dict:
-        """The stages of rates set so far (plain numbers and lists): what a resumed run needs
-        to place the tool where the checkpointed run had it (:mod:`fxcontact.checkpoint`)."""
-        st = self._st
-        return {"t": [float(x) for x in st["t"]], "th": [float(x) for x in st["th"]],
-                "w": [float(x) for x in st["w"]],
-                "c": np.asarray(st["c"], dtype=np.float64).tolist(),
-                "v": np.asarray(st["v"], dtype=np.float64).tolist()}
-
-    def restore_state(self, state: dict):
-        """Restore the stages of :meth:`checkpoint_state` (ValueError if malformed)."""
-        try:
-            t = np.asarray(state["t"], dtype=np.float64).reshape(-1)
-            th = np.asarray(state["th"], dtype=np.float64).reshape(-1)
-            w = np.asarray(state["w"], dtype=np.float64).reshape(-1)
-            c = np.asarray(state["c"], dtype=np.float64).reshape(-1, 3)
-            v = np.asarray(state["v"], dtype=np.float64).reshape(-1, 3)
-        except (KeyError, TypeError, ValueError) as e:
-            raise ValueError(f"not a ControlledMotion state ({e}): {state!r:.200}") from None
-        n = len(t)
-        if n == 0 or not (len(th) == len(w) == len(c) == len(v) == n) or \
-                np.any(np.diff(t) <= 0) or not all(np.all(np.isfinite(a))
-                                                   for a in (t, th, w, c, v)):
-            raise ValueError(f"not a ControlledMotion state: {n} stage times, {len(th)} angles, "
-                             f"{len(w)} rotation speeds, {len(c)} positions, {len(v)} "
-                             f"velocities (the same number > 0, finite, increasing times)")
-        st = self._st
-        st["t"], st["th"], st["w"] = [float(x) for x in t], [float(x) for x in th], \
-            [float(x) for x in w]
-        st["c"], st["v"] = [x.copy() for x in c], [x.copy() for x in v]
 
 
 def _controlled(tool: Tool) -> ControlledMotion:

@@ -9,7 +9,7 @@
 
 They are registered with :meth:`fxcontact.Simulation.add_controller`, save what changes with
 ``checkpoint_state()`` and get it back with ``restore_state()``. The tool motions they drive
-(:class:`fxcontact.mill.ControlledMotion`) and idle tools (:class:`fxcontact.mill.IdleRotation`)
+(:class:`fxcontact.tools.base.ControlledMotion`) and idle tools (:class:`fxcontact.mill.IdleRotation`)
 are not specific to rings and stay in :mod:`fxcontact.mill` (which still exports these two
 names as aliases).
 """
@@ -24,8 +24,8 @@ from mpi4py import MPI
 
 from fxcontact.contact.friction import LAW_NONE
 from fxcontact.kinematics import RingAxisUpdate
-from fxcontact.mill import ControlledMotion, _controlled, rolling_speed
-from fxcontact.tools.base import Tool, unit_vector
+from fxcontact.mill import _controlled, rolling_speed
+from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
 
 __all__ = ["RingCentring", "AxialRolls"]
 
