@@ -143,6 +143,8 @@ def test_bad_parameters():
         RingRollingCase(main_friction=("tresca", 0.3, 0.6))
     with pytest.raises(ValueError, match="n_theta must be an integer"):
         RingRollingCase(n_theta=0)
+    with pytest.raises(ValueError, match="idle_method must be one of"):
+        RingRollingCase(idle_method="free")
     # a friction given on the command line
     assert RingRollingCase(mandrel_friction="norton,0.5,0.15").mandrel_friction == \
         ("norton", 0.5, 0.15)

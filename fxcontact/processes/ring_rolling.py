@@ -47,7 +47,7 @@ from mpi4py import MPI
 import fxcontact as fx
 from fxcontact import compat, forming
 from fxcontact.kinematics import RingAxisUpdate
-from fxcontact.mill import ControlledMotion, IdleRotation
+from fxcontact.mill import IDLE_METHODS, ControlledMotion, IdleRotation
 from fxcontact.processes.monitor import RunNumerics, SteadyRun, is_number
 from fxcontact.processes.ring_mill import AxialRolls, RingCentring
 
@@ -170,6 +170,9 @@ class RingRollingCase(RunNumerics):
             raise ValueError(f"update must be one of {UPDATES}, got {self.update!r}")
         if self.tools not in TOOLS:
             raise ValueError(f"tools must be one of {TOOLS}, got {self.tools!r}")
+        if self.idle_method not in IDLE_METHODS:
+            raise ValueError(f"idle_method must be one of {IDLE_METHODS}, got "
+                             f"{self.idle_method!r}")
         for key in ("main_friction", "mandrel_friction"):
             object.__setattr__(self, key, _friction_spec(key, getattr(self, key)))
         if not (is_number(self.cone_half_angle) and 0.0 < self.cone_half_angle < 60.0):
