@@ -200,3 +200,21 @@ def test_implicit_penetration_below_a_tenth_of_explicit_faceted(implicit_pen):
           f"(against the exact tools; {explicit.max_penetration:.4f} mm against its facets)")
     assert implicit_pen.max_penetration_exact == pytest.approx(p_imp, rel=1e-9)
     assert p_imp <= 0.1 * p_exp
+
+
+def test_command_line_of_the_case():
+    """The demo's command line (console.case_parser) types every field of the case: strings
+    (idle_method), on/off (cones), a friction "law,a,b" or none, auto|on|off
+    (active_set_prediction); a bad on/off value is refused by argparse."""
+    from fxcontact.console import case_parser, parse_case
+    parser = case_parser(RingRollingCase, "ring rolling", "results")
+    case, _ = parse_case(parser, RingRollingCase, [
+        "--quick", "--idle_method", "outer", "--cones", "on", "--cone_speed", "0.4",
+        "--mandrel_friction", "none", "--main_friction", "norton,0.5,0.15",
+        "--active_set_prediction", "off", "--R", "110"])
+    assert (case.idle_method, case.cones, case.cone_speed, case.mandrel_friction) == \
+        ("outer", True, 0.4, None)
+    assert case.main_friction == ("norton", 0.5, 0.15) and case.active_set_prediction is False
+    assert case.R == 110.0 and case.n_theta == RingRollingCase().quick().n_theta
+    with pytest.raises(SystemExit):
+        parse_case(parser, RingRollingCase, ["--cones", "maybe"])
