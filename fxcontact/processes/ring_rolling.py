@@ -219,8 +219,8 @@ class RingRollingCase(RunNumerics):
         """A warning when K is the thesis's printed value (implausible for a hot ring)."""
         if self.K >= 0.5 * K_THESIS:
             return (f"K = {self.K:g} MPa s^m is the thesis's value taken literally: hot "
-                    f"42CrMo4 flows at about a tenth of that (K_HOT = {K_HOT:g}); the forces "
-                    f"scale with K")
+                    f"42CrMo4 (1050-1150 C) flows at about 80-130 MPa (K = K_HOT = "
+                    f"{K_HOT:g}); the forces scale with K")
         return ""
 
 
