@@ -161,13 +161,26 @@ def add_verbosity_arguments(parser):
 
 
 #: argparse types of the annotations of a process case's fields
-_CASE_TYPES = {"float": float, "Optional[float]": float, "int": int, "str": str}
+def on_off(value: str) -> bool:
+    """argparse ``type=`` for a boolean field of a case: ``on|off`` (or true/false, 1/0)."""
+    v = str(value).strip().lower()
+    if v in ("on", "true", "1"):
+        return True
+    if v in ("off", "false", "0"):
+        return False
+    import argparse
+    raise argparse.ArgumentTypeError(f"expected on or off, got {value!r}")
+
+
+_CASE_TYPES = {"float": float, "Optional[float]": float, "int": int, "str": str,
+               "bool": on_off}
 
 
 def case_parser(case_type, description: str, output_dir: str):
     """An argparse parser for a process demo: ``--quick`` and one ``--<field>`` per field of
     the case (a dataclass such as :class:`fxcontact.processes.FlatRollingCase`), typed from the
-    field's annotation (``auto|on|off`` for a field whose default is ``"auto"``),
+    field's annotation (``auto|on|off`` for an ``object`` field whose default is ``"auto"``,
+    ``on|off`` for a ``bool``),
     ``--output-dir`` and ``--verbose``/``--quiet``. Add the demo's own options, then
     :func:`parse_case`."""
     import argparse
@@ -176,7 +189,8 @@ def case_parser(case_type, description: str, output_dir: str):
     parser.add_argument("--quick", action="store_true",
                         help="the reduced size of the tests (the case's quick())")
     for f in dataclasses.fields(case_type):
-        conv = _CASE_TYPES.get(str(f.type), auto_on_off if f.default == "auto" else str)
+        auto = f.default == "auto" and str(f.type) == "object"     # "auto", True or False
+        conv = auto_on_off if auto else _CASE_TYPES.get(str(f.type), str)
         parser.add_argument(f"--{f.name}", type=conv, help=f"default {f.default!r}")
     parser.add_argument("--output-dir", dest="output_dir", default=output_dir,
                         help=f"where the results go (default {output_dir})")

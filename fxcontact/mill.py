@@ -1,4 +1,4 @@
-"""Ring-rolling mill: tools driven by a controller, idle tools, centring of the ring.
+"""Ring-rolling mill: tools driven by a controller, idle tools.
 
 A radial ring-rolling mill (THEORY §5, §12.1, §14.4) has a *driven* main roll (prescribed rpm),
 a mandrel fed towards it whose rotation is *idle* (it turns freely: zero torque about its own
@@ -6,15 +6,14 @@ axis), and guide (centring) rolls that keep the ring on the mill line. This modu
 
 * :class:`ControlledMotion` — a rigid motion whose translation velocity and rotation speed are
   piecewise constant and set by a controller at the start of each increment (integrated
-  exactly; any analytic or faceted tool moved by it through :class:`~fxcontact.tools.MovedTool`).
+  exactly; any analytic or faceted tool moved by it through :class:`~fxcontact.tools.MovedTool`;
+  defined in :mod:`fxcontact.tools.base` with the other motions).
 * :class:`IdleRotation` — the rotation speed ω of an idle tool, found at each increment such that
   the torque of the contact and friction forces about the tool's own axis vanishes.
-* :class:`RingCentring` — guide rolls that follow the growing ring (control of the ring's centre
-  on the mill line) and the cylindrical configuration update about the ring's current centre.
-* :class:`RingAxisUpdate` — the cylindrical update of THEORY §5 about an axis re-set at each
-  increment (the ring's centre moves as the ring grows).
-* :class:`AxialRolls` — idle, frictionless axial (cone) rolls of a radial–axial mill whose apex
-  follows the ring's centre on the mill line, moving along the ring axis at a given speed.
+* the ring's own pieces, kept importable from here: :class:`RingCentring` (guide rolls
+  following the growing ring) and :class:`AxialRolls` (cone rolls) now in
+  :mod:`fxcontact.processes.ring_mill`, :class:`RingAxisUpdate` (the cylindrical update about
+  the ring's current centre) in :mod:`fxcontact.kinematics`.
 
 Every controller (and :class:`ControlledMotion`) saves what changes during a run with
 ``checkpoint_state()`` and gets it back with ``restore_state()`` (checkpoints of
@@ -67,17 +66,9 @@ oscillates. Two methods are implemented (``IdleRotation(..., method=...)``):
   the mean lever arm of its contact nodes) with ``torque_rtol`` not below 10× the Newton
   tolerance. One tool per controller.
 
-Measured (``demos/demo_ring_rolling.py --case 2``, one rank of a shared 2-core machine, the
-same command with ``--idle_method outer`` / ``bordered``; ``benchmarks/README.md``): at the
-quick size (``--quick --revolutions 0.06``, 3 increments) the outer method needed 3–4 Newton
-solves per increment, 30–34 Newton iterations in all, the bordered one 18–26 iterations in one
-solve (fewer residual and Jacobian evaluations: 183 against 254 over the 3 increments; CPU
-time 19 s against 26 s); the same mandrel ω to 1e-9 relative, its torque 5e-7 N mm against
-0.2–2 N mm (tolerance 40–55 N mm). At the demo's default size (``--revolutions 0.05``, 3
-increments): outer 5–9 solves, 46–72 Newton iterations per increment; bordered 17–28 in one
-solve; CPU time of the run 55 s against 112 s; ω equal to 1.4e-7 relative (the outer
-method's torque tolerance), forces to 7e-7. The wall time per increment follows the
-iteration count (noisy on the shared machine).
+Measured (the ring-rolling process, ``idle_method="outer"`` against ``"bordered"``;
+``benchmarks/README.md``): the same mandrel ω to 1e-9–1e-7 relative (the outer method's torque
+tolerance), 1.3–2.7× fewer Newton iterations and about half the CPU time with the bordered one.
 
 **Frictionless idle tool**: the torque is zero for every ω (normal forces pass through the
 axis), ω is undetermined and has no effect; it is set after the solve to ω_free (the ring's
@@ -88,135 +79,17 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
-from typing import Dict, Optional, Sequence
+from typing import Dict
 
 import numpy as np
 from mpi4py import MPI
 
 from fxcontact.contact.friction import LAW_NONE
-from fxcontact.tools.base import RigidMotion, Tool, unit_vector
+from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
 
-__all__ = ["ControlledMotion", "IdleRotation", "RingCentring", "RingAxisUpdate",
-           "rolling_speed", "AxialRolls"]
+__all__ = ["ControlledMotion", "IdleRotation", "rolling_speed"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class ControlledMotion(RigidMotion):
-    """Rigid motion with piecewise-constant rates set by a controller (integrated exactly).
-
-    Args:
-        velocity: initial translation velocity (3-vector).
-        angular_velocity: initial rotation speed ω [rad/s] about ``axis``.
-        axis_point, axis: rotation axis at ``t = 0`` (it translates with the tool).
-
-    :meth:`set_rates` starts a new stage of constant rates at time t (the start of an
-    increment); called again at the same t (another trial of the same increment, a cut-back)
-    it overwrites that stage's rates. Rates are right-continuous: at a stage start the new
-    rates apply (what the explicit schemes take at the start of the increment).
-    """
-
-    _st: dict = field(init=False, repr=False, compare=False)
-
-    def __post_init__(self):
-        v0 = np.asarray(self.velocity, dtype=np.float64).reshape(-1)
-        if callable(self.velocity) or callable(self.angular_velocity):
-            raise ValueError("ControlledMotion takes constant initial rates (a controller sets "
-                             "them per increment)")
-        w0 = float(self.angular_velocity)
-        if v0.shape != (3,) or not np.all(np.isfinite(v0)) or not math.isfinite(w0):
-            raise ValueError(f"velocity must be a finite 3-vector and angular_velocity finite, "
-                             f"got {self.velocity!r}, {self.angular_velocity!r}")
-        object.__setattr__(self, "_st", {"t": [0.0], "c": [np.zeros(3)], "th": [0.0],
-                                         "v": [v0], "w": [w0]})
-        object.__setattr__(self, "velocity", lambda s: self._st["v"][self._stage(s)].copy())
-        object.__setattr__(self, "angular_velocity",
-                           lambda s: float(self._st["w"][self._stage(s)]))
-        super().__post_init__()
-
-    def _stage(self, t: float) -> int:
-        ts = self._st["t"]
-        tol = 1e-12 * max(1.0, abs(ts[-1]))
-        k = int(np.searchsorted(np.asarray(ts), float(t) + tol, side="right")) - 1
-        return max(k, 0)
-
-    def set_rates(self, t: float, velocity=None, angular_velocity: Optional[float] = None):
-        """Rates from time ``t`` on (``None`` keeps the current one)."""
-        st = self._st
-        t = float(t)
-        last = st["t"][-1]
-        tol = 1e-12 * max(1.0, abs(last))
-        if t < last - tol:
-            raise ValueError(f"cannot set the rates at t = {t:.6g}, before the current stage "
-                             f"(started at t = {last:.6g})")
-        v = st["v"][-1] if velocity is None else np.asarray(velocity, dtype=np.float64)
-        w = st["w"][-1] if angular_velocity is None else float(angular_velocity)
-        if v.shape != (3,) or not np.all(np.isfinite(v)) or not math.isfinite(w):
-            raise ValueError(f"rates must be a finite 3-vector and a finite ω, got {velocity!r}, "
-                             f"{angular_velocity!r}")
-        if t <= last + tol:
-            st["v"][-1], st["w"][-1] = v.copy(), w
-            return
-        d = t - last
-        st["c"].append(st["c"][-1] + st["v"][-1] * d)
-        st["th"].append(st["th"][-1] + st["w"][-1] * d)
-        st["t"].append(t)
-        st["v"].append(v.copy())
-        st["w"].append(w)
-
-    @property
-    def is_static(self) -> bool:
-        return False
-
-    @property
-    def rotates(self) -> bool:
-        return True
-
-    def translation(self, t: float) -> np.ndarray:
-        k = self._stage(t)
-        st = self._st
-        return st["c"][k] + st["v"][k] * (float(t) - st["t"][k])
-
-    def angle(self, t: float) -> float:
-        k = self._stage(t)
-        st = self._st
-        return float(st["th"][k] + st["w"][k] * (float(t) - st["t"][k]))
-
-    def current_angular_velocity(self) -> float:
-        return float(self._st["w"][-1])
-
-    def checkpoint_state(self) -> dict:
-        """The stages of rates set so far (plain numbers and lists): what a resumed run needs
-        to place the tool where the checkpointed run had it (:mod:`fxcontact.checkpoint`)."""
-        st = self._st
-        return {"t": [float(x) for x in st["t"]], "th": [float(x) for x in st["th"]],
-                "w": [float(x) for x in st["w"]],
-                "c": np.asarray(st["c"], dtype=np.float64).tolist(),
-                "v": np.asarray(st["v"], dtype=np.float64).tolist()}
-
-    def restore_state(self, state: dict):
-        """Restore the stages of :meth:`checkpoint_state` (ValueError if malformed)."""
-        try:
-            t = np.asarray(state["t"], dtype=np.float64).reshape(-1)
-            th = np.asarray(state["th"], dtype=np.float64).reshape(-1)
-            w = np.asarray(state["w"], dtype=np.float64).reshape(-1)
-            c = np.asarray(state["c"], dtype=np.float64).reshape(-1, 3)
-            v = np.asarray(state["v"], dtype=np.float64).reshape(-1, 3)
-        except (KeyError, TypeError, ValueError) as e:
-            raise ValueError(f"not a ControlledMotion state ({e}): {state!r:.200}") from None
-        n = len(t)
-        if n == 0 or not (len(th) == len(w) == len(c) == len(v) == n) or \
-                np.any(np.diff(t) <= 0) or not all(np.all(np.isfinite(a))
-                                                   for a in (t, th, w, c, v)):
-            raise ValueError(f"not a ControlledMotion state: {n} stage times, {len(th)} angles, "
-                             f"{len(w)} rotation speeds, {len(c)} positions, {len(v)} "
-                             f"velocities (the same number > 0, finite, increasing times)")
-        st = self._st
-        st["t"], st["th"], st["w"] = [float(x) for x in t], [float(x) for x in th], \
-            [float(x) for x in w]
-        st["c"], st["v"] = [x.copy() for x in c], [x.copy() for x in v]
 
 
 def _controlled(tool: Tool) -> ControlledMotion:
@@ -853,256 +726,15 @@ class IdleRotation:
             m.restore_state(ms)
 
 
-class RingAxisUpdate:
-    """Cylindrical configuration update (THEORY §5) about the axis through a centre that is
-    re-set at the start of each increment (:meth:`set_center`), e.g. the ring's centroid. The
-    contact condition and the mesh update use the same map within an increment."""
-
-    def __init__(self, center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0)):
-        self.axis = unit_vector(axis, "ring axis")
-        self.set_center(center)
-
-    def set_center(self, center):
-        c = np.asarray(center, dtype=np.float64).reshape(-1)
-        if c.shape != (3,) or not np.all(np.isfinite(c)):
-            raise ValueError(f"center must be a finite 3-vector, got {center!r}")
-        self.center = c
-
-    def derivatives(self, x, v, dt):
-        from fxcontact.cylindrical import cylindrical_update
-        return cylindrical_update(x, v, dt, self.center, self.axis, derivatives=True)
-
-    def positions(self, x, v, dt):
-        from fxcontact.cylindrical import cylindrical_update
-        return cylindrical_update(x, v, dt, self.center, self.axis, derivatives=False)[0]
-
-    def checkpoint_state(self) -> dict:
-        return {"center": self.center.copy(), "axis": self.axis.copy()}
-
-    def restore_state(self, state: dict):
-        axis = unit_vector(state["axis"], "ring axis")
-        if not np.allclose(axis, self.axis, rtol=0.0, atol=1e-12):
-            raise ValueError(f"the checkpoint's ring axis {axis.tolist()} is not this update's "
-                             f"{self.axis.tolist()}")
-        self.set_center(state["center"])
+#: the ring's own pieces moved out (kept importable from here): the cylindrical update about the
+#: ring's centre (fxcontact.kinematics), the guide and axial rolls (fxcontact.processes.ring_mill)
+_MOVED = {"RingAxisUpdate": "fxcontact.kinematics",
+          "RingCentring": "fxcontact.processes.ring_mill",
+          "AxialRolls": "fxcontact.processes.ring_mill"}
 
 
-class RingCentring:
-    """Centring of a ring on the mill line by guide rolls that follow its growth.
-
-    At the start of each increment the ring's centroid c and its mean outer radius R (area-
-    weighted over the outer-surface nodes) are measured; the centre's nominal position is the
-    projection c* of c on the mill line. Each guide roll k (radius R_g, at the angle φ_k from the
-    line's direction about the ring axis) is moved, during the increment, to
-    c* + (R + R_g + clearance)(cos φ_k e + sin φ_k a × e): with zero clearance it touches the
-    ring where a centred ring is, and pushes it back (penalty contact) when the ring drifts off
-    the line. This is the position control of the centring arms of a radial–axial mill; the
-    guide rolls act only against a drift (their force is recorded).
-
-    Args:
-        outer: a :class:`~fxcontact.contact.ContactBoundary` of the ring's outer surface (used
-            to measure R).
-        guides: the guide-roll tools (each moved by a :class:`ControlledMotion`, axis ∥ ring
-            axis).
-        radii: guide-roll radii.
-        angles: φ_k [rad] of each guide roll.
-        line_point, line_direction: the mill line (through the main roll's and the mandrel's
-            axes), in the plane normal to ``axis``.
-        axis: ring axis.
-        clearance: radial clearance between a centred ring and the guide rolls (negative: a
-            small interference, the guide rolls press on the ring — a preload that gives the
-            centre's drift a penalty stiffness from the first increment on).
-        update: a :class:`RingAxisUpdate` whose centre is set to the centroid each increment
-            (optional: the cylindrical configuration update about the current centre).
-
-    History columns: ``ring_center_x/_y/_z``, ``ring_outer_radius``, ``ring_center_offset``
-    (distance of the centroid from the mill line).
-    """
-
-    def __init__(self, outer, guides: Sequence[Tool] = (), radii: Sequence[float] = (),
-                 angles: Sequence[float] = (), line_point=(0.0, 0.0, 0.0),
-                 line_direction=(1.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), clearance: float = 0.0,
-                 update: Optional[RingAxisUpdate] = None):
-        self.outer = outer
-        self.guides = list(guides)
-        self.motions = [_controlled(g) for g in self.guides]
-        if not (len(radii) == len(angles) == len(self.guides)):
-            raise ValueError(f"give one radius and one angle per guide roll "
-                             f"({len(self.guides)} rolls, {len(radii)} radii, "
-                             f"{len(angles)} angles)")
-        self.radii = [float(r) for r in radii]
-        if any(not (math.isfinite(r) and r > 0) for r in self.radii):
-            raise ValueError(f"guide-roll radii must be > 0, got {radii!r}")
-        self.angles = [float(a) for a in angles]
-        self.axis = unit_vector(axis, "ring axis")
-        e = np.asarray(line_direction, dtype=np.float64)
-        e = e - (e @ self.axis) * self.axis
-        self.e = unit_vector(e, "mill line direction (normal to the axis)")
-        self.p0 = np.asarray(line_point, dtype=np.float64).reshape(3)
-        if not math.isfinite(clearance):
-            raise ValueError(f"clearance must be finite, got {clearance!r}")
-        self.clearance = float(clearance)
-        self.update = update
-        self._forms = None
-        self.center = None
-        self.radius = None
-
-    def measure(self, sim):
-        """(centroid, mean outer radius) of the current configuration (collective)."""
-        import dolfinx.fem
-        import ufl
-        from fxcontact import compat
-        if self._forms is None:
-            x = ufl.SpatialCoordinate(sim.mesh)
-            self._forms = [compat.form(x[i] * sim.space.dx) for i in range(3)]
-        V = sim.volume()
-        c = np.array([sim.comm.allreduce(dolfinx.fem.assemble_scalar(f), op=MPI.SUM)
-                      for f in self._forms]) / V
-        b = self.outer
-        x = sim.vertex_positions()[b.vertices]
-        d = x - c
-        d -= np.outer(d @ self.axis, self.axis)
-        num = float(np.sum(b.areas * np.linalg.norm(d, axis=1)))
-        den = float(np.sum(b.areas))
-        num, den = sim.comm.allreduce(np.array([num, den]), op=MPI.SUM)
-        return c, num / den
-
-    def begin_increment(self, sim, t: float, dt: float, x_t):
-        self._sim = sim
-        c, R = self.measure(sim)
-        self.center, self.radius = c, R
-        if self.update is not None:
-            self.update.set_center(c)
-        cs = self.p0 + ((c - self.p0) @ self.e) * self.e + ((c - self.p0) @ self.axis) * self.axis
-        f = np.cross(self.axis, self.e)
-        for mot, Rg, phi in zip(self.motions, self.radii, self.angles):
-            target = cs + (R + Rg + self.clearance) * (math.cos(phi) * self.e + math.sin(phi) * f)
-            now = mot.axis_point_at(t)
-            mot.set_rates(t, velocity=(target - now) / dt)
-
-    def end_increment(self, sim, dt: float):
-        pass
-
-    def diagnostics(self) -> Dict[str, float]:
-        c, R = self.measure(sim=self._sim)   # after the geometry update
-        self.center, self.radius = c, R
-        d = c - self.p0
-        off = d - (d @ self.e) * self.e - (d @ self.axis) * self.axis
-        return {"ring_center_x": float(c[0]), "ring_center_y": float(c[1]),
-                "ring_center_z": float(c[2]), "ring_outer_radius": float(self.radius),
-                "ring_center_offset": float(np.linalg.norm(off))}
-
-    def checkpoint_state(self) -> dict:
-        """The guide rolls' motions and the last measured centre and outer radius."""
-        return {"guides": [g.name for g in self.guides],
-                "center": None if self.center is None else np.asarray(self.center).tolist(),
-                "radius": None if self.radius is None else float(self.radius),
-                "motions": [m.checkpoint_state() for m in self.motions]}
-
-    def restore_state(self, state: dict):
-        names = [g.name for g in self.guides]
-        if state.get("guides") != names:
-            raise ValueError(f"the checkpoint's centring guides {state.get('guides')} are not "
-                             f"these {names}")
-        self.center = None if state["center"] is None else np.asarray(state["center"], float)
-        self.radius = None if state["radius"] is None else float(state["radius"])
-        for m, st in zip(self.motions, state["motions"]):
-            m.restore_state(st)
-
-
-class AxialRolls:
-    """Axial (cone) rolls of a radial–axial ring mill: their apex follows the ring's centre on
-    the mill line, they move along the ring axis at given speeds, and they are idle.
-
-    Each cone (any tool, usually an analytic :class:`~fxcontact.Cone` whose lower generatrix
-    lies in the face of the ring it rolls) moves with a :class:`ControlledMotion`. At the start
-    of each increment its apex is sent, within the increment, to the projection c* of the
-    ring's centroid on the mill line (measured by ``centring``): the cones retreat along the
-    line as the ring grows, and with the apex on the ring's axis a cone's surface speed
-    ω s sin α equals the face's speed ω_ring ρ at every radius (rolling without slip). Along
-    the ring axis each cone moves at its own constant speed (``axial_speeds``; positive along
-    ``centring.axis``). The cones must be frictionless: their torque about their own axis is
-    then zero for any ω, which is undetermined and has no effect on the solution; it is set
-    after the solve to the rolling speed ω_free of the contact nodes (:func:`rolling_speed`),
-    for the outputs and the drawing.
-
-    Args:
-        contact: the :class:`~fxcontact.contact.NodalContact` holding the cones.
-        cones: the cone tools (each moved by a :class:`ControlledMotion`, apex = its
-            ``axis_point`` at t = 0).
-        centring: the :class:`RingCentring` of the mill (mill line, ring axis, centroid).
-        axial_speeds: speed of each cone along the ring axis [length/time].
-
-    History columns: ``{cone}_apex_line`` (apex position along the mill line from its
-    ``line_point``), ``{cone}_apex_axial`` (along the ring axis) and ``{cone}_omega``.
-    """
-
-    def __init__(self, contact, cones: Sequence[Tool], centring: "RingCentring",
-                 axial_speeds: Sequence[float]):
-        self.contact = contact
-        self.cones = list(cones)
-        if not self.cones:
-            raise ValueError("give at least one cone")
-        if len(axial_speeds) != len(self.cones):
-            raise ValueError(f"give one axial speed per cone ({len(self.cones)} cones, "
-                             f"{len(axial_speeds)} speeds)")
-        self.speeds = [float(v) for v in axial_speeds]
-        if not all(math.isfinite(v) for v in self.speeds):
-            raise ValueError(f"axial speeds must be finite, got {axial_speeds!r}")
-        self.motions = [_controlled(c) for c in self.cones]
-        self.k = []
-        for c in self.cones:
-            if c not in contact.tools:
-                raise ValueError(f"cone '{c.name}' is not one of the contact's tools "
-                                 f"{[t.name for t in contact.tools]}")
-            k = contact.tools.index(c)
-            if contact.friction[k].code != LAW_NONE:
-                raise ValueError(f"cone '{c.name}' must be frictionless (its ω is then free); "
-                                 f"a cone with friction needs the zero-torque condition of "
-                                 f"IdleRotation")
-            self.k.append(k)
-        self.centring = centring
-        self.omega = [m.current_angular_velocity() for m in self.motions]
-        self._t = 0.0
-
-    def _apex(self, m: ControlledMotion, t: float) -> np.ndarray:
-        return m.axis_point_at(t)
-
-    def begin_increment(self, sim, t: float, dt: float, x_t):
-        self._t = t
-        c, _ = self.centring.measure(sim)
-        cz = self.centring
-        target = cz.p0 + ((c - cz.p0) @ cz.e) * cz.e
-        for m, v, w in zip(self.motions, self.speeds, self.omega):
-            now = self._apex(m, t)
-            d = target - now
-            d -= (d @ cz.axis) * cz.axis
-            m.set_rates(t, velocity=d / dt + v * cz.axis, angular_velocity=w)
-
-    def end_increment(self, sim, dt: float):
-        for i, (m, k) in enumerate(zip(self.motions, self.k)):
-            self.omega[i] = rolling_speed(self.contact, k, sim.w)
-            m.set_rates(self._t, angular_velocity=self.omega[i])
-
-    def diagnostics(self) -> Dict[str, float]:
-        cz = self.centring
-        t = self.contact.t + self.contact.dt
-        out = {}
-        for cone, m, w in zip(self.cones, self.motions, self.omega):
-            a = self._apex(m, t) - cz.p0
-            out[f"{cone.name}_apex_line"] = float(a @ cz.e)
-            out[f"{cone.name}_apex_axial"] = float(a @ cz.axis)
-            out[f"{cone.name}_omega"] = float(w)
-        return out
-
-    def checkpoint_state(self) -> dict:
-        return {"cones": [c.name for c in self.cones], "omega": list(self.omega),
-                "motions": [m.checkpoint_state() for m in self.motions]}
-
-    def restore_state(self, state: dict):
-        names = [c.name for c in self.cones]
-        if state.get("cones") != names:
-            raise ValueError(f"the checkpoint's cones {state.get('cones')} are not these {names}")
-        self.omega = [float(w) for w in state["omega"]]
-        for m, st in zip(self.motions, state["motions"]):
-            m.restore_state(st)
+def __getattr__(name):
+    if name in _MOVED:
+        from importlib import import_module
+        return getattr(import_module(_MOVED[name]), name)
+    raise AttributeError(f"module 'fxcontact.mill' has no attribute {name!r}")

@@ -7,19 +7,17 @@ import atexit
 import functools
 import os
 import shutil
-import sys
+from dataclasses import replace
 
 from mpi4py import MPI
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "demos"))
-import demo_ring_rolling as demo  # noqa: E402
+from fxcontact.checkpoint import list_checkpoints
+from fxcontact.processes import RingRollingCase, ring_rolling
+from helpers import shared_tmpdir
 
-from fxcontact.checkpoint import list_checkpoints  # noqa: E402
-from helpers import shared_tmpdir  # noqa: E402
-
-NI = demo.QUICK["increments_per_rev"]
+NI = RingRollingCase().quick().increments_per_rev
 #: two increments of the quick (coarse) case 1 with the cones
-CONES = {**demo.QUICK, "case": 1, "cones": True, "revolutions": 2.0 / NI, "pictures": False}
+CONES = replace(RingRollingCase.case1(cones=True).quick(), revolutions=2.0 / NI)
 
 
 def _cleanup(d):
@@ -32,7 +30,9 @@ def cone_runs():
     """(uninterrupted run, resumed run, checkpoint paths, directory) on COMM_WORLD."""
     d = shared_tmpdir("fxc_ring_cones_")
     atexit.register(_cleanup, d)
-    full = demo.run(**CONES, output_dir=os.path.join(d, "full"), checkpoint_every=1)
+    full = ring_rolling.run(CONES, output_dir=os.path.join(d, "full"), pictures=False,
+                            checkpoint_every=1)
     ck = list_checkpoints(os.path.join(d, "full", "checkpoints"))
-    resumed = demo.run(**CONES, output_dir=os.path.join(d, "resumed"), resume=ck[0])
+    resumed = ring_rolling.run(CONES, output_dir=os.path.join(d, "resumed"), pictures=False,
+                               resume=ck[0])
     return full, resumed, ck, d

@@ -61,6 +61,8 @@ PROCESS_DEMOS = {
     "demo_bar_rolling": (("--quick", "--length_factor", 1.6, "--max_increments", 2),
                          "max_increments = 2 reached", "A_pass = 7579 mm2",
                          "bar_rolling_third_diagnostics.csv"),
+    "demo_ring_rolling": (("--quick", "--revolutions", 0.04), "status done",
+                          "sigma0 = 107 MPa (K = 50, m = 0.14)", "ring_rolling.csv"),
 }
 
 

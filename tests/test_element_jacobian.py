@@ -11,9 +11,6 @@
   rolling) — serially and on 2 ranks.
 """
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -25,8 +22,6 @@ from fxcontact.element_jacobian import CondensedJacobian, condense_cell_numpy
 from fxcontact.solver import NewtonSolver, SolverOptions
 from helpers import assert_newton_counts_match, vertex_velocities_by_position
 from test_condense import MATERIALS, pressed_block
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "demos"))
 
 
 def test_cell_condensation_equals_numpy():
@@ -163,16 +158,18 @@ def test_increments_equal_algebraic_condensation(material):
 def test_ring_idle_tool_bordered_equals_algebraic(monkeypatch):
     """One ring-rolling increment with the idle mandrel eliminated by the bordered Newton
     matrix (friction on both rolls): element and algebraic condensation agree to 1e-8."""
-    import demo_ring_rolling as demo
-    one = {**demo.QUICK, "case": 2, "revolutions": 1.0 / demo.QUICK["increments_per_rev"],
-           "output_dir": None, "pictures": False, "idle_method": "bordered"}
+    from dataclasses import replace
+
+    from fxcontact.processes import RingRollingCase, ring_rolling
+    one = RingRollingCase.case2(idle_method="bordered").quick()
+    one = replace(one, revolutions=1.0 / one.increments_per_rev)
     res = {}
     for flag in (True, False):
         def options(*a, _flag=flag, **k):
             return SolverOptions(*a, linear_solver="condensed-mumps",
                                  element_condensation=_flag, prefix=f"tej_ring_{_flag}_", **k)
         monkeypatch.setattr(fx, "SolverOptions", options)
-        res[flag] = demo.run(**one)["history"][0]
+        res[flag] = ring_rolling.run(one).history[0]
     a, b = res[True], res[False]
     for k in ("main_force_x", "main_torque", "mandrel_force_x", "mandrel_omega", "ring_omega"):
         assert abs(a[k] - b[k]) <= 1e-8 * abs(b[k]), (k, a[k], b[k])

@@ -5,8 +5,7 @@ against a dense solve, and the ring-rolling case: the bordered and the outer met
 same ω and forces, 1 and 2 ranks agree."""
 
 import math
-import os
-import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -18,14 +17,12 @@ from fxcontact.contact.nodal import NodalContact
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic
 from fxcontact.mill import ControlledMotion, IdleRotation
+from fxcontact.processes import RingRollingCase, ring_rolling
 from fxcontact.solver import BorderedPC, _BorderedOperator
 from fxcontact.tools.analytic import Cylinder, Plane
 from fxcontact.tools.base import MovedTool
 
 from helpers import FakeBoundary
-
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "demos"))
-import demo_ring_rolling as demo  # noqa: E402
 
 
 class _FakeSim:
@@ -244,13 +241,13 @@ def test_bad_inputs():
 # --------------------------------------------------------------------- ring rolling
 #: one increment of the quick (coarse) case 2: Coulomb friction on the main roll and the idle
 #: mandrel
-ONE = {**demo.QUICK, "case": 2, "revolutions": 1.0 / demo.QUICK["increments_per_rev"],
-       "output_dir": None, "pictures": False}
+ONE = RingRollingCase.case2().quick()
+ONE = replace(ONE, revolutions=1.0 / ONE.increments_per_rev)
 
 
 @pytest.fixture(scope="module")
 def ring():
-    return {m: demo.run(**ONE, idle_method=m) for m in ("bordered", "outer")}
+    return {m: ring_rolling.run(replace(ONE, idle_method=m)) for m in ("bordered", "outer")}
 
 
 def test_ring_bordered_equals_outer(ring):
@@ -258,8 +255,8 @@ def test_ring_bordered_equals_outer(ring):
     iteration (several Newton solves on T(ω) = 0) give the same mandrel speed and forces:
     the outer one stops at |T| ≤ 1e-6 |F| R̄, which moves ω by far less than 1e-6 relative;
     the bordered torque is zero to round-off (below 1e-3 of that tolerance)."""
-    b, o = ring["bordered"]["history"], ring["outer"]["history"]
-    assert ring["bordered"]["status"] == ring["outer"]["status"] == "done"
+    b, o = ring["bordered"].history, ring["outer"].history
+    assert ring["bordered"].status == ring["outer"].status == "done"
     assert len(b) == len(o) == 1
     qb, qo = b[0], o[0]
     assert qb["nodes_mandrel"] > 0 and qb["mandrel_solves"] == 1 and qo["mandrel_solves"] > 1
@@ -271,7 +268,7 @@ def test_ring_bordered_equals_outer(ring):
     for tool in ("main", "mandrel"):
         F[tool] = [np.array([q[f"{tool}_force_x"], q[f"{tool}_force_y"]]) for q in (qb, qo)]
         assert np.linalg.norm(F[tool][0] - F[tool][1]) <= 1e-6 * np.linalg.norm(F[tool][1])
-    R1 = ring["outer"]["parameters"]["R1"]
+    R1 = ring["outer"].case.R1
     assert abs(qb["main_torque"] - qo["main_torque"]) <= 1e-6 * np.linalg.norm(F["main"][1]) * R1
     for key in ("ring_omega", "outer_diameter"):
         assert qb[key] == pytest.approx(qo[key], rel=1e-6), key
@@ -283,8 +280,8 @@ def test_ring_bordered_one_and_two_ranks_agree(ring):
     """The bordered increment on all ranks (the module's run) and on COMM_SELF agree to 1e-8."""
     if MPI.COMM_WORLD.size == 1:
         pytest.skip("compares a run on 2 ranks with a serial one (run under mpirun -n 2)")
-    res = demo.run(**ONE, idle_method="bordered", comm=MPI.COMM_SELF)
-    a, b = ring["bordered"]["history"][0], res["history"][0]
+    res = ring_rolling.run(replace(ONE, idle_method="bordered"), comm=MPI.COMM_SELF)
+    a, b = ring["bordered"].history[0], res.history[0]
     for k in ("main_force_x", "main_torque", "mandrel_force_x", "mandrel_omega",
               "ring_omega", "outer_diameter"):
         assert abs(a[k] - b[k]) <= 1e-8 * abs(b[k]), (k, a[k], b[k])
@@ -303,13 +300,13 @@ def test_ring_three_idle_tools(monkeypatch):
         def __init__(self, *a, **k):
             super().__init__(*a, **k)
             made.append(self)
-    monkeypatch.setattr(demo, "IdleRotation", Captured)
-    res = demo.run(**ONE, idle_guides=True, guide_clearance=-0.2)
-    assert res["status"] == "done"
+    monkeypatch.setattr(ring_rolling, "IdleRotation", Captured)
+    res = ring_rolling.run(replace(ONE, idle_guides=True, guide_clearance=-0.2))
+    assert res.status == "done"
     idle, = made
     assert idle.method == "bordered" and [t.name for t in idle.tools] == \
         ["mandrel", "guide1", "guide2"]
-    q = res["history"][0]
+    q = res.history[0]
     assert q["nodes_guides"] > 0 and q["nodes_mandrel"] > 0
     d = idle.diagnostics()
     v0 = 1e-3 * 2 * math.pi * 150.0

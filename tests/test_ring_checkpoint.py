@@ -1,14 +1,14 @@
-"""Checkpoints of a ring-rolling run (demos/demo_ring_rolling.py): the mill's controllers
-(guide rolls placed by :class:`~fxcontact.mill.RingCentring`, the idle mandrel's ω, the
-cones of :class:`~fxcontact.mill.AxialRolls`, the controlled tool motions, the ring's centre
-of the cylindrical update) are saved and restored,
+"""Checkpoints of a ring-rolling run (fxcontact.processes.ring_rolling): the mill's controllers
+(guide rolls placed by :class:`~fxcontact.processes.ring_mill.RingCentring`, the idle
+mandrel's ω, the cones of :class:`~fxcontact.processes.ring_mill.AxialRolls`, the controlled
+tool motions, the ring's centre of the cylindrical update) are saved and restored,
 so a resumed run equals the uninterrupted one; a checkpoint is refused, with a clear
 ValueError, by a simulation with other controllers."""
 
 import json
 import os
 import shutil
-import sys
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -18,16 +18,13 @@ from mpi4py import MPI
 import fxcontact as fx
 from fxcontact.checkpoint import CheckpointError, list_checkpoints
 from fxcontact.mill import ControlledMotion, IdleRotation, RingAxisUpdate
+from fxcontact.processes import ring_rolling
 from fxcontact.simulation import _plain_state
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(HERE, "..", "demos"))
-import demo_ring_rolling as demo  # noqa: E402
+from checkpoint_driver import build
+from helpers import shared_tmpdir
 
-from checkpoint_driver import build  # noqa: E402
-from helpers import shared_tmpdir  # noqa: E402
-
-from ring_runs import CONES as SHORT, cone_runs  # noqa: E402
+from ring_runs import CONES as SHORT, cone_runs
 
 
 def _json_round_trip(state):
@@ -111,9 +108,9 @@ def test_resumed_ring_rolling_equals_uninterrupted(runs):
     position within one increment, the frictionless mandrel's ω does not change the field."""
     full, resumed, ck, _ = runs
     assert [os.path.basename(p)[-6:] for p in ck] == ["000001", "000002"]
-    assert full["status"] == resumed["status"] == "done"
-    ha, hb = full["sim_history"], resumed["sim_history"]
-    assert len(ha) == len(hb) == 2 and len(resumed["history"]) == 1
+    assert full.status == resumed.status == "done"
+    ha, hb = full.sim_history, resumed.sim_history
+    assert len(ha) == len(hb) == 2 and len(resumed.history) == 1
     bad = []
     for a, b in zip(ha, hb):
         assert set(a) == set(b)
@@ -124,7 +121,7 @@ def test_resumed_ring_rolling_equals_uninterrupted(runs):
                 if not abs(a[k] - b[k]) <= 1e-10 * _scale(a, k):
                     bad.append((a["increment"], k, a[k], b[k]))
     # the demo's own rows (diameters, height, forces, exact penetration) of increment 2
-    for a, b in zip(full["history"][1:], resumed["history"]):
+    for a, b in zip(full.history[1:], resumed.history):
         for k in a:
             if not k.startswith("wall") and not abs(a[k] - b[k]) <= 1e-10 * _scale(a, k):
                 bad.append((a["increment"], k, a[k], b[k]))
@@ -138,7 +135,7 @@ def test_resumed_ring_rolling_equals_uninterrupted(runs):
         [ha[0]["cone_omega"]], rel=1e-14)
     # the update's centre: measured at the start of increment 1, the initial centroid of the
     # upper half ring (0, 0, H/4)
-    assert man["kinematics"]["center"] == pytest.approx([0.0, 0.0, demo.DEFAULTS["H"] / 4],
+    assert man["kinematics"]["center"] == pytest.approx([0.0, 0.0, SHORT.H / 4],
                                                         abs=1e-9)
 
 
@@ -147,8 +144,8 @@ def test_ring_checkpoint_without_cones_refused(runs):
     _, _, ck, d = runs
     with pytest.raises(ValueError, match=r"\['RingCentring', 'IdleRotation', 'AxialRolls'\]; "
                                          r"this simulation has \['RingCentring', 'IdleRotation'\]"):
-        demo.run(**{**SHORT, "cones": False}, output_dir=os.path.join(d, "other"),
-                 resume=ck[0])
+        ring_rolling.run(replace(SHORT, cones=False), output_dir=os.path.join(d, "other"),
+                         resume=ck[0])
 
 
 class _Counter:

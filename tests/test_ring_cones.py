@@ -1,20 +1,18 @@
-"""Axial cone rolls of the ring-rolling demo (demos/demo_ring_rolling.py, --cones;
-fxcontact.mill.AxialRolls) on a short coarse run of the thesis's case 1: the cone bears on the
-top face and holds its height, its apex follows the ring's centre on the mill line, its gap
+"""Axial cone rolls of ring rolling (fxcontact.processes.ring_rolling, cones=True;
+fxcontact.processes.ring_mill.AxialRolls) on a short coarse run of the thesis's case 1: the
+cone bears on the top face and holds its height, its apex follows the ring's centre on the mill line, its gap
 opens at the prescribed speed, its idle ω is the rolling speed of the face, its axial force is
 of the order of ring-rolling theory; volume kept, no inverted element, 1 and 2 ranks agree."""
 
 import math
-import os
-import sys
+from dataclasses import replace
 
 import pytest
 from mpi4py import MPI
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "demos"))
-import demo_ring_rolling as demo  # noqa: E402
+from fxcontact.processes import RingRollingCase, ring_rolling
 
-from ring_runs import CONES, NI, cone_runs  # noqa: E402
+from ring_runs import CONES, NI, cone_runs
 
 
 @pytest.fixture(scope="module")
@@ -28,9 +26,9 @@ def test_cone_holds_the_height(run):
     """At every increment the cone touches the top face (nodes, upward force on the cone) and
     the face under it is pushed below its initial level: half height there = gap/2 + the
     penalty penetration < H/2."""
-    h = run["history"]
-    assert run["status"] == "done" and len(h) == 2
-    H = CONES.get("H", demo.DEFAULTS["H"])
+    h = run.history
+    assert run.status == "done" and len(h) == 2
+    H = CONES.H
     for q in h:
         assert q["nodes_cone"] > 0 and q["cone_force"] > 0
         assert abs(q["cone_force_line"]) < 1e-3 * q["cone_force"]   # frictionless: normal
@@ -45,10 +43,9 @@ def test_cone_kinematics(run):
     with the apex on the ring axis) within 5 %: the cone's ω is the least-squares rotation of
     its four contact nodes, whose velocities also hold the flow under the cone (measured:
     3.5 % on the first increment)."""
-    h = run["history"]
-    H, e0 = demo.DEFAULTS["H"], demo.DEFAULTS["initial_bite"]
-    v = demo.CASES[1]["cone_speed"]
-    alpha = math.radians(demo.DEFAULTS["cone_half_angle"])
+    h = run.history
+    H, e0, v = CONES.H, CONES.initial_bite, CONES.cone_speed
+    alpha = math.radians(CONES.cone_half_angle)
     prev_x = 0.0   # the ring's initial centroid (a ring centred on the origin)
     for q in h:
         assert q["cone_gap"] == pytest.approx(H - 2 * e0 + v * q["time"], rel=1e-12)
@@ -63,7 +60,7 @@ def test_cone_force_order_of_theory(run):
     cone bears on one row of nodes over about half an element, so the force is several times
     the estimate (measured 6.1, 4.2, 2.6 over the first three increments as the
     interference decreases); a closer check needs a mesh finer than L_a, out of the test budget."""
-    for q in run["history"]:
+    for q in run.history:
         ratio = q["cone_force"] / q["cone_force_estimate"]
         print(f"increment {q['increment']}: cone force {q['cone_force'] / 1e3:.0f} kN, "
               f"2kBL_a {q['cone_force_estimate'] / 1e3:.0f} kN (L_a = "
@@ -74,7 +71,7 @@ def test_cone_force_order_of_theory(run):
 def test_volume_and_mesh(run):
     """The cylindrical update keeps the volume (1e-4), every element keeps a positive quality,
     the mean diameter is V/(πHB) of the measured section within 0.5 %."""
-    for q in run["history"]:
+    for q in run.history:
         assert abs(q["volume_change"]) < 1e-4
         assert q["min_quality"] > 0.1
         assert q["mean_diameter"] == pytest.approx(q["mean_diameter_volume"], rel=5e-3)
@@ -87,8 +84,8 @@ def test_one_and_two_ranks_agree():
     when the two runs take different paths (measured: the primal–dual attempt cycles and is
     retried with the consistent tangent, 37–41 iterations in all, by round-off). At 1e-12
     they agree to 1e-13."""
-    a, b = (demo.run(**{**CONES, "revolutions": 1.0 / NI, "comm": comm, "output_dir": None,
-                        "newton_rtol": 1e-12})["history"][0]
+    one = replace(CONES, revolutions=1.0 / NI, newton_rtol=1e-12)
+    a, b = (ring_rolling.run(one, comm=comm).history[0]
             for comm in (MPI.COMM_WORLD, MPI.COMM_SELF))
     for k in ("cone_force", "nodes_cone", "cone_penetration", "cone_omega", "main_force_x",
               "mandrel_force_x", "height", "height_max"):
@@ -117,7 +114,7 @@ def test_axial_rolls_bad_inputs():
 
 
 def test_bad_cone_parameters():
-    with pytest.raises(ValueError, match="has no axial rolls"):
-        demo.run(case=2, cones=True)
+    with pytest.raises(ValueError, match="cones need cone_speed"):
+        RingRollingCase.case2(cones=True)
     with pytest.raises(ValueError, match="cone_half_angle"):
-        demo.run(case=1, cones=True, cone_half_angle=75.0)
+        RingRollingCase.case1(cones=True, cone_half_angle=75.0)

@@ -11,12 +11,14 @@ pictures, ``report()``).
 * :mod:`fxcontact.processes.flat_rolling` — flat rolling of a strip (one quarter);
 * :mod:`fxcontact.processes.bar_rolling` — three-roll rolling of a round bar (a third or the
   whole bar);
+* :mod:`fxcontact.processes.ring_rolling` — radial ring rolling (driven main roll, idle
+  mandrel fed towards it, guide rolls, optional cone rolls; pictures in ``ring_pictures``);
 * shared pieces: :mod:`fxcontact.processes.monitor` (the run-until-steady loop and its stop
   rules), :mod:`fxcontact.processes.common` (gathers, power balance, sections and curves),
   :mod:`fxcontact.processes.die` (the bar's nose, the die and its faceted sectors).
 """
 
-from fxcontact.processes import bar_rolling, flat_rolling
+from fxcontact.processes import bar_rolling, flat_rolling, ring_rolling
 from fxcontact.processes.bar_rolling import BarRollingCase, BarRollingResult, BarRollingSetup
 from fxcontact.processes.drawing import DrawingCase, DrawingResult, DrawingSetup
 from fxcontact.processes.drawing import build as build_drawing
@@ -27,11 +29,13 @@ from fxcontact.processes.extrusion import run as run_extrusion
 from fxcontact.processes.flat_rolling import FlatRollingCase, FlatRollingResult, FlatRollingSetup
 from fxcontact.processes.monitor import (STATUSES, RunNumerics, SteadyMonitor, SteadyRun,
                                          StopRules, window_increments)
+from fxcontact.processes.ring_rolling import RingRollingCase, RingRollingResult, RingRollingSetup
 
-__all__ = ["bar_rolling", "flat_rolling",
+__all__ = ["bar_rolling", "flat_rolling", "ring_rolling",
            "BarRollingCase", "BarRollingResult", "BarRollingSetup",
            "DrawingCase", "DrawingResult", "DrawingSetup", "build_drawing", "run_drawing",
            "ExtrusionCase", "ExtrusionResult", "ExtrusionSetup", "build_extrusion",
            "run_extrusion",
            "FlatRollingCase", "FlatRollingResult", "FlatRollingSetup",
+           "RingRollingCase", "RingRollingResult", "RingRollingSetup",
            "STATUSES", "RunNumerics", "SteadyMonitor", "SteadyRun", "StopRules", "window_increments"]

@@ -14,13 +14,15 @@ results back.
 from __future__ import annotations
 
 import abc
+import math
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Union
 
 import numpy as np
 from scipy.integrate import quad
 
-__all__ = ["MovedTool", "Projection", "RigidMotion", "StagedMotion", "Tool", "as_points"]
+__all__ = ["ControlledMotion", "MovedTool", "Projection", "RigidMotion", "StagedMotion", "Tool",
+           "as_points"]
 
 VectorOrCallable = Union[np.ndarray, tuple, list, Callable[[float], np.ndarray]]
 ScalarOrCallable = Union[float, Callable[[float], float]]
@@ -300,6 +302,122 @@ class StagedMotion(RigidMotion):
     def angle(self, t: float) -> float:
         k = self._stage(t)
         return float(self._th[k] + self._sw[k] * (float(t) - self._t[k]))
+
+
+@dataclass(frozen=True)
+class ControlledMotion(RigidMotion):
+    """Rigid motion with piecewise-constant rates set by a controller (integrated exactly).
+
+    Args:
+        velocity: initial translation velocity (3-vector).
+        angular_velocity: initial rotation speed ω [rad/s] about ``axis``.
+        axis_point, axis: rotation axis at ``t = 0`` (it translates with the tool).
+
+    :meth:`set_rates` starts a new stage of constant rates at time t (the start of an
+    increment); called again at the same t (another trial of the same increment, a cut-back)
+    it overwrites that stage's rates. Rates are right-continuous: at a stage start the new
+    rates apply (what the explicit schemes take at the start of the increment).
+    """
+
+    _st: dict = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        v0 = np.asarray(self.velocity, dtype=np.float64).reshape(-1)
+        if callable(self.velocity) or callable(self.angular_velocity):
+            raise ValueError("ControlledMotion takes constant initial rates (a controller sets "
+                             "them per increment)")
+        w0 = float(self.angular_velocity)
+        if v0.shape != (3,) or not np.all(np.isfinite(v0)) or not math.isfinite(w0):
+            raise ValueError(f"velocity must be a finite 3-vector and angular_velocity finite, "
+                             f"got {self.velocity!r}, {self.angular_velocity!r}")
+        object.__setattr__(self, "_st", {"t": [0.0], "c": [np.zeros(3)], "th": [0.0],
+                                         "v": [v0], "w": [w0]})
+        object.__setattr__(self, "velocity", lambda s: self._st["v"][self._stage(s)].copy())
+        object.__setattr__(self, "angular_velocity",
+                           lambda s: float(self._st["w"][self._stage(s)]))
+        super().__post_init__()
+
+    def _stage(self, t: float) -> int:
+        ts = self._st["t"]
+        tol = 1e-12 * max(1.0, abs(ts[-1]))
+        k = int(np.searchsorted(np.asarray(ts), float(t) + tol, side="right")) - 1
+        return max(k, 0)
+
+    def set_rates(self, t: float, velocity=None, angular_velocity: Optional[float] = None):
+        """Rates from time ``t`` on (``None`` keeps the current one)."""
+        st = self._st
+        t = float(t)
+        last = st["t"][-1]
+        tol = 1e-12 * max(1.0, abs(last))
+        if t < last - tol:
+            raise ValueError(f"cannot set the rates at t = {t:.6g}, before the current stage "
+                             f"(started at t = {last:.6g})")
+        v = st["v"][-1] if velocity is None else np.asarray(velocity, dtype=np.float64)
+        w = st["w"][-1] if angular_velocity is None else float(angular_velocity)
+        if v.shape != (3,) or not np.all(np.isfinite(v)) or not math.isfinite(w):
+            raise ValueError(f"rates must be a finite 3-vector and a finite ω, got {velocity!r}, "
+                             f"{angular_velocity!r}")
+        if t <= last + tol:
+            st["v"][-1], st["w"][-1] = v.copy(), w
+            return
+        d = t - last
+        st["c"].append(st["c"][-1] + st["v"][-1] * d)
+        st["th"].append(st["th"][-1] + st["w"][-1] * d)
+        st["t"].append(t)
+        st["v"].append(v.copy())
+        st["w"].append(w)
+
+    @property
+    def is_static(self) -> bool:
+        return False
+
+    @property
+    def rotates(self) -> bool:
+        return True
+
+    def translation(self, t: float) -> np.ndarray:
+        k = self._stage(t)
+        st = self._st
+        return st["c"][k] + st["v"][k] * (float(t) - st["t"][k])
+
+    def angle(self, t: float) -> float:
+        k = self._stage(t)
+        st = self._st
+        return float(st["th"][k] + st["w"][k] * (float(t) - st["t"][k]))
+
+    def current_angular_velocity(self) -> float:
+        return float(self._st["w"][-1])
+
+    def checkpoint_state(self) -> dict:
+        """The stages of rates set so far (plain numbers and lists): what a resumed run needs
+        to place the tool where the checkpointed run had it (:mod:`fxcontact.checkpoint`)."""
+        st = self._st
+        return {"t": [float(x) for x in st["t"]], "th": [float(x) for x in st["th"]],
+                "w": [float(x) for x in st["w"]],
+                "c": np.asarray(st["c"], dtype=np.float64).tolist(),
+                "v": np.asarray(st["v"], dtype=np.float64).tolist()}
+
+    def restore_state(self, state: dict):
+        """Restore the stages of :meth:`checkpoint_state` (ValueError if malformed)."""
+        try:
+            t = np.asarray(state["t"], dtype=np.float64).reshape(-1)
+            th = np.asarray(state["th"], dtype=np.float64).reshape(-1)
+            w = np.asarray(state["w"], dtype=np.float64).reshape(-1)
+            c = np.asarray(state["c"], dtype=np.float64).reshape(-1, 3)
+            v = np.asarray(state["v"], dtype=np.float64).reshape(-1, 3)
+        except (KeyError, TypeError, ValueError) as e:
+            raise ValueError(f"not a ControlledMotion state ({e}): {state!r:.200}") from None
+        n = len(t)
+        if n == 0 or not (len(th) == len(w) == len(c) == len(v) == n) or \
+                np.any(np.diff(t) <= 0) or not all(np.all(np.isfinite(a))
+                                                   for a in (t, th, w, c, v)):
+            raise ValueError(f"not a ControlledMotion state: {n} stage times, {len(th)} angles, "
+                             f"{len(w)} rotation speeds, {len(c)} positions, {len(v)} "
+                             f"velocities (the same number > 0, finite, increasing times)")
+        st = self._st
+        st["t"], st["th"], st["w"] = [float(x) for x in t], [float(x) for x in th], \
+            [float(x) for x in w]
+        st["c"], st["v"] = [x.copy() for x in c], [x.copy() for x in v]
 
 
 class Tool(abc.ABC):

@@ -1,0 +1,251 @@
+"""The ring mill's own controllers (THEORY §12.1, §14.4), used by
+:mod:`fxcontact.processes.ring_rolling`:
+
+* :class:`RingCentring` — guide rolls that follow the growing ring (control of the ring's centre
+  on the mill line) and the re-set of the cylindrical update's centre
+  (:class:`fxcontact.kinematics.RingAxisUpdate`);
+* :class:`AxialRolls` — idle, frictionless axial (cone) rolls of a radial–axial mill whose apex
+  follows the ring's centre on the mill line, moving along the ring axis at a given speed.
+
+They are registered with :meth:`fxcontact.Simulation.add_controller`, save what changes with
+``checkpoint_state()`` and get it back with ``restore_state()``. The tool motions they drive
+(:class:`fxcontact.tools.base.ControlledMotion`) and idle tools (:class:`fxcontact.mill.IdleRotation`)
+are not specific to rings and stay in :mod:`fxcontact.mill` (which still exports these two
+names as aliases).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Dict, Optional, Sequence
+
+import numpy as np
+from mpi4py import MPI
+
+from fxcontact.contact.friction import LAW_NONE
+from fxcontact.kinematics import RingAxisUpdate
+from fxcontact.mill import _controlled, rolling_speed
+from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
+
+__all__ = ["RingCentring", "AxialRolls"]
+
+
+class RingCentring:
+    """Centring of a ring on the mill line by guide rolls that follow its growth.
+
+    At the start of each increment the ring's centroid c and its mean outer radius R (area-
+    weighted over the outer-surface nodes) are measured; the centre's nominal position is the
+    projection c* of c on the mill line. Each guide roll k (radius R_g, at the angle φ_k from the
+    line's direction about the ring axis) is moved, during the increment, to
+    c* + (R + R_g + clearance)(cos φ_k e + sin φ_k a × e): with zero clearance it touches the
+    ring where a centred ring is, and pushes it back (penalty contact) when the ring drifts off
+    the line. This is the position control of the centring arms of a radial–axial mill; the
+    guide rolls act only against a drift (their force is recorded).
+
+    Args:
+        outer: a :class:`~fxcontact.contact.ContactBoundary` of the ring's outer surface (used
+            to measure R).
+        guides: the guide-roll tools (each moved by a :class:`ControlledMotion`, axis ∥ ring
+            axis).
+        radii: guide-roll radii.
+        angles: φ_k [rad] of each guide roll.
+        line_point, line_direction: the mill line (through the main roll's and the mandrel's
+            axes), in the plane normal to ``axis``.
+        axis: ring axis.
+        clearance: radial clearance between a centred ring and the guide rolls (negative: a
+            small interference, the guide rolls press on the ring — a preload that gives the
+            centre's drift a penalty stiffness from the first increment on).
+        update: a :class:`RingAxisUpdate` whose centre is set to the centroid each increment
+            (optional: the cylindrical configuration update about the current centre).
+
+    History columns: ``ring_center_x/_y/_z``, ``ring_outer_radius``, ``ring_center_offset``
+    (distance of the centroid from the mill line).
+    """
+
+    def __init__(self, outer, guides: Sequence[Tool] = (), radii: Sequence[float] = (),
+                 angles: Sequence[float] = (), line_point=(0.0, 0.0, 0.0),
+                 line_direction=(1.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), clearance: float = 0.0,
+                 update: Optional[RingAxisUpdate] = None):
+        self.outer = outer
+        self.guides = list(guides)
+        self.motions = [_controlled(g) for g in self.guides]
+        if not (len(radii) == len(angles) == len(self.guides)):
+            raise ValueError(f"give one radius and one angle per guide roll "
+                             f"({len(self.guides)} rolls, {len(radii)} radii, "
+                             f"{len(angles)} angles)")
+        self.radii = [float(r) for r in radii]
+        if any(not (math.isfinite(r) and r > 0) for r in self.radii):
+            raise ValueError(f"guide-roll radii must be > 0, got {radii!r}")
+        self.angles = [float(a) for a in angles]
+        self.axis = unit_vector(axis, "ring axis")
+        e = np.asarray(line_direction, dtype=np.float64)
+        e = e - (e @ self.axis) * self.axis
+        self.e = unit_vector(e, "mill line direction (normal to the axis)")
+        self.p0 = np.asarray(line_point, dtype=np.float64).reshape(3)
+        if not math.isfinite(clearance):
+            raise ValueError(f"clearance must be finite, got {clearance!r}")
+        self.clearance = float(clearance)
+        self.update = update
+        self._forms = None
+        self.center = None
+        self.radius = None
+
+    def measure(self, sim):
+        """(centroid, mean outer radius) of the current configuration (collective)."""
+        import dolfinx.fem
+        import ufl
+        from fxcontact import compat
+        if self._forms is None:
+            x = ufl.SpatialCoordinate(sim.mesh)
+            self._forms = [compat.form(x[i] * sim.space.dx) for i in range(3)]
+        V = sim.volume()
+        c = np.array([sim.comm.allreduce(dolfinx.fem.assemble_scalar(f), op=MPI.SUM)
+                      for f in self._forms]) / V
+        b = self.outer
+        x = sim.vertex_positions()[b.vertices]
+        d = x - c
+        d -= np.outer(d @ self.axis, self.axis)
+        num = float(np.sum(b.areas * np.linalg.norm(d, axis=1)))
+        den = float(np.sum(b.areas))
+        num, den = sim.comm.allreduce(np.array([num, den]), op=MPI.SUM)
+        return c, num / den
+
+    def begin_increment(self, sim, t: float, dt: float, x_t):
+        self._sim = sim
+        c, R = self.measure(sim)
+        self.center, self.radius = c, R
+        if self.update is not None:
+            self.update.set_center(c)
+        cs = self.p0 + ((c - self.p0) @ self.e) * self.e + ((c - self.p0) @ self.axis) * self.axis
+        f = np.cross(self.axis, self.e)
+        for mot, Rg, phi in zip(self.motions, self.radii, self.angles):
+            target = cs + (R + Rg + self.clearance) * (math.cos(phi) * self.e + math.sin(phi) * f)
+            now = mot.axis_point_at(t)
+            mot.set_rates(t, velocity=(target - now) / dt)
+
+    def end_increment(self, sim, dt: float):
+        pass
+
+    def diagnostics(self) -> Dict[str, float]:
+        c, R = self.measure(sim=self._sim)   # after the geometry update
+        self.center, self.radius = c, R
+        d = c - self.p0
+        off = d - (d @ self.e) * self.e - (d @ self.axis) * self.axis
+        return {"ring_center_x": float(c[0]), "ring_center_y": float(c[1]),
+                "ring_center_z": float(c[2]), "ring_outer_radius": float(self.radius),
+                "ring_center_offset": float(np.linalg.norm(off))}
+
+    def checkpoint_state(self) -> dict:
+        """The guide rolls' motions and the last measured centre and outer radius."""
+        return {"guides": [g.name for g in self.guides],
+                "center": None if self.center is None else np.asarray(self.center).tolist(),
+                "radius": None if self.radius is None else float(self.radius),
+                "motions": [m.checkpoint_state() for m in self.motions]}
+
+    def restore_state(self, state: dict):
+        names = [g.name for g in self.guides]
+        if state.get("guides") != names:
+            raise ValueError(f"the checkpoint's centring guides {state.get('guides')} are not "
+                             f"these {names}")
+        self.center = None if state["center"] is None else np.asarray(state["center"], float)
+        self.radius = None if state["radius"] is None else float(state["radius"])
+        for m, st in zip(self.motions, state["motions"]):
+            m.restore_state(st)
+
+
+class AxialRolls:
+    """Axial (cone) rolls of a radial–axial ring mill: their apex follows the ring's centre on
+    the mill line, they move along the ring axis at given speeds, and they are idle.
+
+    Each cone (any tool, usually an analytic :class:`~fxcontact.Cone` whose lower generatrix
+    lies in the face of the ring it rolls) moves with a :class:`ControlledMotion`. At the start
+    of each increment its apex is sent, within the increment, to the projection c* of the
+    ring's centroid on the mill line (measured by ``centring``): the cones retreat along the
+    line as the ring grows, and with the apex on the ring's axis a cone's surface speed
+    ω s sin α equals the face's speed ω_ring ρ at every radius (rolling without slip). Along
+    the ring axis each cone moves at its own constant speed (``axial_speeds``; positive along
+    ``centring.axis``). The cones must be frictionless: their torque about their own axis is
+    then zero for any ω, which is undetermined and has no effect on the solution; it is set
+    after the solve to the rolling speed ω_free of the contact nodes (:func:`rolling_speed`),
+    for the outputs and the drawing.
+
+    Args:
+        contact: the :class:`~fxcontact.contact.NodalContact` holding the cones.
+        cones: the cone tools (each moved by a :class:`ControlledMotion`, apex = its
+            ``axis_point`` at t = 0).
+        centring: the :class:`RingCentring` of the mill (mill line, ring axis, centroid).
+        axial_speeds: speed of each cone along the ring axis [length/time].
+
+    History columns: ``{cone}_apex_line`` (apex position along the mill line from its
+    ``line_point``), ``{cone}_apex_axial`` (along the ring axis) and ``{cone}_omega``.
+    """
+
+    def __init__(self, contact, cones: Sequence[Tool], centring: "RingCentring",
+                 axial_speeds: Sequence[float]):
+        self.contact = contact
+        self.cones = list(cones)
+        if not self.cones:
+            raise ValueError("give at least one cone")
+        if len(axial_speeds) != len(self.cones):
+            raise ValueError(f"give one axial speed per cone ({len(self.cones)} cones, "
+                             f"{len(axial_speeds)} speeds)")
+        self.speeds = [float(v) for v in axial_speeds]
+        if not all(math.isfinite(v) for v in self.speeds):
+            raise ValueError(f"axial speeds must be finite, got {axial_speeds!r}")
+        self.motions = [_controlled(c) for c in self.cones]
+        self.k = []
+        for c in self.cones:
+            if c not in contact.tools:
+                raise ValueError(f"cone '{c.name}' is not one of the contact's tools "
+                                 f"{[t.name for t in contact.tools]}")
+            k = contact.tools.index(c)
+            if contact.friction[k].code != LAW_NONE:
+                raise ValueError(f"cone '{c.name}' must be frictionless (its ω is then free); "
+                                 f"a cone with friction needs the zero-torque condition of "
+                                 f"IdleRotation")
+            self.k.append(k)
+        self.centring = centring
+        self.omega = [m.current_angular_velocity() for m in self.motions]
+        self._t = 0.0
+
+    def _apex(self, m: ControlledMotion, t: float) -> np.ndarray:
+        return m.axis_point_at(t)
+
+    def begin_increment(self, sim, t: float, dt: float, x_t):
+        self._t = t
+        c, _ = self.centring.measure(sim)
+        cz = self.centring
+        target = cz.p0 + ((c - cz.p0) @ cz.e) * cz.e
+        for m, v, w in zip(self.motions, self.speeds, self.omega):
+            now = self._apex(m, t)
+            d = target - now
+            d -= (d @ cz.axis) * cz.axis
+            m.set_rates(t, velocity=d / dt + v * cz.axis, angular_velocity=w)
+
+    def end_increment(self, sim, dt: float):
+        for i, (m, k) in enumerate(zip(self.motions, self.k)):
+            self.omega[i] = rolling_speed(self.contact, k, sim.w)
+            m.set_rates(self._t, angular_velocity=self.omega[i])
+
+    def diagnostics(self) -> Dict[str, float]:
+        cz = self.centring
+        t = self.contact.t + self.contact.dt
+        out = {}
+        for cone, m, w in zip(self.cones, self.motions, self.omega):
+            a = self._apex(m, t) - cz.p0
+            out[f"{cone.name}_apex_line"] = float(a @ cz.e)
+            out[f"{cone.name}_apex_axial"] = float(a @ cz.axis)
+            out[f"{cone.name}_omega"] = float(w)
+        return out
+
+    def checkpoint_state(self) -> dict:
+        return {"cones": [c.name for c in self.cones], "omega": list(self.omega),
+                "motions": [m.checkpoint_state() for m in self.motions]}
+
+    def restore_state(self, state: dict):
+        names = [c.name for c in self.cones]
+        if state.get("cones") != names:
+            raise ValueError(f"the checkpoint's cones {state.get('cones')} are not these {names}")
+        self.omega = [float(w) for w in state["omega"]]
+        for m, st in zip(self.motions, state["motions"]):
+            m.restore_state(st)
