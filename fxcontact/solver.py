@@ -16,15 +16,10 @@ inside a callback) the SNES with its KSP/PC and work vectors is rebuilt
 numeric phase is skipped at every later set-up), and every cut-back attempt would fail at
 iteration 0.
 
-**Bordered systems** (:meth:`NewtonSolver.set_border`): a contributor may eliminate k scalar
-unknowns locally at each residual evaluation (the rotation speeds of idle tools,
-:class:`~fxcontact.mill.IdleRotation`); the Newton matrix is then the assembled J plus a rank-k
-term, J̃ = J − U D⁻¹ G (U = ∂R/∂ω, G = ∂T/∂v, D = ∂T/∂ω, k×k). The SNES Jacobian becomes a
-shell J̃ (its product is exact, so the line search's slope and any Krylov method see J̃), the
-linear solver's own preconditioner P ≈ J⁻¹ (MUMPS, the condensed PC, a field split) is wrapped
-by :class:`BorderedPC`, which applies the Woodbury formula J̃⁻¹ = J⁻¹ + Z (D − G Z)⁻¹ G J⁻¹ with
-Z = P⁻¹ U: k extra applications of P per Newton iteration (with a factorisation, k extra
-triangular solves, no new factorisation), exact when P is.
+**Bordered systems** (:meth:`NewtonSolver.set_border`, :mod:`fxcontact.bordered`): a
+contributor may eliminate k scalar unknowns locally at each residual evaluation (the rotation
+speeds of idle tools); the Newton matrix is then J plus a rank-k term, preconditioned by the
+Woodbury formula.
 """
 
 from __future__ import annotations
@@ -41,78 +36,15 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fxcontact.bordered import BorderedPC, _BorderedOperator
 from fxcontact.petsc import NonlinearProblem, mumps_null_pivots
+from fxcontact.solver_options import (LINE_SEARCHES, LINEAR_SOLVERS, MATERIAL_TANGENTS,
+                                      SolverOptions, _globalization_options)
 
 __all__ = ["ContactNewtonSolver", "NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS",
            "choose_linear_solver", "BorderedPC", "MATERIAL_TANGENTS"]
 
 log = logging.getLogger(__name__)
-
-#: Linear solver presets (PETSc options without prefix).
-LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
-    "mumps": {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps",
-              "mat_mumps_icntl_14": 200, "mat_mumps_icntl_24": 1},
-    # Schur-complement field split (velocity block: hypre AMG; Schur: pressure mass-like
-    # preconditioner from the selfp approximation), flexible GMRES outside.
-    "fieldsplit": {"ksp_type": "fgmres", "ksp_rtol": 1e-10, "ksp_atol": 1e-14,
-                   "ksp_max_it": 500, "ksp_gmres_restart": 200,
-                   "pc_type": "fieldsplit", "pc_fieldsplit_type": "schur",
-                   "pc_fieldsplit_schur_fact_type": "upper",
-                   "pc_fieldsplit_schur_precondition": "selfp",
-                   "fieldsplit_u_ksp_type": "preonly", "fieldsplit_u_pc_type": "hypre",
-                   "fieldsplit_p_ksp_type": "preonly", "fieldsplit_p_pc_type": "jacobi"},
-    # MINI bubble condensed element by element (fxcontact.condense.CondensedPC, an exact block
-    # elimination), the P1/P1 system solved by MUMPS under the prefix "condensed_"
-    "condensed-mumps": {"ksp_type": "preonly", "pc_type": "python",
-                        "condensed_ksp_type": "preonly", "condensed_pc_type": "lu",
-                        "condensed_pc_factor_mat_solver_type": "mumps",
-                        "condensed_mat_mumps_icntl_14": 200, "condensed_mat_mumps_icntl_24": 1,
-                        # L D Lᵀ when the condensed matrix is symmetric (fxcontact.condense)
-                        "condensed_factor_symmetric": 1},
-    # condensed P1/P1 system solved iteratively: FGMRES, Schur field split (full
-    # factorisation), GAMG on the velocity block (block size gdim, rigid-body near-null space,
-    # unsmoothed aggregation, one Chebyshev/Jacobi sweep per level),
-    # Schur preconditioned by the condensed pressure block + the inverse-viscosity lumped
-    # pressure mass (Jacobi); the Newton step to rtol 1e-8 (snes_ksp_ew: Eisenstat–Walker)
-    "condensed-amg": {"ksp_type": "preonly", "pc_type": "python",
-                      "condensed_ksp_type": "fgmres", "condensed_ksp_rtol": 1e-8,
-                      # 500: the Hertz sphere at 807k dofs takes ~250 iterations per Newton
-                      # iteration with this preset (benchmarks/README.md)
-                      "condensed_ksp_atol": 1e-50, "condensed_ksp_max_it": 500,
-                      "condensed_ksp_gmres_restart": 100,
-                      "condensed_pc_type": "fieldsplit",
-                      "condensed_pc_fieldsplit_type": "schur",
-                      "condensed_pc_fieldsplit_schur_fact_type": "full",
-                      "condensed_pc_fieldsplit_schur_precondition": "user",
-                      "condensed_fieldsplit_u_ksp_type": "preonly",
-                      "condensed_fieldsplit_u_pc_type": "gamg",
-                      "condensed_fieldsplit_u_pc_gamg_threshold": 0.02,
-                      "condensed_fieldsplit_u_pc_gamg_square_graph": 1,
-                      # plain (unsmoothed) aggregation and one Chebyshev sweep per level:
-                      # more Krylov iterations, cheaper set-up and V-cycle (per Newton
-                      # iteration 1.16x faster at 300k dofs, 1.42x at 1M; benchmarks/README.md)
-                      "condensed_fieldsplit_u_pc_gamg_agg_nsmooths": 0,
-                      "condensed_fieldsplit_u_mg_levels_ksp_type": "chebyshev",
-                      "condensed_fieldsplit_u_mg_levels_ksp_max_it": 1,
-                      "condensed_fieldsplit_u_mg_levels_pc_type": "jacobi",
-                      "condensed_fieldsplit_p_ksp_type": "preonly",
-                      "condensed_fieldsplit_p_pc_type": "jacobi"},
-}
-# the same for the hard cases (nearly rigid-plastic flow with a free dilatation, large
-# viscosity contrasts: the wire drawing at m = 0.016, benchmarks/README.md): the velocity
-# block of the preconditioning matrix augmented by (2/3) η div div (fxcontact.condense), the
-# Schur complement preconditioned by A11 − A10 diag(A00)⁻¹ A01 (selfp, GAMG), and the velocity
-# block solved by up to 20 GAMG-preconditioned GMRES iterations (relative 1e-2) inside the
-# outer FGMRES; several times the cost of "condensed-amg" where that one converges
-LINEAR_SOLVERS["condensed-amg-robust"] = {
-    **LINEAR_SOLVERS["condensed-amg"],
-    "condensed_augment_scale": 1.0,
-    "condensed_pc_fieldsplit_schur_precondition": "selfp",
-    "condensed_fieldsplit_p_pc_type": "gamg",
-    "condensed_fieldsplit_u_ksp_type": "gmres",
-    "condensed_fieldsplit_u_ksp_max_it": 20,
-    "condensed_fieldsplit_u_ksp_rtol": 1e-2,
-}
 
 #: What a singular Newton matrix at a converged solution means (:attr:`SolveInfo.null_pivots`)
 NULL_PIVOT_HINT = (
@@ -152,187 +84,8 @@ TRUST_RADIUS_FROM_REST = 1e10
 #: PETSc's default δ₀ of ``newtontr``, restored after a solve from rest
 _PETSC_TR_DELTA0 = 0.2
 
-#: PETSc SNES line searches accepted by :class:`SolverOptions`
-#: globalisations of the Newton step: PETSc's line searches (SNES ``newtonls``) and
-#: ``"trust-region"`` (SNES ``newtontr``: dogleg steps inside a trust region, no line search)
-LINE_SEARCHES = ("bt", "basic", "l2", "cp", "nleqerr", "trust-region")
-#: values of ``SolverOptions.material_tangent``
-MATERIAL_TANGENTS = ("auto", "consistent", "primal-dual")
-
 #: PETSc option keys (without prefix) written by the last solver created under each prefix
 _WRITTEN_OPTIONS: Dict[str, set] = {}
-
-
-@dataclass
-class SolverOptions:
-    """Newton settings, validated at construction.
-
-    Attributes:
-        rtol: relative residual tolerance ‖R‖/‖R₀‖.
-        atol: absolute residual tolerance.
-        stol: relative step tolerance ‖Δx‖/‖x‖ (a converged Newton step).
-        max_it: maximum Newton iterations per solve.
-        line_search: globalisation of the Newton step: a PETSc SNES line search ("bt",
-            "basic", "l2", "cp", "nleqerr") or ``"trust-region"`` (SNES ``newtontr``). On a
-            nearly rigid-plastic material with a stiff contact penalty the full Newton step
-            overshoots (the power-law tangent along the flow is m times the secant one) and
-            the backtracking line search then creeps with 1–10 % steps; the trust region takes
-            fewer iterations there (figures in ``benchmarks/README.md``, section "Newton at
-            m = 0.016").
-        line_search_fallback: line search of a second attempt at the same time step when the
-            first one fails to converge (before any cut-back), or None. Backtracking on the
-            residual norm can stall when contact nodes open and close and friction nodes pass
-            between stick and slip in the same iteration (tiny accepted steps, or a 2-cycle);
-            full Newton steps then converge in a few iterations. Default ``"auto"``:
-            ``"basic"`` after a line search, ``"bt"`` after the trust region.
-        linear_solver: ``"auto"`` (default: :func:`choose_linear_solver` picks a preset from
-            the space and its size when the solver is built), a key of
-            :data:`LINEAR_SOLVERS` (``"mumps"``: MUMPS on the whole system;
-            ``"condensed-mumps"``: the MINI bubble condensed element by element, MUMPS on the
-            P1/P1 system; ``"condensed-amg"``: the condensed system by a Schur field split
-            with algebraic multigrid, :mod:`fxcontact.condense`; ``"condensed-amg-robust"``:
-            the same made to converge on the hard cases — nearly rigid-plastic flow with a
-            free dilatation, the wire drawing — at several times the cost; ``"fieldsplit"``)
-            or a dict of PETSc options.
-        penalty_continuation: continuation in the contact penalty, a factor f in (0, 1), or
-            None (default, off). Each Newton solve then runs in two stages: the contributors
-            that have ``scale_penalty`` (:class:`~fxcontact.contact.NodalContact`) get ρ·f
-            and Newton stops at ``continuation_rtol``; from there, the full penalty to the
-            usual tolerances. With a nearly rigid-plastic material and a stiff penalty the
-            second stage takes 3–6 iterations and the soft first stage converges much faster
-            than the stiff problem from the predictor (figures in ``benchmarks/README.md``,
-            section "Newton at m = 0.016"). If the first stage fails, the second starts from
-            the predictor. The result is the full-penalty solution either way.
-        continuation_rtol: relative residual tolerance of the softened first stage.
-        active_set_prediction: correct each Newton step for the contact status changes it
-            predicts (:mod:`fxcontact.prediction`): the step of the linear system of the
-            predicted penalty branch, by the Woodbury identity, one extra linear solve
-            (back-substitution with a direct solver) per node that changes status. Line
-            searches only (the trust region has no pre-check in petsc4py 3.18). ``"auto"``
-            (default): on with a direct linear solver (``ksp_type preonly``, the condensed
-            one's too), off with an iterative one (each extra solve would be a Krylov solve);
-            True / False force it. Figures in ``benchmarks/README.md`` ("active-set
-            prediction"): 1.4–2.5× fewer Newton iterations where nodes enter and leave
-            contact (ironing, grooves, Hertz, nearly rigid-plastic drawing with a stiff
-            penalty), no change where friction sets the count.
-        prediction_max_nodes: the step is left uncorrected at an iteration where more nodes
-            than this change status (the cost is one linear solve per node).
-        material_tangent: ``"auto"`` (default: ``"primal-dual"`` for a Norton–Hoff
-            material with m < 1, else ``"consistent"``), ``"consistent"`` or
-            ``"primal-dual"``: the Norton–Hoff tangent of the primal–dual Newton
-            (:mod:`fxcontact.dual`: the deviatoric stress kept as a dual variable at the
-            quadrature points; same residual, same solution). Read by
-            :class:`~fxcontact.simulation.Simulation` (a problem of your own adds
-            :meth:`fxcontact.dual.DualStress.jacobian_correction` to its Jacobian and the
-            :class:`~fxcontact.dual.DualStress` to ``NonlinearProblem.iterate_hooks``).
-        element_condensation: with a condensed linear solver, condense the bubble in the
-            element matrices before they are assembled (:mod:`fxcontact.element_jacobian`:
-            the same Newton step at a fraction of the assembly and condensation cost) instead
-            of condensing the assembled MINI matrix (:class:`~fxcontact.condense.CondensedPC`).
-            ``"auto"`` (default): wherever the Jacobian allows it (cell integrals over the whole
-            mesh); True: required (ValueError otherwise); False: the algebraic condensation.
-        prefix: PETSc options prefix.
-        petsc_options: extra PETSc options (without prefix) that override the presets.
-    """
-
-    rtol: float = 1e-9
-    atol: float = 1e-10
-    stol: float = 1e-9
-    max_it: int = 30
-    line_search: str = "bt"
-    line_search_fallback: Optional[str] = "auto"
-    linear_solver: object = "auto"
-    penalty_continuation: Optional[float] = None
-    continuation_rtol: float = 1e-3
-    active_set_prediction: object = "auto"
-    prediction_max_nodes: int = 200
-    material_tangent: str = "auto"
-    element_condensation: object = "auto"
-    prefix: str = "fxc_"
-    petsc_options: Dict[str, object] = field(default_factory=dict)
-
-    def __post_init__(self):
-        for name in ("rtol", "atol", "stol"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
-        if not (isinstance(self.max_it, (int, np.integer)) and self.max_it >= 1):
-            raise ValueError(f"max_it must be an integer >= 1, got {self.max_it!r}")
-        if self.line_search_fallback == "auto":
-            self.line_search_fallback = "bt" if self.line_search == "trust-region" else "basic"
-        for name in ("line_search", "line_search_fallback"):
-            ls = getattr(self, name)
-            if ls not in LINE_SEARCHES and not (name == "line_search_fallback" and ls is None):
-                raise ValueError(f"unknown {name.replace('_', ' ')} {ls!r}; choose one of "
-                                 f"{LINE_SEARCHES}")
-        if isinstance(self.linear_solver, str) and self.linear_solver not in LINEAR_SOLVERS \
-                and self.linear_solver != "auto":
-            raise ValueError(f"unknown linear solver {self.linear_solver!r}; choose 'auto', one "
-                             f"of {sorted(LINEAR_SOLVERS)} or pass a dict of PETSc options")
-        if not isinstance(self.linear_solver, (str, dict)):
-            raise ValueError("linear_solver must be a preset name or a dict of PETSc options")
-        pc = self.penalty_continuation
-        if pc is not None and not (isinstance(pc, (int, float)) and 0.0 < pc < 1.0):
-            raise ValueError(f"penalty_continuation must be None or a factor in (0, 1), got "
-                             f"{pc!r}")
-        if not (isinstance(self.active_set_prediction, (bool, np.bool_))
-                or self.active_set_prediction == "auto"):
-            raise ValueError(f"active_set_prediction must be 'auto', True or False, got "
-                             f"{self.active_set_prediction!r}")
-        if not (isinstance(self.prediction_max_nodes, (int, np.integer))
-                and self.prediction_max_nodes >= 1):
-            raise ValueError(f"prediction_max_nodes must be an integer >= 1, got "
-                             f"{self.prediction_max_nodes!r}")
-        if self.material_tangent not in MATERIAL_TANGENTS:
-            raise ValueError(f"unknown material tangent {self.material_tangent!r}; choose one "
-                             f"of {MATERIAL_TANGENTS}")
-        if not (isinstance(self.element_condensation, (bool, np.bool_))
-                or self.element_condensation == "auto"):
-            raise ValueError(f"element_condensation must be 'auto', True or False, got "
-                             f"{self.element_condensation!r}")
-        if not (np.isfinite(self.continuation_rtol) and 0.0 < self.continuation_rtol < 1.0):
-            raise ValueError(f"continuation_rtol must be in (0, 1), got "
-                             f"{self.continuation_rtol!r}")
-
-    def linear_options(self) -> Dict[str, object]:
-        """PETSc options of the linear solver: the preset (or dict) with ``petsc_options``
-        (``"auto"``, not resolved yet: the ``petsc_options`` alone)."""
-        if self.linear_solver == "auto":
-            lin = {}
-        else:
-            lin = (LINEAR_SOLVERS[self.linear_solver] if isinstance(self.linear_solver, str)
-                   else self.linear_solver)
-        return {**lin, **self.petsc_options}
-
-    @property
-    def uses_fieldsplit(self) -> bool:
-        """True if the preconditioner is a field split (it needs velocity/pressure ISs)."""
-        return self.linear_options().get("pc_type") == "fieldsplit"
-
-    @property
-    def uses_direct_solver(self) -> bool:
-        """True if the linear solve is a direct one (``ksp_type preonly``, and so is the
-        condensed system's solve): extra solves with its factorisation are cheap."""
-        lin = self.linear_options()
-        if lin.get("ksp_type") != "preonly":
-            return False
-        return not self.uses_condensation or lin.get("condensed_ksp_type") == "preonly"
-
-    @property
-    def predicts_active_set(self) -> bool:
-        """Whether the Newton steps get the active-set prediction (``active_set_prediction``
-        resolved: ``"auto"`` means with a direct linear solver)."""
-        if self.active_set_prediction == "auto":
-            return self.linear_solver != "auto" and self.uses_direct_solver
-        return bool(self.active_set_prediction)
-
-    @property
-    def uses_condensation(self) -> bool:
-        """True if the linear solver condenses the cell-interior (bubble) dofs
-        (:class:`~fxcontact.condense.CondensedPC`: ``pc_type python`` without a
-        ``pc_python_type``)."""
-        lin = self.linear_options()
-        return lin.get("pc_type") == "python" and "pc_python_type" not in lin
 
 
 @dataclass
@@ -357,92 +110,6 @@ class SolveInfo:
     #: None with a solver that is not MUMPS): a positive count means a singular Newton matrix,
     #: a motion that nothing holds (see :data:`NULL_PIVOT_HINT`)
     null_pivots: List[Optional[int]] = field(default_factory=list)
-
-
-class BorderedPC:
-    """petsc4py python PC: a preconditioner P ≈ J⁻¹ of the assembled matrix J, corrected for a
-    rank-k term of the operator, J̃ = J − U D⁻¹ G, by the Woodbury formula
-
-        J̃⁻¹ x = y + Z (D − G Z)⁻¹ G y,   y = P x,   Z = P U.
-
-    Args:
-        inner: the PC of J (set up here with the outer PC's preconditioning matrix).
-        border: an object with ``vectors()`` returning ``(U, G, D)`` (two lists of k PETSc
-            vectors of the problem's layout and a k×k array) or None (no border: P alone).
-    """
-
-    def __init__(self, inner: PETSc.PC, border):
-        self.inner = inner
-        self.border = border
-        self._Z: List[PETSc.Vec] = []
-        self._G: List[PETSc.Vec] = []
-        self._M = None
-
-    def setUp(self, pc):
-        _, P = pc.getOperators()
-        self.inner.setOperators(P, P)
-        self.inner.setUp()
-        for z in self._Z:
-            z.destroy()
-        self._Z, self._G, self._M = [], [], None
-        vec = self.border.vectors()
-        if vec is None or not len(vec[0]):
-            return
-        U, G, D = vec
-        for u in U:
-            z = u.duplicate()
-            self.inner.apply(u, z)
-            self._Z.append(z)
-        self._G = list(G)
-        k = len(U)
-        M = np.array(D, dtype=np.float64).reshape(k, k).copy()
-        for i in range(k):
-            for j in range(k):
-                M[i, j] -= G[i].dot(self._Z[j])
-        self._M = M
-
-    def apply(self, pc, x, y):
-        self.inner.apply(x, y)
-        if self._M is None:
-            return
-        c = np.array([g.dot(y) for g in self._G])
-        s = np.linalg.solve(self._M, c)
-        for z, sj in zip(self._Z, s):
-            y.axpy(float(sj), z)
-
-    def view(self, pc, viewer=None):
-        self.inner.view(viewer)
-
-    def destroy(self, pc=None):
-        for z in self._Z:
-            z.destroy()
-        self._Z, self._G = [], []
-        if self.inner is not None:
-            self.inner.destroy()
-            self.inner = None
-
-
-class _BorderedOperator:
-    """petsc4py python Mat: the product with J̃ = J − U D⁻¹ G (J assembled, U, G, D from the
-    border's ``vectors()``)."""
-
-    def __init__(self, A: PETSc.Mat, border):
-        self.A = A
-        self.border = border
-
-    def mult(self, mat, x, y):
-        self.A.mult(x, y)
-        vec = self.border.vectors()
-        if vec is None or not len(vec[0]):
-            return
-        U, G, D = vec
-        t = np.linalg.solve(np.asarray(D, dtype=np.float64).reshape(len(U), len(U)),
-                            np.array([g.dot(x) for g in G]))
-        for u, tj in zip(U, t):
-            y.axpy(-float(tj), u)
-
-    def createVecs(self, mat):
-        return self.A.createVecs()
 
 
 class ContactNewtonSolver:
@@ -1028,12 +695,6 @@ class ContactNewtonSolver:
 #: the former name of :class:`ContactNewtonSolver` (the same class)
 NewtonSolver = ContactNewtonSolver
 
-
-def _globalization_options(kind: str) -> Dict[str, str]:
-    """SNES options (without prefix) of a :data:`LINE_SEARCHES` entry."""
-    if kind == "trust-region":
-        return {"snes_type": "newtontr"}
-    return {"snes_type": "newtonls", "snes_linesearch_type": kind}
 
 
 def _reason_name(reason: int, kind=PETSc.SNES.ConvergedReason) -> str:
