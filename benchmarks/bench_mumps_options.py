@@ -132,14 +132,23 @@ def vertex_order(lay, S):
     return v
 
 
+def _drawing(size: float, increments: int, linear_solver, **_ignored) -> dict:
+    """The wire drawing (``fxcontact.processes.drawing``) for ``increments`` increments with
+    the bubble condensed after the assembly (the matrices this study captures):
+    ``{"history", "dofs", "wall"}``."""
+    from fxcontact.processes import DrawingCase, run_drawing
+
+    case = DrawingCase(size=size, t_end=increments * DrawingCase.dt, element_condensation=False,
+                       linear_solver=linear_solver)     # a preset name or a dict of options
+    res = run_drawing(case, output_dir=None, pictures=False)
+    return {"history": res.history, "dofs": res.dofs, "wall": res.wall}
+
+
 def capture(size: float, increments: int, comm):
     """Run the wire drawing; copy (S, b) at every set-up of the condensed PC. Returns the
     pairs, the vertex order (see :func:`vertex_order`) and the counts of analyses and numerical
     factorisations of the run."""
-    from _common import load_demo
     from fxcontact.condense import CondensedPC
-
-    demo = load_demo("demo_wire_drawing")
     pairs, seen = [], {"setup": -1, "order": None}
     apply = CondensedPC._apply
 
@@ -159,8 +168,7 @@ def capture(size: float, increments: int, comm):
     before = [e.getPerfInfo()["count"] for e in events]
     CondensedPC._apply = _apply
     try:
-        dt = demo.DEFAULTS["dt"]
-        res = demo.run(size=size, t_end=increments * dt, linear_solver="condensed-mumps",
+        res = _drawing(size, increments, "condensed-mumps",
                        pictures=False, output_dir=None, comm=comm)
     finally:
         CondensedPC._apply = apply
@@ -330,16 +338,13 @@ def newton_check(size: float, increments: int, change: dict, comm, say):
     """The wire drawing with the ``condensed-mumps`` preset and with ``change`` (options of
     the condensed system without prefix, None removes one): Newton iterations, drawing force
     and linear-solve time per increment."""
-    from _common import load_demo
     from fxcontact.solver import LINEAR_SOLVERS
-
-    demo = load_demo("demo_wire_drawing")
     out = {}
     preset = LINEAR_SOLVERS["condensed-mumps"]
     changed = {k: v for k, v in {**preset, **{"condensed_" + k: v for k, v in change.items()}
                                  }.items() if v is not None}
     for label, lin in (("preset", dict(preset)), ("changed", changed)):
-        res = demo.run(size=size, t_end=increments * demo.DEFAULTS["dt"], linear_solver=lin,
+        res = _drawing(size, increments, lin,
                        pictures=False, output_dir=None, comm=comm)
         h = res["history"]
         out[label] = h

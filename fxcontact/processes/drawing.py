@@ -101,6 +101,7 @@ class DrawingCase(CaseBase):
     active_set_prediction: object = "auto"
     material_tangent: str = "auto"
     linear_solver: str = "auto"
+    element_condensation: object = "auto"   #: SolverOptions.element_condensation
     max_cutbacks: int = 4
     # steady state: two windows of `window` mm of pull agree within steady_tol, after `settle`
     # mm (default one element)
@@ -173,7 +174,8 @@ class DrawingCase(CaseBase):
                              active_set_prediction=self.active_set_prediction,
                              material_tangent=self.material_tangent,
                              penalty_continuation=self.penalty_continuation,
-                             linear_solver=self.linear_solver)
+                             linear_solver=self.linear_solver,
+                             element_condensation=self.element_condensation)
 
 
 @dataclass
