@@ -22,34 +22,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from fxcontact.cell_kernels import _tet_geometry
+
 __all__ = ["DualUpdateKernel", "dual_update_numpy", "kernel_applies"]
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _cell_geometry(coords, g1, Ki, G):
-    """J⁻¹ (Ki) and the physical gradients of the hat functions (G, (4, 3)) of a tetrahedron."""
-    J = np.empty((3, 3))
-    for i in range(3):
-        for k in range(3):
-            J[i, k] = coords[k + 1, i] - coords[0, i]
-    det = (J[0, 0] * (J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1])
-           - J[0, 1] * (J[1, 0] * J[2, 2] - J[1, 2] * J[2, 0])
-           + J[0, 2] * (J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]))
-    Ki[0, 0] = (J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1]) / det
-    Ki[0, 1] = (J[0, 2] * J[2, 1] - J[0, 1] * J[2, 2]) / det
-    Ki[0, 2] = (J[0, 1] * J[1, 2] - J[0, 2] * J[1, 1]) / det
-    Ki[1, 0] = (J[1, 2] * J[2, 0] - J[1, 0] * J[2, 2]) / det
-    Ki[1, 1] = (J[0, 0] * J[2, 2] - J[0, 2] * J[2, 0]) / det
-    Ki[1, 2] = (J[0, 2] * J[1, 0] - J[0, 0] * J[1, 2]) / det
-    Ki[2, 0] = (J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]) / det
-    Ki[2, 1] = (J[0, 1] * J[2, 0] - J[0, 0] * J[2, 1]) / det
-    Ki[2, 2] = (J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]) / det
-    for n in range(4):
-        for j in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += Ki[k, j] * g1[n, k]
-            G[n, j] = acc
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -92,7 +67,7 @@ def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, shar
         for i in range(4):
             for j in range(3):
                 coords[i, j] = x[xdofs[c, i], j]
-        _cell_geometry(coords, g1, Ki, G)
+        _tet_geometry(coords, g1, Ki, G)
         for k in range(wdofs.shape[1]):
             wn[k] = w_new[wdofs[c, k]]
             wo[k] = w_old[wdofs[c, k]]

@@ -37,13 +37,13 @@ import cffi
 import numba
 import numpy as np
 import ufl
-from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx
 import dolfinx.fem.petsc
 
 from fxcontact import compat
+from fxcontact.cell_kernels import _bubble_inverse, _schur, _tet_geometry
 from fxcontact.materials import NortonHoff
 
 __all__ = ["P1P1Layout", "CondensedAssembler", "FFCxElementTensors",
@@ -56,58 +56,25 @@ _ffi = cffi.FFI()
 @numba.njit(cache=True)
 def _condense_cell(A, b, lpos, bpos, S, r, X, y):
     """Condense the ``bpos`` dofs of one element (A, b): S = A_ll − A_lb X, r = b_l − A_lb y
-    with X = A_bb⁻¹ A_bl, y = A_bb⁻¹ b_b (Gaussian elimination with partial pivoting).
-    Returns False when A_bb is singular or not finite."""
+    with X = A_bb⁻¹ A_bl, y = A_bb⁻¹ b_b. Returns False when A_bb is singular or not
+    finite."""
     nl = lpos.size
     k = bpos.size
-    M = np.empty((k, k))
-    R = np.empty((k, nl + 1))
+    Binv = np.empty((k, k))
+    if not _bubble_inverse(A, bpos, Binv):
+        return False
+    _schur(A, lpos, bpos, Binv, X, S)
     for i in range(k):
-        for j in range(k):
-            M[i, j] = A[bpos[i], bpos[j]]
-        for j in range(nl):
-            R[i, j] = A[bpos[i], lpos[j]]
-        R[i, nl] = b[bpos[i]]
-    for col in range(k):
-        piv = col
-        for i in range(col + 1, k):
-            if abs(M[i, col]) > abs(M[piv, col]):
-                piv = i
-        if not abs(M[piv, col]) > 0.0:
-            return False
-        if piv != col:
-            for j in range(k):
-                M[col, j], M[piv, j] = M[piv, j], M[col, j]
-            for j in range(nl + 1):
-                R[col, j], R[piv, j] = R[piv, j], R[col, j]
-        for i in range(col + 1, k):
-            f = M[i, col] / M[col, col]
-            for j in range(col, k):
-                M[i, j] -= f * M[col, j]
-            for j in range(nl + 1):
-                R[i, j] -= f * R[col, j]
-    for i in range(k - 1, -1, -1):
-        for j in range(nl + 1):
-            acc = R[i, j]
-            for q in range(i + 1, k):
-                acc -= M[i, q] * R[q, j]
-            R[i, j] = acc / M[i, i]
-    for i in range(k):
-        for j in range(nl):
-            X[i, j] = R[i, j]
-        y[i] = R[i, nl]
-    for i in range(nl):
-        li = lpos[i]
-        for j in range(nl):
-            acc = A[li, lpos[j]]
-            for q in range(k):
-                acc -= A[li, bpos[q]] * R[q, j]
-            S[i, j] = acc
-        acc = b[li]
+        acc = 0.0
         for q in range(k):
-            acc -= A[li, bpos[q]] * R[q, nl]
+            acc += Binv[i, q] * b[bpos[q]]
+        y[i] = acc
+    for i in range(nl):
+        acc = b[lpos[i]]
+        for q in range(k):
+            acc -= A[lpos[i], bpos[q]] * y[q]
         r[i] = acc
-    return np.all(np.isfinite(R))
+    return True
 
 
 # -- generic loops over cells of an element-tensor source ``tab(data, cell, A, b)`` ----------
@@ -414,29 +381,9 @@ def _nh_cell(coords, wv, s, has_dual, K, m, eps0, g, g1, gb, share, wq, psi_w, p
     bubble: the vertex–vertex block is a contraction of sums over the quadrature points
     (Σ ω η, Σ ω c Ŝ⊗e), the blocks with the bubble per point; then changed to the element's
     basis φ_n = λ_n + c_n B (a congruence with the shares c_n)."""
-    J = np.empty((3, 3))
-    for i in range(3):
-        for k in range(3):
-            J[i, k] = coords[k + 1, i] - coords[0, i]
-    det = (J[0, 0] * (J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1])
-           - J[0, 1] * (J[1, 0] * J[2, 2] - J[1, 2] * J[2, 0])
-           + J[0, 2] * (J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]))
     Ki = np.empty((3, 3))      # J⁻¹
-    Ki[0, 0] = (J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1]) / det
-    Ki[0, 1] = (J[0, 2] * J[2, 1] - J[0, 1] * J[2, 2]) / det
-    Ki[0, 2] = (J[0, 1] * J[1, 2] - J[0, 2] * J[1, 1]) / det
-    Ki[1, 0] = (J[1, 2] * J[2, 0] - J[1, 0] * J[2, 2]) / det
-    Ki[1, 1] = (J[0, 0] * J[2, 2] - J[0, 2] * J[2, 0]) / det
-    Ki[1, 2] = (J[0, 2] * J[1, 0] - J[0, 0] * J[1, 2]) / det
-    Ki[2, 0] = (J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]) / det
-    Ki[2, 1] = (J[0, 1] * J[2, 0] - J[0, 0] * J[2, 1]) / det
-    Ki[2, 2] = (J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]) / det
-    adet = abs(det)
-    G = np.zeros((4, 3))       # gradients of the hat functions
-    for n in range(4):
-        for j in range(3):
-            for k in range(3):
-                G[n, j] += Ki[k, j] * g1[n, k]
+    G = np.empty((4, 3))       # gradients of the hat functions
+    adet = abs(_tet_geometry(coords, g1, Ki, G))
     vb = np.empty(3)           # bubble coefficient in the (λ, B) basis
     for c in range(3):
         vb[c] = wv[12 + c]

@@ -41,6 +41,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fxcontact.cell_kernels import _bubble_inverse, _schur
+
 __all__ = ["CondensedJacobian", "ElementCondensedPC", "condense_cell_numpy",
            "element_condensation_supported"]
 
@@ -54,64 +56,23 @@ KERNEL_MATCH_RTOL = 1e-9
 # -- one cell -------------------------------------------------------------------------------------
 @numba.njit(cache=True)
 def _condense_cell(A, lpos, bpos, S, X, Y, Binv, Abb):
-    """S = A_ll − A_lb X, X = A_bb⁻¹ A_bl, Y = A_lb A_bb⁻¹, Binv = A_bb⁻¹, Abb = A_bb (Gauss–Jordan
-    with partial pivoting). Returns False when A_bb is singular or a result is not finite."""
+    """S = A_ll − A_lb X, X = A_bb⁻¹ A_bl, Y = A_lb A_bb⁻¹, Binv = A_bb⁻¹, Abb = A_bb. Returns
+    False when A_bb is singular or its inverse is not finite."""
     nl = lpos.size
     k = bpos.size
-    M = np.empty((k, k))
-    R = np.zeros((k, k))
-    for i in range(k):
-        R[i, i] = 1.0
-        for j in range(k):
-            M[i, j] = A[bpos[i], bpos[j]]
-            Abb[i, j] = M[i, j]
-    for col in range(k):
-        piv = col
-        for i in range(col + 1, k):
-            if abs(M[i, col]) > abs(M[piv, col]):
-                piv = i
-        if not abs(M[piv, col]) > 0.0:
-            return False
-        if piv != col:
-            for j in range(k):
-                M[col, j], M[piv, j] = M[piv, j], M[col, j]
-                R[col, j], R[piv, j] = R[piv, j], R[col, j]
-        d = M[col, col]
-        for j in range(k):
-            M[col, j] /= d
-            R[col, j] /= d
-        for i in range(k):
-            if i != col:
-                f = M[i, col]
-                if f != 0.0:
-                    for j in range(k):
-                        M[i, j] -= f * M[col, j]
-                        R[i, j] -= f * R[col, j]
-    ok = True
     for i in range(k):
         for j in range(k):
-            Binv[i, j] = R[i, j]
-            if not np.isfinite(R[i, j]):
-                ok = False
-    for i in range(k):
-        for j in range(nl):
-            acc = 0.0
-            for q in range(k):
-                acc += Binv[i, q] * A[bpos[q], lpos[j]]
-            X[i, j] = acc
+            Abb[i, j] = A[bpos[i], bpos[j]]
+    if not _bubble_inverse(A, bpos, Binv):
+        return False
+    _schur(A, lpos, bpos, Binv, X, S)
     for i in range(nl):
         for j in range(k):
             acc = 0.0
             for q in range(k):
                 acc += A[lpos[i], bpos[q]] * Binv[q, j]
             Y[i, j] = acc
-    for i in range(nl):
-        for j in range(nl):
-            acc = A[lpos[i], lpos[j]]
-            for q in range(k):
-                acc -= A[lpos[i], bpos[q]] * X[q, j]
-            S[i, j] = acc
-    return ok
+    return True
 
 
 def condense_cell_numpy(A: np.ndarray, lpos: np.ndarray, bpos: np.ndarray):
@@ -309,7 +270,6 @@ class CondensedJacobian:
         ndofs = W.element.space_dimension
         self._A = np.zeros((ndofs, ndofs))
         self._b = np.zeros(ndofs)
-        bs = lay.bs
         imap = W.dofmap.index_map
         nw = imap.size_local + imap.num_ghosts
         #: local W dof -> local index of the P1/P1 layout (-1: a cell-interior dof)
