@@ -13,10 +13,12 @@ ring's centroid (:class:`~fxcontact.kinematics.RingAxisUpdate`, THEORY §5) or c
 **Material.** The thesis's academic cases print Norton–Hoff K = 1900 MPa·s^m, m = 0.14 for a
 hot-rolled 42CrMo4 ring (:data:`K_THESIS`). Taken literally that is σ₀ ≈ 4070 MPa at the
 bite's strain rate (~2.6 1/s in case 2): the strength of a hardened steel at room temperature,
-not of a steel rolled hot. Hot compression tests of 42CrMo (Lin, Chen & Zhong, Comput. Mater.
-Sci. 42 (2008) 470–477; Quan et al., Comput. Mater. Sci. 50 (2010) 167–171) give peak flow
-stresses of roughly 80–130 MPa at 1050–1150 °C and 1–10 1/s. :data:`K_HOT` = 50 MPa·s^m (the
-same m) gives σ₀ ≈ 107 MPa at the bite of case 2 and is the default of
+not of a steel rolled hot. Hot compression tests of 42CrMo (Quan, Tong, Luo & Zhou, Comput.
+Mater. Sci. 2010, doi:10.1016/j.commatsci.2010.07.021: 850–1075 °C, 0.01–10 1/s; Metals 11
+(2021) 1614, doi:10.3390/met11101614: 1200–1350 °C) put its flow stress at hot-rolling
+temperatures and rates in the order of 100 MPa, not thousands. :data:`K_HOT` = 50 MPa·s^m (the
+same m; a value of that order, not a fit to those data) gives σ₀ ≈ 107 MPa at the bite of
+case 2 and is the default of
 :class:`RingRollingCase`; the named constructors :meth:`RingRollingCase.case1` and
 :meth:`~RingRollingCase.case2` keep the thesis's K for the comparison with the thesis. With
 Norton and Tresca-limited Coulomb friction and β-scaled penalties the velocity field does not
