@@ -205,21 +205,24 @@ def project_cells_numpy(S, blocks, proj, flag):
 
 def element_condensation_supported(problem) -> Optional[str]:
     """None if the problem's Jacobian can be condensed element by element, else the reason: a
-    MINI space (gdim + 1 dofs per vertex and cell-interior dofs only) and a Jacobian form with
-    cell integrals over the whole mesh only."""
+    MINI space (gdim + 1 dofs per vertex and cell-interior dofs only) and Jacobian and residual
+    forms with cell integrals over the whole mesh only (a facet term, e.g. a traction, keeps the
+    algebraic condensation)."""
     from fxcontact.element_condense import P1P1Layout
     try:
         P1P1Layout(problem.w.function_space)
     except (ValueError, RuntimeError) as e:
         return str(e)
     import dolfinx.cpp.fem
-    a = problem.a
     cell = dolfinx.cpp.fem.IntegralType.cell
-    other = [t for t in a.integral_types if t != cell]
-    if other:
-        return f"the Jacobian has {other[0].name.replace('_', ' ')} integrals"
-    if list(a.integral_ids(cell)) != [-1]:
-        return "the Jacobian has cell integrals over tagged subdomains"
+    # the FFCx element source compiles the residual's kernel too (element vectors of the
+    # same cells): both forms must be whole-mesh cell integrals
+    for form, what in ((problem.a, "Jacobian"), (problem.L, "residual")):
+        other = [t for t in form.integral_types if t != cell]
+        if other:
+            return f"the {what} has {other[0].name.replace('_', ' ')} integrals"
+        if list(form.integral_ids(cell)) != [-1]:
+            return f"the {what} has cell integrals over tagged subdomains"
     return None
 
 
