@@ -174,3 +174,31 @@ def test_ring_idle_tool_bordered_equals_algebraic(monkeypatch):
     for k in ("main_force_x", "main_torque", "mandrel_force_x", "mandrel_omega", "ring_omega"):
         assert abs(a[k] - b[k]) <= 1e-8 * abs(b[k]), (k, a[k], b[k])
     assert abs(a["newton_iterations"] - b["newton_iterations"]) <= 1
+
+
+def test_facet_term_keeps_the_algebraic_condensation(caplog):
+    """A residual with a facet term (a traction on the top face) is not condensed element by
+    element (the FFCx source needs whole-mesh cell integrals): the solver says why, keeps the
+    algebraic condensation, and the increment converges to the answer of MUMPS on the MINI
+    system."""
+    import logging
+
+    import ufl
+
+    def traction(v, p, w, q):
+        msh = w.ufl_domain()
+        return 0.05 * ufl.inner(ufl.as_vector((1.0, 0.0, 0.0)), w) * ufl.ds(domain=msh)
+
+    runs = {}
+    for solver in ("condensed-mumps", "mumps"):
+        sim = pressed_block(MATERIALS["norton-hoff"](), solver=solver, prefix=f"tej_ds_{solver}_")
+        sim.extra_residual = traction
+        with caplog.at_level(logging.INFO, logger="fxcontact.solver"):
+            sim.run(0.1, 0.1)
+        runs[solver] = vertex_velocities_by_position(sim)
+        if solver == "condensed-mumps":
+            assert sim.solver.element is None
+            assert sim.solver._condensed_pc is not None
+            assert "exterior facet integrals" in caplog.text
+    a, b = runs["condensed-mumps"], runs["mumps"]
+    assert np.linalg.norm(a - b) <= 1e-8 * np.linalg.norm(b)
