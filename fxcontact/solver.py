@@ -62,10 +62,9 @@ NULL_PIVOT_HINT = (
 #: AUTO_ITERATIVE_MIN_DOFS ``"condensed-mumps"``, above it ``"condensed-amg"``. With the bubble
 #: condensed in the element matrices the condensed direct solver costs 0.69× of MUMPS on the
 #: MINI system per Newton iteration at 5.9k dofs and 0.53× at 12k (the wire drawing), about the
-#: same at 2–3k; the threshold stays at 20k until a 2-rank failure of a nearly free body seen
-#: once at 15k dofs with the condensed solver is understood (benchmarks/README.md). Module
-#: attributes, so a user can move them; an explicit ``linear_solver`` is never overridden.
-AUTO_CONDENSED_MIN_DOFS = 20_000
+#: same at 2–3k, hence the threshold at 5k. Module attributes, so a user can move them; an
+#: explicit ``linear_solver`` is never overridden.
+AUTO_CONDENSED_MIN_DOFS = 5_000
 AUTO_ITERATIVE_MIN_DOFS = 300_000
 
 
