@@ -434,6 +434,10 @@ class Checkpoints:
         if not os.path.isdir(self.path()):
             self.write()
 
+    def remeshed(self):
+        """The simulation has a new mesh: the keys of the saved arrays are made again."""
+        self._keys = None
+
     def _keys_of_arrays(self):
         """Partition-independent keys of the saved arrays (computed once)."""
         if self._keys is None:
