@@ -214,7 +214,6 @@ class Simulation:
             problem = output_dir_problem(output_dir)
             if problem:
                 raise ValueError(f"output_dir {output_dir!r} {problem}: give a directory path")
-        self.comm = space.mesh.comm
         self.material = material
         self.solver_options = solver_options or SolverOptions()
         self.kinematics = kinematics or CartesianUpdate()
@@ -248,6 +247,7 @@ class Simulation:
         solution and output fields, the (empty) conditions, the mesh health."""
         self.space = space
         self.mesh = space.mesh
+        self.comm = space.mesh.comm   # the mesh's own: freed with it
         self._bcs: List[_BC] = []
         self._reactions: Dict[str, np.ndarray] = {}
         self._symmetry = None

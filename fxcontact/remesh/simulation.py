@@ -244,6 +244,7 @@ def rebind(sim, space, facet_tags, state=None, build: bool = True):
     ``build``, the forms and the solver with the volume correction's reference kept."""
     from fxcontact.outputs import Outputs
     old_calls = list(getattr(sim, "_facet_calls", []))
+    sim._checkpoints.remeshed()
     opened = sim._outputs.opened
     sim._outputs.close()
     for s in (getattr(sim, "solver", None), getattr(sim, "_startup", None)):
@@ -264,11 +265,67 @@ def rebind(sim, space, facet_tags, state=None, build: bool = True):
     sim._labels = labels
     for c in sim.contributors:
         c.remesh(space, facet_tags)
+    sim._remesh_facet_tags = facet_tags
     sim._outputs = Outputs(sim)
     sim._outputs.opened = opened
-    sim._checkpoints.remeshed()
     if build:
         v0 = sim._volume_initial
         sim._build()
         sim._volume_initial = state["volume_initial"] if state is not None else v0
         sim._update_volume_correction()
+
+
+# ------------------------------------------------------------------------------ checkpoints
+def checkpoint_arrays(sim) -> dict:
+    """What a checkpoint written after a remesh needs to build the same mesh again (this
+    rank's part): the owned geometry nodes at the remesh (``mesh_x0``, keyed like ``x`` by
+    their input index), the owned cells as input indices of their nodes, the facet tags keyed
+    by the sorted input indices of their vertices."""
+    from fxcontact import compat
+    from fxcontact.checkpoint import vertex_keys
+    msh = sim.mesh
+    tdim = msh.topology.dim
+    nx = msh.geometry.index_map().size_local
+    nc = msh.topology.index_map(tdim).size_local
+    gid = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)
+    ft = sim._remesh_facet_tags
+    msh.topology.create_connectivity(tdim - 1, 0)
+    f2v = np.asarray(msh.topology.connectivity(tdim - 1, 0).array).reshape(-1, tdim)
+    return {"mesh_x0": sim._x_ref[:nx],
+            "mesh_cells": gid[compat.geometry_dofmap(msh)[:nc]],
+            "mesh_facet_key": np.sort(vertex_keys(msh)[f2v[ft.indices]], axis=1),
+            "mesh_facet_tag": np.asarray(ft.values, dtype=np.int64)}
+
+
+def restore_mesh(sim, arrays: dict):
+    """Bind ``sim`` (set up on its initial mesh) to the mesh a checkpoint written after a
+    remesh holds (:func:`checkpoint_arrays`), without building it (collective)."""
+    import ufl
+    import dolfinx.mesh
+    from fxcontact.checkpoint import _as_records, vertex_keys
+    from fxcontact.spaces import MixedSpace
+    comm = sim.comm
+    gdim = sim.mesh.geometry.dim
+    if comm.rank == 0:
+        keys = arrays["x_key"].ravel()
+        X = np.zeros((int(keys.max()) + 1, gdim))
+        X[keys] = arrays["mesh_x0"][:, :gdim]
+        cells = arrays["mesh_cells"]
+    else:
+        X, cells = np.zeros((0, gdim)), np.zeros((0, 4), dtype=np.int64)
+    domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.tetrahedron, 1))
+    msh = dolfinx.mesh.create_mesh(comm, cells, X, domain)
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, 0)
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    f2v = np.asarray(msh.topology.connectivity(tdim - 1, 0).array).reshape(-1, tdim)
+    mine = _as_records(np.sort(vertex_keys(msh)[f2v], axis=1))
+    saved = _as_records(arrays["mesh_facet_key"])
+    order = np.argsort(saved)
+    pos = np.minimum(np.searchsorted(saved[order], mine), max(len(saved) - 1, 0))
+    found = saved[order][pos] == mine if len(saved) else np.zeros(len(mine), bool)
+    facets = np.flatnonzero(found).astype(np.int32)
+    ft = dolfinx.mesh.meshtags(msh, tdim - 1, facets,
+                               arrays["mesh_facet_tag"][order][pos[found]].astype(np.int32))
+    rebind(sim, MixedSpace(msh, sim.space.element, sim.space.quadrature_degree), ft,
+           build=False)
