@@ -712,39 +712,19 @@ class Simulation:
         return IncrementResult(row, info)
 
     # ------------------------------------------------------------------------ remeshing
-    def set_remeshing(self, criteria: Optional[RemeshCriteria] = RemeshCriteria(), size: Optional[float] = None, zones=(),
-                      feature_angle: float = 40.0, rescue: bool = True):
-        """Remesh automatically (updated Lagrangian, tetrahedra): after an increment when one of
-        the ``criteria`` fires (a :class:`~fxcontact.remesh.criteria.RemeshCriteria`; default:
-        min quality 0.15, min volume ratio 0.05; None: never), and, with ``rescue``, before an
-        increment whose cut-backs all invert a cell is given up. ``size``: the element size
-        away from the ``zones`` (default: the mean edge length of the current mesh);
-        ``zones``: :class:`~fxcontact.remesh.volume.SizeZone` s meshed finer, or a function
-        ``zones(sim) -> [SizeZone, ...]`` called at each remesh (zones that follow the tools);
-        ``feature_angle``: edges sharper than it (degrees) are kept. See :meth:`remesh`."""
-        from fxcontact.remesh.simulation import Remeshing, _check_size, _check_zones
-        with together(self.comm, "Simulation.set_remeshing()", size=size,
-                      feature_angle=feature_angle, rescue=rescue):
-            if criteria is not None and not isinstance(criteria, RemeshCriteria):
-                raise ValueError(f"set_remeshing(criteria): give a fxcontact.RemeshCriteria or "
-                                 f"None, got {criteria!r}")
-            if size is not None:
-                _check_size(size)
-            _check_zones(zones)
-            if not 0.0 < feature_angle < 180.0:
-                raise ValueError(f"set_remeshing(feature_angle) must be in (0, 180) degrees, "
-                                 f"got {feature_angle!r}")
+    def set_remeshing(self, criteria: Optional[RemeshCriteria] = RemeshCriteria(),
+                      size: Optional[float] = None, zones=(), feature_angle: float = 40.0,
+                      rescue: bool = True):
+        """Remesh automatically when one of the ``criteria`` fires after an increment, and
+        (``rescue``) before an increment whose cut-backs all invert a cell is given up; the
+        arguments: :class:`~fxcontact.remesh.simulation.Remeshing`."""
+        from fxcontact.remesh.simulation import Remeshing
         self._remeshing = Remeshing(self, criteria, size, zones, feature_angle, rescue)
 
     def remesh(self, size: Optional[float] = None, zones=None, reason: str = "on demand"):
-        """Mesh the current body again and carry the state over (collective; updated
-        Lagrangian, tetrahedra): the velocity conditions, reactions, symmetry planes and contact
-        boundaries are selected again by their facet tags on the new boundary (select facets
-        with :meth:`facets`: a hand-made facet array raises a ValueError naming its call),
-        contributors rebind (``remesh(space, facet_tags)``), tools, controllers, history, time
-        and increment are kept (:mod:`fxcontact.remesh.simulation`). ``size``/``zones``:
-        default those of :meth:`set_remeshing`. Returns the
-        :class:`~fxcontact.remesh.simulation.RemeshRecord`."""
+        """Mesh the current body again and carry the state, the conditions and the
+        contributors over (collective; :func:`~fxcontact.remesh.simulation.remesh_simulation`).
+        Returns the :class:`~fxcontact.remesh.simulation.RemeshRecord`."""
         from fxcontact.remesh.simulation import remesh_simulation
         return remesh_simulation(self, size=size, zones=zones, reason=reason)
 

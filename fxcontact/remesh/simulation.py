@@ -100,10 +100,34 @@ def _check_zones(zones):
 
 class Remeshing:
     """The automatic remeshing of a simulation (:meth:`Simulation.set_remeshing
-    <fxcontact.simulation.Simulation.set_remeshing>`: see there for the arguments)."""
+    <fxcontact.simulation.Simulation.set_remeshing>`; updated Lagrangian, tetrahedra).
+
+    Args:
+        criteria: a :class:`~fxcontact.remesh.criteria.RemeshCriteria` (min quality 0.15, min
+            volume ratio 0.05 by default), checked after each increment; None: never.
+        size: the element size away from the zones (default: the mean edge length of the
+            mesh at each remesh).
+        zones: :class:`~fxcontact.remesh.volume.SizeZone` s meshed finer, or a function
+            ``zones(sim) -> [SizeZone, ...]`` called at each remesh (zones that follow tools).
+        feature_angle: edges sharper than it (degrees) are kept.
+        rescue: remesh once before an increment whose cut-backs all invert a cell fails.
+
+    Bad arguments raise a ValueError on every rank.
+    """
 
     def __init__(self, sim, criteria: Optional[_criteria.RemeshCriteria], size, zones,
                  feature_angle: float, rescue: bool):
+        with together(sim.comm, "Simulation.set_remeshing()", size=size,
+                      feature_angle=feature_angle, rescue=rescue):
+            if criteria is not None and not isinstance(criteria, _criteria.RemeshCriteria):
+                raise ValueError(f"set_remeshing(criteria): give a fxcontact.remesh.criteria."
+                                 f"RemeshCriteria or None, got {criteria!r}")
+            if size is not None:
+                _check_size(size)
+            _check_zones(zones)
+            if not 0.0 < feature_angle < 180.0:
+                raise ValueError(f"set_remeshing(feature_angle) must be in (0, 180) degrees, "
+                                 f"got {feature_angle!r}")
         self.criteria = criteria
         self.size = size
         self.zones = zones
