@@ -27,6 +27,7 @@ keys, a :class:`PerVertex` entry coming back as a :class:`VertexLookup` whose
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
@@ -418,6 +419,8 @@ class Checkpoints:
         self.resume_step: Optional[float] = None
         self._keys = None
         self._warned_stateless = False
+        #: the fingerprint of the initial mesh, once the simulation was remeshed
+        self.origin = None
 
     @property
     def directory(self) -> str:
@@ -433,6 +436,30 @@ class Checkpoints:
         """A checkpoint of the current increment, unless it is written already."""
         if not os.path.isdir(self.path()):
             self.write()
+
+    def remeshed(self):
+        """Before the simulation gets a new mesh (collective): the keys of the saved arrays
+        will be made again; the fingerprint of the initial mesh is kept (a checkpoint after a
+        remesh is resumed from a set-up on the initial mesh)."""
+        self._keys = None
+        if self.origin is None:
+            self.origin = mesh_fingerprint(self.sim.mesh, self.sim._x_ref)
+
+    def _restore_mesh(self, path: str, man: dict, arrays: dict):
+        """A checkpoint written after a remesh: the simulation, set up on the initial mesh,
+        is bound to the checkpoint's mesh (:func:`fxcontact.remesh.simulation.restore_mesh`)."""
+        from fxcontact.remesh.simulation import RemeshRecord, restore_mesh
+        sim = self.sim
+        fp = mesh_fingerprint(sim.mesh, sim._x_ref)
+        if man.get("mesh_origin") != fp:
+            raise CheckpointError(
+                f"checkpoint {path} (written after {len(man['remeshes'])} remesh(es)) was "
+                f"written for a different initial mesh ({man.get('mesh_origin')}; this mesh: "
+                f"{fp}): build the same initial mesh as the checkpointed run")
+        restore_mesh(sim, arrays)
+        sim.remeshes = [RemeshRecord(**r) for r in man["remeshes"]]
+        if sim._remeshing is not None:
+            sim._remeshing.quality_after = sim.remeshes[-1].min_quality_after
 
     def _keys_of_arrays(self):
         """Partition-independent keys of the saved arrays (computed once)."""
@@ -484,6 +511,11 @@ class Checkpoints:
                   "c_key": keys["c"][:ncown], "strain": sim.strain.x.array[:ncown],
                   "strain_rate": sim.strain_rate.x.array[:ncown],
                   "x_key": keys["x"][:nxown], "x": sim.mesh.geometry.x[:nxown]}
+        if sim._remeshing is not None:
+            arrays["strain_ref"] = sim._remeshing.strain_ref[:ncown]
+        if sim.remeshes:   # the mesh itself: the set-up of a resumed run has the initial one
+            from fxcontact.remesh.simulation import checkpoint_arrays
+            arrays.update(checkpoint_arrays(sim))
         if sim.u is not None:
             uW = np.zeros(len(sim.w.x.array))
             uW[sp.V_to_W] = sim.u.x.array
@@ -520,7 +552,9 @@ class Checkpoints:
                     "controllers": controllers,
                     "kinematics": (plain_state(kin.checkpoint_state())
                                    if isinstance(kin, SavesState) else None),
-                    "volume_initial": sim._volume_initial}
+                    "volume_initial": sim._volume_initial,
+                    "remeshes": [dataclasses.asdict(r) for r in sim.remeshes],
+                    "mesh_origin": self.origin}
         path = path or self.path()
         if sim.comm.rank == 0:
             os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
@@ -591,8 +625,10 @@ class Checkpoints:
         # a truncated or altered file: refused, naming the newest intact checkpoint
         check_intact(sim.comm, path, sim.name)
         man = read_manifest(path)
-        self._check_manifest(path, man)
         arrays = read_arrays(path, int(man["nranks"]))
+        if man.get("remeshes"):
+            self._restore_mesh(path, man, arrays)
+        self._check_manifest(path, man)
         keys = self._keys_of_arrays()
         sp = sim.space
         tw = KeyTable(arrays["w_key"], arrays["w_prev"])
@@ -602,6 +638,9 @@ class Checkpoints:
         sc = tc.lookup(keys["c"], "the strain")
         sim.strain.x.array[:] = sc[:, 0]
         sim.strain_rate.x.array[:] = sc[:, 1]
+        if sim._remeshing is not None and "strain_ref" in arrays:
+            sim._remeshing.strain_ref = KeyTable(arrays["c_key"], arrays["strain_ref"]).lookup(
+                keys["c"], "the strain at the last remesh")
         tx = KeyTable(arrays["x_key"], arrays["x"])
         sim.mesh.geometry.x[:] = tx.lookup(keys["x"], "the geometry")
         if sim.u is not None:

@@ -18,6 +18,7 @@ outputs and checkpoints check with ``isinstance`` before they call it (the Newto
   (checkpoints);
 * :class:`HasSetupSignature` — contributors (checkpoints);
 * :class:`HasSummary` — contributors (the run's summary);
+* :class:`Remeshable` — contributors (``Simulation.remesh``);
 * :class:`SolvesIncrement` — one controller at most;
 * :class:`SolverHooks` — ``begin_solve``, ``fingerprint``, ``cycle_hint``, ``residual_floor``:
   contributors, called by the Newton solver.
@@ -37,7 +38,8 @@ if TYPE_CHECKING:   # pragma: no cover
 
 __all__ = ["Contributor", "Controller", "BeginsIncrement", "EndsIncrement", "HasDiagnostics",
            "HasOutputFields", "UpdatesOutputFields", "SavesState", "RestoresState",
-           "HasSetupSignature", "HasSummary", "SolvesIncrement", "SolverHooks"]
+           "HasSetupSignature", "HasSummary", "Remeshable", "SolvesIncrement",
+           "SolverHooks"]
 
 
 @runtime_checkable
@@ -115,6 +117,14 @@ class HasSummary(Protocol):
     def summary(self) -> str:
         """One line of the run's summary (logged at the end of ``Simulation.run``): the
         parameters resolved during the run (a contact's penalty, its friction's shear limit)."""
+
+
+@runtime_checkable
+class Remeshable(Protocol):
+    def remesh(self, space, facet_tags) -> None:
+        """Rebind to a new mesh of the body (``Simulation.remesh``): ``space`` the new
+        :class:`~fxcontact.spaces.MixedSpace`, ``facet_tags`` its facet tags (the old tags on
+        the new boundary). Collective. A contributor without it stops a remesh."""
 
 
 @runtime_checkable

@@ -1,7 +1,7 @@
 """The retry ladder of one increment: fall-backs at the same dt, then cut-backs (THEORY §1.5).
 
 :meth:`Simulation.step <fxcontact.simulation.Simulation.step>` hands one increment to
-:class:`RetryLadder`, which tries it at ``dt`` and, when Newton fails, climbs three levels:
+:class:`RetryLadder`, which tries it at ``dt`` and, when Newton fails, climbs these levels:
 
 1. **fall-backs at the same dt**, each taken once and in this order:
 
@@ -14,7 +14,10 @@
 2. **cut-back**: dt halved, at most ``max_cutbacks`` times and never below ``min_dt``; an
    increment whose geometry update would invert a cell counts as failed
    (:meth:`~fxcontact.mesh_health.MeshHealth.accept`);
-3. **stop**: an :class:`IncrementError` (:class:`MeshInversionError` for an inverted cell) naming
+3. **remesh** (:meth:`Simulation.set_remeshing <fxcontact.simulation.Simulation.
+   set_remeshing>` with ``rescue``): when the last attempt inverted a cell, the body is
+   remeshed once and the increment taken again from ``dt``;
+4. **stop**: an :class:`IncrementError` (:class:`MeshInversionError` for an inverted cell) naming
    the time, the last dt and the reason of every attempt; a checkpoint of the last accepted
    state is written first when checkpoints are on.
 """
@@ -94,6 +97,9 @@ class RetryLadder:
             log.warning("t = %.6g: Newton failed with dt = %.3g (%s); retrying with dt/2",
                         sim.t, trial, _attempts(msgs[first:]))
             trial *= 0.5
+        if msg.startswith(INVERSION) and sim._remeshing is not None \
+                and sim._remeshing.rescue(sim):   # a new mesh, then the increment again
+            return self.step(dt, max_cutbacks, min_dt)
         earlier = [m for m in dict.fromkeys(msgs[:-1]) if m != msgs[-1]] if msgs else []
         if earlier:
             msg += f" (earlier attempts: {' | '.join(earlier)})"

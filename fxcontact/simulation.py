@@ -51,6 +51,8 @@ from fxcontact.outputs import (OutputError, Outputs, format_wall_split, output_d
 from fxcontact.petsc import NodalNonlinearProblem
 from fxcontact.protocols import (BeginsIncrement, Contributor, EndsIncrement, HasDiagnostics,
                                  HasSummary, SolvesIncrement)
+from fxcontact.remesh.criteria import RemeshCriteria
+from fxcontact.remesh.selection import FacetSelection, remembered
 from fxcontact.retry import IncrementError, MeshInversionError, RetryLadder
 from fxcontact.solver import ContactNewtonSolver, SolveInfo, SolverOptions
 from fxcontact.spaces import (MixedSpace, checked_facets, facets_with_tags, set_function_value,
@@ -212,9 +214,6 @@ class Simulation:
             problem = output_dir_problem(output_dir)
             if problem:
                 raise ValueError(f"output_dir {output_dir!r} {problem}: give a directory path")
-        self.space = space
-        self.mesh = space.mesh
-        self.comm = space.mesh.comm
         self.material = material
         self.solver_options = solver_options or SolverOptions()
         self.kinematics = kinematics or CartesianUpdate()
@@ -226,47 +225,60 @@ class Simulation:
         self.volume_correction = "none" if material.small_strain else volume_correction
         self.t = 0.0
         self.increment = 0
-        self._bcs: List[_BC] = []
         self.contributors: List = []
         self.history: List[Dict[str, float]] = []
+        self.overwrite = bool(overwrite)
+        self._labels: Dict[str, str] = {}   # history-column labels -> what they label
+        self.checkpoint_every = int(checkpoint_every)
+        self.checkpoint_keep = int(checkpoint_keep)
+        self.check_inversion = bool(check_inversion)
+        self.controllers: List = []
+        #: the remeshes so far (:class:`~fxcontact.remesh.simulation.RemeshRecord`)
+        self.remeshes: List = []
+        self._remeshing = None
+        self._bind_space(space)   # checks the initial mesh (on every rank)
+        # the other concerns, one object each
+        self._outputs = Outputs(self)
+        self._checkpoints = Checkpoints(self)
+        self._retry = RetryLadder(self)
+
+    def _bind_space(self, space: MixedSpace):
+        """What belongs to the mesh (at the set-up, and again on a remesh): the space, the
+        solution and output fields, the (empty) conditions, the mesh health."""
+        self.space = space
+        self.mesh = space.mesh
+        self.comm = space.mesh.comm   # the mesh's own: freed with it
+        self._bcs: List[_BC] = []
+        self._reactions: Dict[str, np.ndarray] = {}
+        self._symmetry = None
+        self._plane_bcs: List = []
         self._built = False
         W = space.W
         self.w = dolfinx.fem.Function(W, name="solution")
         self.w_prev = dolfinx.fem.Function(W)
         self.dt_c = dolfinx.fem.Constant(self.mesh, PETSc.ScalarType(1.0))
-        self.u = dolfinx.fem.Function(space.V, name="displacement") if material.small_strain \
-            else None
+        small = self.material.small_strain
+        self.u = dolfinx.fem.Function(space.V, name="displacement") if small else None
         # output fields
         self.velocity = dolfinx.fem.Function(space.P1, name="velocity")
         self.pressure = dolfinx.fem.Function(space.Q, name="pressure")
         self.strain = dolfinx.fem.Function(space.DG0, name="equivalent_strain")
         self.strain_rate = dolfinx.fem.Function(space.DG0, name="equivalent_strain_rate")
         self.displacement_out = dolfinx.fem.Function(space.P1, name="displacement") \
-            if material.small_strain else None
+            if small else None
         self._x_ref = self.mesh.geometry.x.copy()
         self._w2v = None   # W dof -> V dof (small strain), made on first use
-        self.overwrite = bool(overwrite)
-        self._reactions: Dict[str, np.ndarray] = {}
-        self._labels: Dict[str, str] = {}   # history-column labels -> what they label
-        self.checkpoint_every = int(checkpoint_every)
-        self.checkpoint_keep = int(checkpoint_keep)
-        self.check_inversion = bool(check_inversion)
-        self._symmetry = None
-        self._plane_bcs: List = []
-        self.controllers: List = []
-        # the other concerns, one object each
-        self._mesh_health = MeshHealth(self)   # checks the initial mesh (on every rank)
-        self._outputs = Outputs(self)
-        self._checkpoints = Checkpoints(self)
-        self._retry = RetryLadder(self)
+        self._mesh_health = MeshHealth(self)
 
     # ------------------------------------------------------------------------ set-up
-    def facets(self, facet_tags, tags) -> np.ndarray:
+    def facets(self, facet_tags, tags) -> FacetSelection:
         """Local indices of the facets carrying any of ``tags`` in this mesh's ``facet_tags``
         (ValueError on every rank for an empty tag list, a missing tag or the facet tags of
-        another mesh)."""
-        return facets_with_tags(self.mesh, facet_tags, tags, "Simulation.facets(facet_tags)")
+        another mesh); they remember their tags, so that a :meth:`remesh` selects them again."""
+        return FacetSelection(facets_with_tags(self.mesh, facet_tags, tags,
+                                               "Simulation.facets(facet_tags)"), facet_tags, tags)
 
+    @remembered
     def add_velocity_bc(self, facets: np.ndarray, value, component: Optional[int] = None):
         """Prescribe the velocity (or one component) on facets.
 
@@ -281,6 +293,7 @@ class Simulation:
                              _bc_label(self, len(self._bcs), facets, component)))
         return bc
 
+    @remembered
     def add_reaction(self, name: str, facets: np.ndarray):
         """Record, each increment, the force exerted on the body through the Dirichlet dofs of
         ``facets`` (history columns ``{name}_x``, ``{name}_y``, ``{name}_z``), computed on the
@@ -290,6 +303,7 @@ class Simulation:
             self._claim_labels({name: f"reaction '{name}'"})
         self._reactions[name] = facets
 
+    @remembered
     def add_symmetry_plane(self, facets: np.ndarray, normal, name: str = "symmetry"):
         """Symmetry plane through ``facets``: the normal velocity ``v·n`` vanishes there.
 
@@ -644,6 +658,7 @@ class Simulation:
         self.increment += 1
         self.w_prev.x.array[:] = w.x.array
         row = {"increment": self.increment, "time": self.t, "dt": dt,
+               "remesh": len(self.remeshes),   # remeshes before this increment
                "newton_iterations": info.iterations,
                "linear_iterations": info.linear_iterations,
                "residual": info.residual_norms[-1] if info.residual_norms else float("nan")}
@@ -692,7 +707,26 @@ class Simulation:
         self._build()
         self._outputs.reopen()
         row, info = self._retry.step(dt, max_cutbacks, min_dt)
+        if self._remeshing is not None:
+            self._remeshing.after_increment(self)
         return IncrementResult(row, info)
+
+    # ------------------------------------------------------------------------ remeshing
+    def set_remeshing(self, criteria: Optional[RemeshCriteria] = RemeshCriteria(),
+                      size: Optional[float] = None, zones=(), feature_angle: float = 40.0,
+                      rescue: bool = True):
+        """Remesh automatically when one of the ``criteria`` fires after an increment, and
+        (``rescue``) before an increment whose cut-backs all invert a cell is given up; the
+        arguments: :class:`~fxcontact.remesh.simulation.Remeshing`."""
+        from fxcontact.remesh.simulation import Remeshing
+        self._remeshing = Remeshing(self, criteria, size, zones, feature_angle, rescue)
+
+    def remesh(self, size: Optional[float] = None, zones=None, reason: str = "on demand"):
+        """Mesh the current body again and carry the state, the conditions and the
+        contributors over (collective; :func:`~fxcontact.remesh.simulation.remesh_simulation`).
+        Returns the :class:`~fxcontact.remesh.simulation.RemeshRecord`."""
+        from fxcontact.remesh.simulation import remesh_simulation
+        return remesh_simulation(self, size=size, zones=zones, reason=reason)
 
     def _record(self, row):
         """An accepted increment's row: mesh health, history, outputs, checkpoint."""
@@ -760,7 +794,8 @@ class Simulation:
                  "%.1f s%s", self.name, t0, self.t, len(rows), sum(r["cutbacks"] for r in rows),
                  sum(r["newton_iterations_all"] for r in rows), time.perf_counter() - wall0,
                  "".join(f"\n  {c.summary()}" for c in self.contributors
-                         if isinstance(c, HasSummary)))
+                         if isinstance(c, HasSummary))
+                 + "".join(f"\n  {r.line()}" for r in self.remeshes))
         if close:
             self.close()
         return self.history

@@ -90,6 +90,11 @@ class NodalSprings:
     def stable(self) -> bool:
         return True
 
+    def remesh(self, space, facet_tags):
+        """Rebind to a new mesh of the body: the same selection of its boundary
+        (:meth:`ContactBoundary.remeshed`; collective)."""
+        self.boundary = self.boundary.remeshed(space, facet_tags)
+
     def checkpoint_state(self) -> dict:
         """Springs keep no state between increments: their parameters are saved so that a
         resumed run with other springs is refused."""

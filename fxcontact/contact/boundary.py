@@ -124,6 +124,10 @@ class ContactBoundary:
                 raise ValueError("facet_tags given without tags: say which tags are in contact")
         self.space = space
         self.mesh = msh
+        #: the facet tags and tag values of the selection (None: the whole boundary)
+        self.facet_tags = facet_tags
+        self.tags = None if tags is None else ([int(tags)] if np.isscalar(tags)
+                                               else [int(t) for t in tags])
         self.vertex_dofs = vertex_dofs
         self.comm = msh.comm
         tdim = msh.topology.dim
@@ -145,6 +149,13 @@ class ContactBoundary:
                              "vertex (the tags mark interior facets only?): give tags of "
                              "exterior facets")
         log.info("contact boundary: %d vertices, area %.4g", n, self.total_area())
+
+    def remeshed(self, space, facet_tags) -> "ContactBoundary":
+        """The same selection on a new mesh of the body: the facets of the same tags in the
+        new ``facet_tags`` (or the whole boundary), of the new ``space`` (collective)."""
+        if self.tags is None:
+            return ContactBoundary(space)
+        return ContactBoundary(space, facet_tags, self.tags)
 
     def _space_maps(self, space):
         """(mesh, vertex→dof map, owned flags) of the space; ValueError if it cannot carry

@@ -278,36 +278,60 @@ class NodalContact(NodalContactIO):
         self.sim = None
         self.t = 0.0
         self.dt = 1.0
-        n = len(boundary)
-        self._h = np.zeros(n)
-        self._tool = np.zeros(n, dtype=np.int32)
-        self._feature = np.zeros(n, dtype=np.int64)
         self._status_prev = None
         self._settled = False
         #: contact state of the last iterates (in contact, tool, feature, projection
         #: fall-back per node), to say what changes over a cycle (:meth:`cycle_hint`)
         self._recent = deque(maxlen=5)   # the longest cycle the solver looks for, 4, + 1
         self._floor = 0.0
-        self._v_last = np.zeros((n, self.gdim))
         self._rho_eval = 0.0
         self._fingerprint = ()
-        self._ever_active = np.zeros(n, dtype=bool)
         self._placement_checked = False
         self._fallbacks = 0
         self._fallbacks_all = 0
         self._fields = None
+        self._k_law = np.full(len(self.tools), np.nan)
+        self._reset_nodes(len(boundary))
+
+    def _reset_nodes(self, n: int):
+        """The per-node state of ``n`` contact nodes, zero (at the set-up and on a remesh)."""
+        self._h = np.zeros(n)
+        self._tool = np.zeros(n, dtype=np.int32)
+        self._feature = np.zeros(n, dtype=np.int64)
+        self._v_last = np.zeros((n, self.gdim))
+        self._ever_active = np.zeros(n, dtype=bool)
         self._r = np.zeros((n, self.gdim))
         # friction state: pressures of the previous converged increment (explicit friction),
         # per-node shear flow stress and consistency, last evaluation's friction terms
         self._p_prev = np.zeros(n)
         self._k_node = np.zeros(n)
-        self._k_law = np.full(len(self.tools), np.nan)
         self._K_node = np.zeros(n)
         self._rf = np.zeros((n, self.gdim))
         self._tau = np.zeros((n, self.gdim))
         self._dvt = np.zeros((n, self.gdim))
         self._branch = np.zeros(n, dtype=np.int8)
         self._point = np.zeros((n, 3))
+
+    def remesh(self, space, facet_tags):
+        """Rebind to a new mesh of the body (:meth:`Simulation.remesh
+        <fxcontact.simulation.Simulation.remesh>`; collective): the contact boundary is
+        selected again by the same tags in the new ``facet_tags``
+        (:meth:`ContactBoundary.remeshed`); tools, friction laws, the penalty (as resolved,
+        with the element size of the set-up) and the slip regularisation are kept; the
+        pressures of the last increment (explicit friction) go to the nearest new node."""
+        if self.formulation != "velocity":
+            raise ValueError(f"contact '{self.name}': only the velocity formulation "
+                             f"(Simulation) can be remeshed")
+        from scipy.spatial import cKDTree
+        old = self.boundary
+        comm = old.comm
+        x_old = np.concatenate(comm.allgather(old.mesh_positions()))
+        p_old = np.concatenate(comm.allgather(self._p_prev))
+        self.boundary = old.remeshed(space, facet_tags)
+        self._reset_nodes(len(self.boundary))
+        if len(x_old) and len(self.boundary):
+            self._p_prev = p_old[cKDTree(x_old).query(self.boundary.mesh_positions())[1]]
+        self._fields = None
 
     # ------------------------------------------------------------------ friction set-up
     def _begin_friction(self, sim, t: float, dt: float):

@@ -67,6 +67,8 @@ from fxcontact.processes.common import (CaseBase, PowerBalance, ProcessResult,
                                         meridian_section, numerics_columns, plot_curves,
                                         plot_sections, run_increments, run_summary,
                                         steady_values, vertex_field, finish_run)
+from fxcontact.remesh.criteria import RemeshCriteria
+from fxcontact.remesh.volume import SizeZone
 from fxcontact.processes.die import bar_simulation, die_profile_tool, die_radius, nose_layout
 from fxcontact.simulation import Simulation
 from fxcontact.solver import SolverOptions
@@ -126,6 +128,12 @@ class ExtrusionCase(CaseBase):
     steady_tol: float = 0.02
     settle: Optional[float] = None
     stop_at_steady: bool = False
+    # remeshing (off by default): a new mesh of size h when a cell's quality falls below
+    # remesh_min_quality (and before an inverting cell stops the run), finer (remesh_zone_h)
+    # in a box around the die
+    remesh: bool = False
+    remesh_min_quality: float = 0.2
+    remesh_zone_h: Optional[float] = None
 
     #: the reduced size of the tests: R₀ 5 → 3.5 mm, h = 1 mm, a short billet
     QUICK = dict(R0=5.0, R1=3.5, length=14.0, h=1.0, land=0.5, fillet=0.5, relief_length=0.5,
@@ -149,6 +157,11 @@ class ExtrusionCase(CaseBase):
             raise ValueError("container 'profile' is one tool with one friction law: give "
                              "mbar_die == mbar_container and no container_shear_limit, or "
                              "container='separate'")
+        if not 0 < self.remesh_min_quality < 1:
+            raise ValueError(f"remesh_min_quality must be in (0, 1), got "
+                             f"{self.remesh_min_quality}")
+        if self.remesh_zone_h is not None:
+            self.check_positive(("remesh_zone_h",))
         if self.scheme not in SCHEMES:
             raise ValueError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
         self.die_profile()      # the billet must hold the nose, the cone the fillets
@@ -249,9 +262,32 @@ def build(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
                            scheme=case.scheme, friction=friction, name="contact",
                            gap_stiffness=rho / case.dt)
     sim.add_contributor(contact)
+    if case.remesh:
+        sim.set_remeshing(RemeshCriteria(min_quality=case.remesh_min_quality), size=case.h,
+                          zones=_die_zone(case))
     dofs = space.W.dofmap.index_map.size_global * space.W.dofmap.index_map_bs
     return ExtrusionSetup(case, sim, contact, tools, profile, float(profile.points[1, 0]),
                           contact_nodes_on(contact, f["back"]), ft, g, dofs)
+
+
+def _die_zone(case: ExtrusionCase) -> list:
+    """The box around the die (entry to exit, the whole section) meshed with
+    ``remesh_zone_h`` (none without it)."""
+    if case.remesh_zone_h is None:
+        return []
+    pts, _ = case.die_profile()
+    r = 1.2 * case.R0
+    return [SizeZone(h=case.remesh_zone_h, box=([-r, -r, pts[0, 0] - 2.0 * case.h],
+                                                [r, r, pts[-1, 0] + case.h]))]
+
+
+def _follow_remesh(s: ExtrusionSetup, seen: list):
+    """After a remesh: the facet tags and the punched face's contact nodes of the new mesh."""
+    if len(s.sim.remeshes) != seen[0]:
+        seen[0] = len(s.sim.remeshes)
+        s.facet_tags = s.sim._remesh_facet_tags
+        s.punch_nodes = contact_nodes_on(s.contact, s.sim.facets(s.facet_tags,
+                                                                 DRAWING_BAR_TAGS["back"]))
 
 
 @dataclass
@@ -320,7 +356,10 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
     k_c = case.theory()["shear_yield"]
     separate = case.container == "separate"
 
+    remeshes = [0]
+
     def row(r):
+        _follow_remesh(s, remeshes)
         # the punch's force: the back face's reaction, less the container's friction on the
         # face's rim (its nodes are driven by the punch and slide on the container)
         F = r["punch_z"] - contact_force_on_body(contact, s.punch_nodes)[2]
@@ -333,6 +372,7 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
             container_force_theory=Fc_th,
             die_pressure=(F - Fc) / g.A0 if separate else F / g.A0,
             penetration=r["contact_penetration_true"], contact_nodes=r["contact_nodes"],
+            remesh=r["remesh"],
             **numerics_columns(r), **balance(r, F * case.speed))
 
     def progress(q):

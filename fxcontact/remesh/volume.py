@@ -34,6 +34,10 @@ log = logging.getLogger(__name__)
 #: the cell tag of the new mesh's volume
 CELL_TAG = 1
 
+#: a patch within this fraction of the body's diameter of a plane is planar (kept planar,
+#: its nodes moved within the plane only)
+PLANAR_TOLERANCE = 1e-4
+
 
 @dataclass
 class SizeZone:
@@ -159,7 +163,9 @@ def _build_on_root(gmsh, surface: BoundarySurface, h: float, zones, feature_angl
                    optimize: bool):
     patches = surface_patches(surface, feature_angle)
     diam = np.linalg.norm(np.ptp(surface.points, axis=0))
-    planes = _patch_planes(surface, patches, 1e-9 * diam)
+    # planar to 1e-4 of the body's size: a face pressed by a flat tool is planar to its
+    # penetration only, and must not be pushed into the tool by the volume restoration
+    planes = _patch_planes(surface, patches, PLANAR_TOLERANCE * diam)
     node_tags = np.arange(1, len(surface.points) + 1)
     ids = np.unique(patches)
     for p in ids:
