@@ -398,9 +398,9 @@ def run(case: UpsettingCase, comm=None, output_dir: Optional[str] = None,
     rows, status, message = [], "completed", ""
     dt = case.startup * case.dt
     while sim.t < case.t_end - 1e-9 * case.dt:
+        left = case.t_end - sim.t
         try:
-            left = case.t_end - sim.t
-        res = sim.step(left if left < 1.5 * dt else dt, max_cutbacks=int(case.max_cutbacks))
+            res = sim.step(left if left < 1.5 * dt else dt, max_cutbacks=int(case.max_cutbacks))
         except IncrementError as err:   # MeshInversionError included
             status, message = "failed", str(err)
             break
