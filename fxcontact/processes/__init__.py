@@ -8,6 +8,8 @@ pictures, ``report()``).
   :func:`build_drawing`, :func:`run_drawing`;
 * :mod:`fxcontact.processes.extrusion` — forward extrusion: :class:`ExtrusionCase`,
   :func:`build_extrusion`, :func:`run_extrusion`;
+* :mod:`fxcontact.processes.upsetting` — upsetting a cylinder between flat dies, remeshed:
+  :class:`UpsettingCase`, :func:`build_upsetting`, :func:`run_upsetting`;
 * :mod:`fxcontact.processes.flat_rolling` — flat rolling of a strip (one quarter);
 * :mod:`fxcontact.processes.bar_rolling` — three-roll rolling of a round bar (a third or the
   whole bar);
@@ -30,6 +32,9 @@ from fxcontact.processes.flat_rolling import FlatRollingCase, FlatRollingResult,
 from fxcontact.processes.monitor import (STATUSES, RunNumerics, SteadyMonitor, SteadyRun,
                                          StopRules, window_increments)
 from fxcontact.processes.ring_rolling import RingRollingCase, RingRollingResult, RingRollingSetup
+from fxcontact.processes.upsetting import UpsettingCase, UpsettingResult, UpsettingSetup
+from fxcontact.processes.upsetting import build as build_upsetting
+from fxcontact.processes.upsetting import run as run_upsetting
 
 __all__ = ["bar_rolling", "flat_rolling", "ring_rolling",
            "BarRollingCase", "BarRollingResult", "BarRollingSetup",
@@ -38,4 +43,6 @@ __all__ = ["bar_rolling", "flat_rolling", "ring_rolling",
            "run_extrusion",
            "FlatRollingCase", "FlatRollingResult", "FlatRollingSetup",
            "RingRollingCase", "RingRollingResult", "RingRollingSetup",
+           "UpsettingCase", "UpsettingResult", "UpsettingSetup", "build_upsetting",
+           "run_upsetting",
            "STATUSES", "RunNumerics", "SteadyMonitor", "SteadyRun", "StopRules", "window_increments"]

@@ -124,8 +124,8 @@ class UpsettingCase(CaseBase):
     remesh_min_quality: float = 0.2
     remesh_zone_h: Optional[float] = None   #: size at the folding edge (None: h/2)
 
-    #: the reduced size of the tests: R₀ = 5 mm (H₀ = 15 mm), h = 1.25 mm
-    QUICK = dict(R0=5.0, h=1.25, dt=0.0375)
+    #: the reduced size of the tests: R₀ = 5 mm (H₀ = 15 mm), h = 1.25 mm, a 45° sector
+    QUICK = dict(R0=5.0, h=1.25, dt=0.05, sector=45.0)
 
     def __post_init__(self):
         self.check_positive(("R0", "aspect", "sector", "K", "speed", "dt", "startup", "h",
@@ -479,13 +479,14 @@ def _pictures(comm, s: UpsettingSetup, res: UpsettingResult, out: str):
     plt.close(fig)
     hist = res.history
     red = [100 * q["reduction"] for q in hist]
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 8), sharex=True)
+    red_end = [100 * (1.0 - _height(c, q["time"]) / c.H0) for q in hist]
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 8))
     plot_curves(a1, red, [([q["p_mean"] for q in hist], "b.-", "FE p̄/σ₀ (homogeneous face)"),
                           ([q["p_face"] for q in hist], "c.:", "FE F/(π r_contact² σ₀)"),
                           ([q["upper"] for q in hist], "k-", "upper bound (d_h, h)"),
                           ([q["lower"] for q in hist], "k--",
                            "lower: σ₀ on the die contact")], ylabel="p̄ / σ₀")
-    plot_curves(a2, red, [([q["r_contact"] for q in hist], "r.-", "die contact radius"),
+    plot_curves(a2, red_end, [([q["r_contact"] for q in hist], "r.-", "die contact radius"),
                           ([q["r_face"] for q in hist], "m.-", "original end face"),
                           ([q["r_free"] for q in hist], "g.-", "free surface (bulge)"),
                           ([q["r_homogeneous"] for q in hist], "k:", "homogeneous")],
@@ -494,8 +495,8 @@ def _pictures(comm, s: UpsettingSetup, res: UpsettingResult, out: str):
         if q["remesh"] != hist[i - 1]["remesh"]:
             for a in (a1, a2):
                 a.axvline(red[i], color="0.7", lw=0.8)
-    a2.set_xlabel("height reduction at the increment's start [%] (grey: remeshes)")
-    a1.set_xlabel("")
+    a1.set_xlabel("height reduction at the increment's start [%] (grey: remeshes)")
+    a2.set_xlabel("height reduction [%]")
     fig.tight_layout()
     fig.savefig(f2, dpi=110)
     plt.close(fig)

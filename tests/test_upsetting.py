@@ -1,0 +1,90 @@
+"""Upsetting a cylinder (``fxcontact.processes.upsetting``) at the reduced size of
+``UpsettingCase.quick()``: R₀ = 5 mm, H₀/D₀ = 1.5, sticking dies (Tresca m̄ = 1), a 45° sector
+and half the height, h = 1.25 mm, to 70 % height reduction with remeshing.
+
+Checked (on 1 and on 2 ranks: a remeshed run's new meshes depend on round-off, so each run is
+compared with the theory, not the two runs with each other): the run reaches 70 % with at least
+one remesh; the free surface folds onto the die (the die contact reaches beyond the original end
+face by more than an element, the bulge beyond the contact); the die force within the band
+σ₀ π r_c² ≤ F ≤ σ₀ A_h (1 + d_h/(3√3 h)) at every increment; the smallest element quality over
+the run, the volume, the power balance of the increments without a remesh. Without remeshing
+the same mesh stops earlier: ``benchmarks/bench_remesh_upsetting.py``."""
+
+import math
+
+import pytest
+from mpi4py import MPI
+
+from fxcontact.processes import UpsettingCase, run_upsetting
+
+#: the smallest element quality of the quick run (remeshed below 0.2; measured 0.13)
+MIN_QUALITY = 0.08
+
+
+@pytest.fixture(scope="module")
+def sticking():
+    res = run_upsetting(UpsettingCase.quick(), pictures=False)
+    if MPI.COMM_WORLD.rank == 0:
+        print("\n" + res.report())
+    return res
+
+
+def test_reaches_70_percent_with_remeshing(sticking):
+    res = sticking
+    assert res.status == "completed", res.message
+    assert res.reduction == pytest.approx(0.7, abs=1e-9)
+    assert res.remeshes >= 1
+    assert res.max_volume_change <= 5e-3
+    assert res.min_quality >= MIN_QUALITY
+
+
+def test_free_surface_folds_onto_the_die(sticking):
+    c, rd, last = sticking.case, sticking.radii, sticking.history[-1]
+    assert rd["contact"] - rd["face"] > c.h          # the fold: more than an element
+    assert rd["face"] < 1.3 * c.R0                   # sticking: the end face hardly spreads
+    assert rd["free"] > max(rd["contact"], last["r_homogeneous"])   # barrelled
+    assert last["r_contact"] == rd["contact"]
+
+
+def test_die_force_in_band(sticking):
+    """σ₀ over the die contact ≤ p̄ ≤ the upper bound at every increment (the start-up
+    increment included), and the pressure rises with the reduction (friction: d_h/h grows)."""
+    rows = sticking.history
+    bad = [(i, q["lower"], q["p_mean"], q["upper"]) for i, q in enumerate(rows)
+           if not q["lower"] <= q["p_mean"] <= q["upper"]]
+    assert not bad
+    assert sticking.out_of_band == [] and sticking.band_from == 0
+    assert rows[-1]["p_mean"] > 1.2 * rows[1]["p_mean"]
+    th = sticking.case.theory(rows[-1]["height"])
+    assert th["upper"] == pytest.approx(1 + th["diameter"] / (3 * math.sqrt(3) * th["height"]))
+
+
+def test_power_balance(sticking):
+    """P_in = dissipation + friction to the discretisation error, and with the penalty work to
+    round-off, at the increments that are not followed by a remesh (a remesh moves the
+    configuration the balance is evaluated on)."""
+    rows = sticking.history
+    kept = [q for q, nxt in zip(rows, rows[1:] + [None])
+            if nxt is None or nxt["remesh"] == q["remesh"]][1:]
+    assert len(kept) > len(rows) // 2
+    assert max(abs(q["power_balance_penalty"]) for q in kept) < 1e-6
+    assert max(abs(q["power_balance"]) for q in kept) < 0.05
+
+
+def test_bad_case():
+    with pytest.raises(ValueError, match="aspect"):
+        UpsettingCase.quick(aspect=0.0)
+    with pytest.raises(ValueError, match="mbar"):
+        UpsettingCase.quick(mbar=1.5)
+    with pytest.raises(ValueError, match="mu"):
+        UpsettingCase.quick(mbar=None)
+    with pytest.raises(ValueError, match="mu"):
+        UpsettingCase.quick(mu=-0.1)
+    with pytest.raises(ValueError, match="reduction"):
+        UpsettingCase.quick(reduction=0.99)
+    with pytest.raises(ValueError, match="sector"):
+        UpsettingCase.quick(sector=120.0)
+    with pytest.raises(ValueError, match="remesh_min_quality"):
+        UpsettingCase.quick(remesh_min_quality=1.0)
+    with pytest.raises(ValueError, match="remesh_zone_h"):
+        UpsettingCase.quick(remesh_zone_h=0.0)
