@@ -104,3 +104,10 @@ def test_extrusion_demo(tmp_path):
     _process_demo("demo_extrusion.py", ["--quick", "--t_end", "0.05"],
                   ["extrusion_flow.png", "extrusion_pressure.png"],
                   ["punch pressure", "Avitzur"], tmp_path)
+
+
+@pytest.mark.serial
+def test_upsetting_folding_demo(tmp_path):
+    _process_demo("demo_upsetting_folding.py", ["--quick", "--reduction", "0.15"],
+                  ["upsetting_section.png", "upsetting_pressure.png"],
+                  ["p/sigma0", "die contact", "free surface"], tmp_path)

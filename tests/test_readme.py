@@ -57,16 +57,17 @@ def test_readme_example_runs():
 
 
 def process_examples():
-    """The python code blocks of the section "Forming processes": drawing, extrusion."""
+    """The python code blocks of the section "Forming processes": drawing, extrusion,
+    upsetting."""
     text = README.read_text(encoding="utf-8")
     section = text.split("## Forming processes", 1)[1].split("\n## ", 1)[0]
     return [b for b in re.findall(r"```python\n(.*?)```", section, re.S)
-            if "DrawingCase" in b or "ExtrusionCase" in b]
+            if "DrawingCase" in b or "ExtrusionCase" in b or "UpsettingCase" in b]
 
 
 def test_process_examples_are_short_and_use_the_process_library():
     blocks = process_examples()
-    assert len(blocks) == 2
+    assert len(blocks) == 3
     for code in blocks:
         assert len(code.strip().splitlines()) <= 40
         assert code.startswith("from fxcontact.processes import ")
@@ -77,7 +78,8 @@ def test_process_examples_are_short_and_use_the_process_library():
          ("t_end=0.1", "t_end=0.01, length=18.0, facet=1.0, fillet=1.0, relief_length=0.5"))),
     (1, (("R0=10.0, R1=6.0, length=30.0", "R0=5.0, R1=3.5, length=14.0"), ("h=1.5", "h=1.0"),
          ("t_end=1.0", "t_end=0.05, land=0.5, fillet=0.5, entry_fillet=0.5, relief_length=0.5"))),
-], ids=["drawing", "extrusion"])
+    (2, (("R0=10.0", "R0=5.0"), ("h=1.5", "h=1.25"), ("reduction=0.7", "reduction=0.1"))),
+], ids=["drawing", "extrusion", "upsetting"])
 def test_process_example_runs(which, shrink):
     """Each example as written, at the tests' reduced size (the replaced strings must be there
     once), with its outputs in a temporary directory."""
@@ -90,5 +92,8 @@ def test_process_example_runs(which, shrink):
     exec(compile(code, "README.md", "exec"), ns)
     res = ns["res"]
     assert res.status == "completed", res.message
-    assert res.increments == round(ns["case"].t_end / ns["case"].dt)
+    if which < 2:
+        assert res.increments == round(ns["case"].t_end / ns["case"].dt)
+    else:   # a start-up increment, then increments of dt × h/H0
+        assert res.reduction == pytest.approx(0.1) and res.out_of_band == []
     assert abs(res.power_balance_penalty) < 1e-6
