@@ -114,10 +114,10 @@ def main(argv=None):
 # `upsetting_section.png` shows the θ = 0 section at the end (equivalent strain): the
 # initial billet dashed, the die, and in red the part of the die contact that was free
 # surface — from the original end face's radius to the contact radius. The strain is largest
-# at the centre and along the diagonals from the die's edge to the mid-plane (the cross of
-# shear bands), and smallest in the cone under the die's centre, where the sticking die holds
-# the material still (the dead zone). `upsetting_pressure.png` plots p̄/σ₀ against the band
-# and the three radii against the reduction, with the remeshes.
+# at the centre of the mid-plane and in the fold next to the end face's edge (material that
+# turned the corner), smallest under the die's centre, where the sticking die holds the
+# material still (the dead zone). `upsetting_pressure.png` plots p̄/σ₀ against the band and
+# the three radii against the reduction, with the remeshes: the fold starts at about 40 %.
 
 # %%
 if __name__ == "__main__":

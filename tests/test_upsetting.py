@@ -60,15 +60,17 @@ def test_die_force_in_band(sticking):
 
 
 def test_power_balance(sticking):
-    """P_in = dissipation + friction to the discretisation error, and with the penalty work to
-    round-off, at the increments that are not followed by a remesh (a remesh moves the
-    configuration the balance is evaluated on)."""
+    """P_in = dissipation + friction + penalty work to round-off, at the increments not
+    followed by a remesh (a remesh moves the configuration the balance is evaluated on)."""
     rows = sticking.history
     kept = [q for q, nxt in zip(rows, rows[1:] + [None])
             if nxt is None or nxt["remesh"] == q["remesh"]][1:]
     assert len(kept) > len(rows) // 2
     assert max(abs(q["power_balance_penalty"]) for q in kept) < 1e-6
-    assert max(abs(q["power_balance"]) for q in kept) < 0.05
+    # without the penalty work: to the discretisation error, except where nodes of the fold
+    # land on the die (their penalty work, a few % of an increment's power)
+    pb = sorted(abs(q["power_balance"]) for q in kept)
+    assert pb[len(pb) // 2] < 0.01 and pb[-1] < 0.15, pb
 
 
 def test_bad_case():

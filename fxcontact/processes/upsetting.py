@@ -449,7 +449,7 @@ def _pictures(comm, s: UpsettingSetup, res: UpsettingResult, out: str):
     rz = zr[..., ::-1]
     H = 0.5 * c.H0 if c.half else c.H0
     xr, yr = 1.25 * rd["free"], (z0 - 0.5, max(zd, H) + 0.25 * (zd - z0) + 1.5)
-    fig, ax = plt.subplots(figsize=(9, 9 * (yr[1] - yr[0]) / xr + 1.3))
+    fig, ax = plt.subplots(figsize=(9, 0.75 * 9 * (yr[1] - yr[0]) / xr + 1.2))
     pc = PolyCollection(rz, array=strain, cmap="viridis", edgecolors="k", linewidths=0.15)
     ax.add_collection(pc)
     fig.colorbar(pc, ax=ax, label="equivalent strain", fraction=0.04, pad=0.01)
@@ -492,9 +492,9 @@ def _pictures(comm, s: UpsettingSetup, res: UpsettingResult, out: str):
                           ([q["r_homogeneous"] for q in hist], "k:", "homogeneous")],
                 ylabel="radius [mm]")
     for i, q in enumerate(hist[1:], 1):
-        if q["remesh"] != hist[i - 1]["remesh"]:
-            for a in (a1, a2):
-                a.axvline(red[i], color="0.7", lw=0.8)
+        if q["remesh"] != hist[i - 1]["remesh"]:      # after the increment i − 1
+            a1.axvline(red[i], color="0.7", lw=0.8)
+            a2.axvline(red_end[i - 1], color="0.7", lw=0.8)
     a1.set_xlabel("height reduction at the increment's start [%] (grey: remeshes)")
     a2.set_xlabel("height reduction [%]")
     fig.tight_layout()
