@@ -281,7 +281,7 @@ def radii(s: UpsettingSetup) -> dict:
     r, on, top = _local_radii(s)
     loc = np.array([np.max(r[on], initial=0.0), np.max(r[on & top], initial=0.0),
                     np.max(r, initial=0.0)])
-    out = s.sim.comm.allreduce(loc, op=MPI.MAX)
+    out = np.max(s.sim.comm.allgather(loc), axis=0)
     return dict(contact=float(out[0]), face=float(out[1]), free=float(out[2]))
 
 
