@@ -11,7 +11,8 @@ mid-plane at the same speed with the same friction, so the problem is symmetric 
 die held still instead changes the solution by a rigid translation only, which neither the
 material nor the friction, a function of the slip against each die, sees). A symmetric model
 cannot buckle: for h/d ≤ 2 the billet does not. ``half=False`` models the whole height
-with the two dies (the body held by them only).
+with the two dies (the body held by them only): the same pressure and radii to discretisation
+accuracy (``tests/test_upsetting.py``).
 
 **Friction** on the dies: Tresca τ = m̄ k (``mbar``; m̄ = 1, the default, is sticking friction:
 the friction stress reaches the shear flow stress k = σ₀/√3 of each node's strain rate), or
@@ -33,7 +34,8 @@ after a remesh), upper edge the upper bound ``1 + m̄ d_h/(3√3 h)``
 the same number) for Tresca dies, and for Coulomb dies the slab estimate ``2(eˣ − x − 1)/x²``,
 x = 2μR_h/h (:func:`fxcontact.forming.upsetting_slab_coulomb`), or the upper bound of the cap
 m̄ if lower. Force, height and strain rate are taken at the start of each increment (the
-configuration its equilibrium is written on).
+configuration its equilibrium is written on). The time step is ``dt`` × h/H₀ (increments of
+the same height strain), after a start-up increment of ``startup`` × dt.
 
 **Remeshing** (``remesh=True``, default): a new mesh of size ``h`` when a cell's quality falls
 below ``remesh_min_quality`` (and before an inverting cell stops the run), finer
