@@ -107,7 +107,7 @@ class UpsettingCase(CaseBase):
     # material (Norton–Hoff)
     K: float = 50.0
     m: float = 0.15
-    # friction on the dies: Tresca mbar, or Coulomb mu capped by mbar (None: no cap)
+    # friction on the dies: Tresca mbar, or Coulomb mu capped by mbar k (mbar None: no cap)
     mbar: Optional[float] = 1.0
     mu: Optional[float] = None
     # kinematics
@@ -194,8 +194,7 @@ class UpsettingCase(CaseBase):
         return dict(sigma0=float(forming.flow_stress(self.K, self.m, rate)), strain_rate=rate,
                     area=area, diameter=d, height=height,
                     lower=math.pi * contact_radius ** 2 / area if contact_radius else 1.0,
-                    upper_bound=ub,
-                    slab=slab, upper=upper)
+                    upper_bound=ub, slab=slab, upper=upper)
 
 
 @dataclass
@@ -213,8 +212,8 @@ class UpsettingSetup:
 
 
 def _die_z(case: UpsettingCase, t: float) -> float:
-    """Height of the upper die at time t (the lower one at −that with ``half=False``, or the
-    mid-plane z = 0 with ``half=True``: the model spans [z0, z_die])."""
+    """Height of the upper die at time t; the model spans [0, that] with ``half=True`` (z = 0
+    the mid-plane), [H₀ − that, that] between the two dies with ``half=False``."""
     return (0.5 if case.half else 1.0) * case.H0 - 0.5 * case.speed * t
 
 
@@ -336,7 +335,7 @@ class UpsettingResult(ProcessResult):
                 f"last increment (from {100 * q['reduction']:.1f} %): die force "
                 f"{q['force'] / 1e3:.2f} kN, p/sigma0 {q['p_mean']:.3f} (homogeneous face "
                 f"d_h {q['diameter']:.2f} mm; on the contact {q['p_face']:.3f}), band "
-                f"[{q['lower']:g}, {q['upper']:.3f}]",
+                f"[{q['lower']:.3f}, {q['upper']:.3f}]",
                 f"radii at the end: die contact {rd['contact']:.2f} mm, original end face "
                 f"{rd['face']:.2f} mm (fold {rd['contact'] - rd['face']:.2f} mm), free surface "
                 f"{rd['free']:.2f} mm; homogeneous {self.history[-1]['r_homogeneous']:.2f} mm",
