@@ -48,7 +48,7 @@ from fxcontact.materials import Material
 from fxcontact.mesh_health import MeshHealth
 from fxcontact.outputs import (OutputError, Outputs, format_wall_split, output_dir_problem,
                                wall_split)
-from fxcontact.petsc import NodalNonlinearProblem
+from fxcontact.petsc import ContributorError, NodalNonlinearProblem, add_nodal_residual
 from fxcontact.protocols import (BeginsIncrement, Contributor, EndsIncrement, HasDiagnostics,
                                  HasSummary, SolvesIncrement)
 from fxcontact.retry import IncrementError, MeshInversionError, RetryLadder
@@ -552,14 +552,23 @@ class Simulation:
     def reaction_force(self, facets: np.ndarray) -> np.ndarray:
         """Force exerted *on the body* through the Dirichlet dofs of ``facets`` (gdim,).
 
-        Computed as the sum of the (bc-free) UFL residual entries (internal forces) at the
-        velocity dofs of the facets, owned dofs only, summed over ranks, on the *current*
-        geometry (use :meth:`add_reaction` for the value on the increment's configuration).
+        Computed as the sum of the (bc-free) residual entries at the velocity dofs of the
+        facets: the UFL residual (internal forces) and the contributors' nodal terms (a node
+        under the velocity condition that is also in contact takes the contact's force there:
+        the condition then balances the rest), owned dofs only, summed over ranks (collective).
+        The UFL part is on the *current* geometry, the contributors' on their increment (use
+        :meth:`add_reaction` for the value on the increment's configuration).
         """
         self._build()
         sp = self.space
         b = dolfinx.fem.petsc.assemble_vector(self.problem.L)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        terms = self.problem._evaluate_contributors(False) if self.contributors else []
+        if terms is None:       # the same on every rank
+            b.destroy()
+            raise ContributorError(self.problem.error)
+        for t in terms:
+            add_nodal_residual(b, t)
         arr = b.getArray(readonly=True)
         fdim = self.mesh.topology.dim - 1
         out = np.zeros(sp.gdim)
