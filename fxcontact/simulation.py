@@ -550,22 +550,17 @@ class Simulation:
         return self.comm.allreduce(dolfinx.fem.assemble_scalar(self._div_form), op=MPI.SUM)
 
     def reaction_force(self, facets: np.ndarray) -> np.ndarray:
-        """Force exerted *on the body* through the Dirichlet dofs of ``facets`` (gdim,).
-
-        Computed as the sum of the (bc-free) residual entries at the velocity dofs of the
-        facets: the UFL residual (internal forces) and the contributors' nodal terms (a node
-        under the velocity condition that is also in contact takes the contact's force there:
-        the condition then balances the rest), owned dofs only, summed over ranks (collective).
-        The UFL part is on the *current* geometry, the contributors' on their increment (use
-        :meth:`add_reaction` for the value on the increment's configuration).
-        """
+        """Force exerted *on the body* through the Dirichlet dofs of ``facets`` (gdim,): the sum
+        of the bc-free residual entries (internal forces and the contributors' nodal terms, e.g.
+        of a contact node under the condition) at the velocity dofs of the facets, owned dofs
+        only, summed over ranks (collective), on the *current* geometry (use
+        :meth:`add_reaction` for the value on the increment's configuration)."""
         self._build()
         sp = self.space
         b = dolfinx.fem.petsc.assemble_vector(self.problem.L)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         terms = self.problem._evaluate_contributors(False) if self.contributors else []
-        if terms is None:       # the same on every rank
-            b.destroy()
+        if terms is None:       # on every rank
             raise ContributorError(self.problem.error)
         for t in terms:
             add_nodal_residual(b, t)
