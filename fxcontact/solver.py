@@ -310,9 +310,6 @@ class ContactNewtonSolver:
             pc = ksp.getPC()
             pc.setType(PETSc.PC.Type.PYTHON)
             pc.setPythonContext(BorderedPC(pc_fs, self.border))
-        #: the PC that holds the factorisation (``reuse_factorisation``; the condensed PC
-        #: decides for its inner factorisation itself)
-        self._factor_pc = pc_fs
         #: factorise at the next Jacobian (``reuse_factorisation``): no factorisation yet,
         #: or the last Krylov solve took too many iterations
         self._refactor_next = True
@@ -377,8 +374,6 @@ class ContactNewtonSolver:
             self._refactor_next = False
         if self._condensed_pc is not None:
             self._condensed_pc.reuse = keep
-        elif self.options.reuses_factorisation:
-            self._factor_pc.setReusePreconditioner(keep)
 
     def _krylov_check(self, ksp: PETSc.KSP) -> bool:
         """After the linear solve of a Newton step (``reuse_factorisation``): factorise at the

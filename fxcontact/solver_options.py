@@ -174,12 +174,11 @@ class SolverOptions:
             contact state (:data:`fxcontact.solver.REUSE_CONTRACTION`; the first Jacobian of a
             solve is always factorised); factorised again at the next iteration after a step
             that took more than half of ``reuse_max_krylov`` Krylov iterations, and at once
-            (the step solved again) when the Krylov solve does not converge within them. A
-            direct linear solver only (MUMPS, condensed or not). Same residual, same converged
-            solution; fewer factorisations, some Krylov iterations (one triangular solve and
-            one product with the Newton matrix each).
-            ``"auto"`` (default): on with ``"condensed-mumps"``; True / False force it
-            (True with an iterative linear solver: ValueError). Figures in
+            (the step solved again) when the Krylov solve does not converge within them. The
+            condensed direct linear solver only (``"condensed-mumps"``). Same residual, same
+            converged solution; fewer factorisations, some Krylov iterations (one triangular
+            solve and one product with the Newton matrix each). ``"auto"`` (default): on with ``"condensed-mumps"``; True / False force it
+            (True with another linear solver: ValueError). Figures in
             ``benchmarks/README.md`` (``bench_element_newton.py``).
         reuse_max_krylov: see ``reuse_factorisation``.
         prefix: PETSc options prefix.
@@ -252,10 +251,10 @@ class SolverOptions:
             raise ValueError(f"reuse_max_krylov must be an integer >= 1, got "
                              f"{self.reuse_max_krylov!r}")
         if self.reuse_factorisation is True and self.linear_solver != "auto" \
-                and not self.uses_direct_solver:
-            raise ValueError(f"reuse_factorisation=True needs a direct linear solver (MUMPS, "
-                             f"'mumps' or 'condensed-mumps'), not {self.linear_solver!r}: "
-                             f"use reuse_factorisation=False or 'auto'")
+                and not self._reusable():
+            raise ValueError(f"reuse_factorisation=True needs the condensed direct linear "
+                             f"solver ('condensed-mumps'), not {self.linear_solver!r}: use "
+                             f"reuse_factorisation=False or 'auto'")
         if not (np.isfinite(self.continuation_rtol) and 0.0 < self.continuation_rtol < 1.0):
             raise ValueError(f"continuation_rtol must be in (0, 1), got "
                              f"{self.continuation_rtol!r}")
@@ -286,7 +285,13 @@ class SolverOptions:
             on = self.linear_solver == "condensed-mumps"
         else:
             on = bool(self.reuse_factorisation) and self.linear_solver != "auto"
-        return on and self.uses_direct_solver
+        return on and self._reusable()
+
+    def _reusable(self) -> bool:
+        """A factorisation that ``reuse_factorisation`` can keep: the condensed system's, solved
+        by a direct solver (the condensed PC decides at each set-up; PETSc's SNES resets the
+        reuse flag of its own KSP's PC after every Jacobian)."""
+        return self.uses_condensation and self.uses_direct_solver
 
     @property
     def uses_fieldsplit(self) -> bool:
