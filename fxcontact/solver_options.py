@@ -177,8 +177,9 @@ class SolverOptions:
             (the step solved again) when the Krylov solve does not converge within them. The
             condensed direct linear solver only (``"condensed-mumps"``). Same residual, same
             converged solution; fewer factorisations, some Krylov iterations (one triangular
-            solve and one product with the Newton matrix each). ``"auto"`` (default): on with ``"condensed-mumps"``; True / False force it
-            (True with another linear solver: ValueError). Figures in
+            solve and one product with the Newton matrix each). False (default: not yet
+            measured faster at the thesis size), ``"auto"`` (on with ``"condensed-mumps"``),
+            True (with another linear solver: ValueError). Figures in
             ``benchmarks/README.md`` (``bench_element_newton.py``).
         reuse_max_krylov: see ``reuse_factorisation``.
         prefix: PETSc options prefix.
@@ -198,7 +199,7 @@ class SolverOptions:
     prediction_max_nodes: int = 200
     material_tangent: str = "auto"
     element_condensation: object = "auto"
-    reuse_factorisation: object = "auto"
+    reuse_factorisation: object = False
     reuse_max_krylov: int = 10
     prefix: str = "fxc_"
     petsc_options: Dict[str, object] = field(default_factory=dict)

@@ -66,19 +66,23 @@ def test_same_increments_fewer_factorisations(without_reuse, options):
 
 
 def test_auto_is_on_with_condensed_mumps_only():
-    assert SolverOptions(linear_solver="condensed-mumps").reuses_factorisation
+    assert not SolverOptions(linear_solver="condensed-mumps").reuses_factorisation  # default
+    assert SolverOptions(linear_solver="condensed-mumps",
+                         reuse_factorisation="auto").reuses_factorisation
     for solver in ("mumps", "condensed-amg", "auto"):
-        assert not SolverOptions(linear_solver=solver).reuses_factorisation
+        assert not SolverOptions(linear_solver=solver,
+                                 reuse_factorisation="auto").reuses_factorisation
     with pytest.raises(ValueError, match="reuse_factorisation=True needs the condensed direct"):
         SolverOptions(linear_solver="mumps", reuse_factorisation=True)
     # the chosen-by-"auto" iterative solver never reuses (nothing to keep)
     opts = SolverOptions(reuse_factorisation=True)
     opts.linear_solver = "condensed-amg"
     assert not opts.reuses_factorisation
-    lin = SolverOptions(linear_solver="condensed-mumps").linear_options()
+    lin = SolverOptions(linear_solver="condensed-mumps",
+                        reuse_factorisation=True).linear_options()
     assert lin["ksp_type"] == "fgmres" and lin["condensed_pc_type"] == "lu"
     # an option of the user's wins over the reuse's Krylov settings
-    lin = SolverOptions(linear_solver="condensed-mumps",
+    lin = SolverOptions(linear_solver="condensed-mumps", reuse_factorisation=True,
                         petsc_options={"ksp_rtol": 1e-10}).linear_options()
     assert lin["ksp_rtol"] == 1e-10
 
