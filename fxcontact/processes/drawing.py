@@ -103,6 +103,7 @@ class DrawingCase(CaseBase):
     material_tangent: str = "auto"
     linear_solver: str = "auto"
     element_condensation: object = "auto"   #: SolverOptions.element_condensation
+    reuse_factorisation: object = False     #: SolverOptions.reuse_factorisation
     max_cutbacks: int = 4
     # steady state: two windows of `window` mm of pull agree within steady_tol, after `settle`
     # mm (default one element)
@@ -176,7 +177,8 @@ class DrawingCase(CaseBase):
                              material_tangent=self.material_tangent,
                              penalty_continuation=self.penalty_continuation,
                              linear_solver=self.linear_solver,
-                             element_condensation=self.element_condensation)
+                             element_condensation=self.element_condensation,
+                             reuse_factorisation=self.reuse_factorisation)
 
 
 @dataclass
