@@ -322,6 +322,12 @@ class ContactNewtonSolver:
         back to the plain system. Rebuilds the SNES (collective)."""
         if border is self.border:
             return
+        if border is not None and self.options.reuses_factorisation and self.comm.size > 1:
+            # a 2-rank bordered ring-rolling run with the kept factorisation hung (one rank in
+            # an FGMRES solve, the other past the end of the run): refused until understood
+            raise ValueError("reuse_factorisation is not supported with a bordered Newton "
+                             "system (an idle tool with idle_method='bordered') on more than "
+                             "one rank: set reuse_factorisation=False, or run on one rank")
         self.border = border
         self.reset()
 

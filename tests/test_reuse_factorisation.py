@@ -88,8 +88,31 @@ def test_auto_is_on_with_condensed_mumps_only():
     assert lin["ksp_rtol"] == 1e-10
 
 
-@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="hung once on 2 ranks (rank 0 in an FGMRES "
-                    "solve, rank 1 past the end of the run): not understood yet")
+def test_bordered_with_reuse_refused_on_several_ranks():
+    """A bordered Newton system with the kept factorisation hung on 2 ranks (a ring-rolling run
+    with an idle mandrel: one rank in an FGMRES solve, the other past the end of the run, every
+    time on a loaded machine): refused on more than one rank, on every rank, until understood;
+    allowed on one rank (the next test)."""
+    sim = pressed_block(fx.NortonHoff(K=1.0, m=0.1, regularization=1e-3), n=2,
+                        solver="condensed-mumps", prefix="trf_border_")
+    sim.solver_options.reuse_factorisation = True
+    sim.run(0.1, 0.1, close=False)
+
+    class Border:
+        def vectors(self):
+            return None
+
+    if MPI.COMM_WORLD.size > 1:
+        with pytest.raises(ValueError, match="reuse_factorisation is not supported with a "
+                                             "bordered Newton system.*on more than one rank"):
+            sim.solver.set_border(Border())
+    else:
+        sim.solver.set_border(Border())
+        assert sim.solver.border is not None
+    sim.close()
+
+
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="refused on several ranks (the test above)")
 def test_ring_idle_tool_bordered_with_reuse(monkeypatch):
     """One ring-rolling increment with the idle mandrel eliminated by the bordered Newton
     matrix (friction on both rolls): with the kept factorisation (the Woodbury border built
