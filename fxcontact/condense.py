@@ -290,6 +290,12 @@ class CondensedPC:
         self.last_asymmetry = None
         self.inner_iterations = 0
         self.inner_solves = 0
+        #: keep the inner factorisation at the next set-ups (set by the Newton solver,
+        #: ``SolverOptions.reuse_factorisation``): the condensed system and its
+        #: factorisation stay those of the last set-up that factorised
+        self.reuse = False
+        #: set-ups that kept the factorisation (``setups`` counts those that made one)
+        self.reuses = 0
 
     # -- helpers ------------------------------------------------------------------------
     def _sub(self, P, name, isr, isc):
@@ -370,6 +376,12 @@ class CondensedPC:
             self.times["apply"] += time.perf_counter() - t0
 
     def _setup(self, pc):
+        if self.reuse and self.ksp is not None:
+            # the inner PC keeps its factorisation even if its matrix changed (the element
+            # condensation reassembles it in place)
+            self.ksp.getPC().setReusePreconditioner(True)
+            self.reuses += 1
+            return
         t0 = time.perf_counter()
         self.setups += 1
         _, P = pc.getOperators()
@@ -388,6 +400,7 @@ class CondensedPC:
             self.ksp.setOperators(S, S)
             if self.ksp.getPC().getType() == PETSc.PC.Type.FIELDSPLIT:
                 self._setup_fieldsplit(S, first=False)
+        self.ksp.getPC().setReusePreconditioner(False)
         self._choose_factorisation(S)
         if self.ksp.getPC().getType() == PETSc.PC.Type.FIELDSPLIT:
             Sa = self._augmented(S)

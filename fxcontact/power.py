@@ -19,9 +19,10 @@ from mpi4py import MPI
 import dolfinx
 
 from fxcontact import compat
+from fxcontact.kinematics import CartesianUpdate
 
 __all__ = ["PlasticDissipation", "PressurePower", "PowerBalance", "plastic_dissipation",
-           "penalty_power", "on_configuration"]
+           "penalty_power", "delivered_power", "end_velocities", "on_configuration"]
 
 
 class PlasticDissipation:
@@ -87,50 +88,114 @@ def on_configuration(sim, X0, fn):
         g[vg, :d] = keep
 
 
+def _tool_point_velocities(contact, t):
+    """(N, gdim) velocity of each contact node's tool at its projection point at ``t``."""
+    return contact._tool_velocities(contact._point, contact._tool, t)
+
+
 def penalty_power(contact, v, t):
     """Work rate of the normal penalty forces of a :class:`~fxcontact.NodalContact`,
     Σ r_n · (v_node − v_tool) over its contact nodes (``r_n``: the nodal force on the tool,
-    ``v``: vertex velocities; friction excluded, it is the contact's friction power), summed over
-    ranks. ≈ 0 at steady state (the gap does not change); with it the power balance of a process
-    is the discrete virtual-power identity."""
+    ``v``: vertex velocities at the nodes' end-of-increment positions, :func:`end_velocities`;
+    friction excluded, it is the contact's friction power), summed over ranks. ≈ 0 at steady
+    state (the gap does not change); with it the power balance of a process is the discrete
+    virtual-power identity."""
     b = contact.boundary
     if len(b.vertices):
-        vt = contact._tool_velocities(contact._point, contact._tool, t)
-        P = float(np.sum(contact._r * (v[b.vertices] - vt)))
+        P = float(np.sum(contact._r * (v[b.vertices] - _tool_point_velocities(contact, t))))
     else:
         P = 0.0
     return b.comm.allreduce(P, op=MPI.SUM)
 
 
+def delivered_power(contact, t, k=None) -> float:
+    """Power the tools of a :class:`~fxcontact.NodalContact` deliver to the body at its last
+    evaluation, −Σ (r_n + r_f,n) · v_tool(P_n) (the nodal forces on the tool times the tool's
+    velocity at the projection points, at the increment's end time ``t``), summed over ranks:
+    for a tool of rigid motion F·V + M·ω with the force and torque the body exerts on it,
+    reversed. ``k``: one tool's (its index in the contact), else every tool's."""
+    b = contact.boundary
+    P = 0.0
+    if len(b.vertices):
+        sel = np.ones(len(b.vertices), bool) if k is None else contact._tool == k
+        r = (contact._r + contact._rf)[sel]
+        P = -float(np.sum(r * _tool_point_velocities(contact, t)[sel]))
+    return b.comm.allreduce(P, op=MPI.SUM)
+
+
+def end_velocities(kinematics, x_t, v, dt):
+    """The vertex velocities ``v`` turned to the vertices' end-of-increment positions,
+    ``J v / dt`` with ``J = ∂X/∂v`` of the configuration update from ``x_t``: ``v`` itself for
+    the Cartesian update; for the cylindrical update (rings) ``v`` rotated by the increment's
+    angle ``dt v_θ / r`` about the ring axis, its hoop part scaled by ``r'/r``. It is the
+    velocity the contact's forces work on (their residual is ``S ρ [h]₊ ∇h`` with
+    ``∇h = −Jᵀn/dt``): with ``v`` itself a ring turning at ω would add ``F_n ω r sin(ω dt)``
+    to the penalty power."""
+    if isinstance(kinematics, CartesianUpdate):
+        return v
+    _, J, _ = kinematics.derivatives(x_t, v, dt)
+    return np.einsum("nia,na->ni", J, v) / dt
+
+
 class PowerBalance:
-    """The power balance of a process, one row per increment (collective).
+    """The power balance of a process, one row per increment (collective; THEORY §14.5).
 
     ``balance(row, tool_power, absorbed=0.0)``, called after each increment with its history row
     (``sim.step(dt).row``), returns the columns ``dissipation`` (∫ s:D dV − ∫ p div v dV on the
     configuration the increment was solved on, THEORY §1.5), ``friction_power`` (the contacts'
     ``{name}_friction_power``), ``penalty_power`` (:func:`penalty_power` of the contacts),
-    ``power_balance = tool_power / (D + P_f + absorbed) − 1`` and ``power_balance_penalty``
-    (with the penalty work in the denominator: the discrete virtual-power identity, ≈ 1e-5).
-    ``tool_power`` is the power the tools deliver (roll torque × ω, pusher force × speed),
-    ``absorbed`` any other power taken by a contributor of the process (a dashpot)."""
+    ``power_in`` (``tool_power``), ``power_balance = tool_power / (D + P_f + absorbed) − 1``
+    and ``power_balance_penalty`` (with the penalty work in the denominator: the discrete
+    virtual-power identity, ≈ Newton's tolerance). ``tool_power`` is the power the tools
+    deliver (roll torque × ω, pusher force × speed; None: :func:`delivered_power` of the
+    contacts), ``absorbed`` any other power taken by a contributor of the process (a dashpot).
+
+    The increment was solved on its start configuration ``x_t``: the balance keeps the vertex
+    positions of its previous call (of its construction at first) and checks that the
+    simulation's configuration update takes them with the increment's velocity to the current
+    positions. Under the Cartesian update ``x_t = X − dt v`` also without them (a balance
+    not called at every increment); under another update (the cylindrical one of rings) it
+    must be called after every increment (ValueError otherwise)."""
 
     def __init__(self, sim, contacts):
         self.sim = sim
         self.contacts = list(contacts)
         self._dissipation = PlasticDissipation(sim)
         self._pressure = PressurePower(sim)
+        self._x_start = sim.vertex_positions()
 
-    def __call__(self, row: dict, tool_power: float, absorbed: float = 0.0) -> dict:
+    def _start_configuration(self, X, v, dt):
+        """The increment's start configuration (see the class)."""
+        sim = self.sim
+        x0 = self._x_start
+        ok = x0.shape == X.shape
+        if ok and len(X):
+            err = np.max(np.abs(sim.kinematics.positions(x0, v, dt) - X))
+            ok = bool(err <= 1e-9 * (np.max(np.abs(X)) + dt * np.max(np.abs(v))))
+        if sim.comm.allreduce(int(ok), op=MPI.MIN):
+            return x0
+        if isinstance(sim.kinematics, CartesianUpdate):
+            return X - dt * v
+        raise ValueError(f"PowerBalance: the positions of its last call do not lead to the "
+                         f"current ones with the increment's velocity under the "
+                         f"{type(sim.kinematics).__name__}: call the balance after every "
+                         f"increment (from the first one on) to know where it started")
+
+    def __call__(self, row: dict, tool_power: float = None, absorbed: float = 0.0) -> dict:
         sim = self.sim
         X = sim.vertex_positions()
         v = sim.w.x.array[sim.space.vertex_dofs]
-        X0 = X - row["dt"] * v          # the increment's equations were written there
+        X0 = self._start_configuration(X, v, row["dt"])   # the increment's equations live there
+        self._x_start = X
         D = on_configuration(sim, X0, self._dissipation)
         D -= on_configuration(sim, X0, self._pressure)
         Pf = sum(row.get(f"{c.name}_friction_power", 0.0) for c in self.contacts)
-        P_pen = sum(penalty_power(c, v, sim.t) for c in self.contacts)
-        ok = D + Pf > 0
-        return dict(dissipation=D, friction_power=Pf, penalty_power=P_pen,
-                    power_balance=tool_power / (D + Pf + absorbed) - 1.0 if ok else math.nan,
-                    power_balance_penalty=tool_power / (D + Pf + absorbed + P_pen) - 1.0
-                    if ok else math.nan)
+        V = end_velocities(sim.kinematics, X0, v, row["dt"])
+        P_pen = sum(penalty_power(c, V, sim.t) for c in self.contacts)
+        if tool_power is None:
+            tool_power = sum(delivered_power(c, sim.t) for c in self.contacts)
+        out = D + Pf + absorbed
+        ok = out > 0
+        return dict(dissipation=D, friction_power=Pf, penalty_power=P_pen, power_in=tool_power,
+                    power_balance=tool_power / out - 1.0 if ok else math.nan,
+                    power_balance_penalty=tool_power / (out + P_pen) - 1.0 if ok else math.nan)

@@ -48,7 +48,7 @@ from fxcontact.materials import Material
 from fxcontact.mesh_health import MeshHealth
 from fxcontact.outputs import (OutputError, Outputs, format_wall_split, output_dir_problem,
                                wall_split)
-from fxcontact.petsc import NodalNonlinearProblem
+from fxcontact.petsc import ContributorError, NodalNonlinearProblem, add_nodal_residual
 from fxcontact.protocols import (BeginsIncrement, Contributor, EndsIncrement, HasDiagnostics,
                                  HasSummary, SolvesIncrement)
 from fxcontact.remesh.criteria import RemeshCriteria
@@ -564,16 +564,20 @@ class Simulation:
         return self.comm.allreduce(dolfinx.fem.assemble_scalar(self._div_form), op=MPI.SUM)
 
     def reaction_force(self, facets: np.ndarray) -> np.ndarray:
-        """Force exerted *on the body* through the Dirichlet dofs of ``facets`` (gdim,).
-
-        Computed as the sum of the (bc-free) UFL residual entries (internal forces) at the
-        velocity dofs of the facets, owned dofs only, summed over ranks, on the *current*
-        geometry (use :meth:`add_reaction` for the value on the increment's configuration).
-        """
+        """Force exerted *on the body* through the Dirichlet dofs of ``facets`` (gdim,): the sum
+        of the bc-free residual entries (internal forces and the contributors' nodal terms, e.g.
+        of a contact node under the condition) at the velocity dofs of the facets, owned dofs
+        only, summed over ranks (collective), on the *current* geometry (use
+        :meth:`add_reaction` for the value on the increment's configuration)."""
         self._build()
         sp = self.space
         b = dolfinx.fem.petsc.assemble_vector(self.problem.L)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        terms = self.problem._evaluate_contributors(False) if self.contributors else []
+        if terms is None:       # on every rank
+            raise ContributorError(self.problem.error)
+        for t in terms:
+            add_nodal_residual(b, t)
         arr = b.getArray(readonly=True)
         fdim = self.mesh.topology.dim - 1
         out = np.zeros(sp.gdim)

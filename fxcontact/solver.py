@@ -87,6 +87,12 @@ TRUST_RADIUS_FROM_REST = 1e10
 #: PETSc's default δ₀ of ``newtontr``, restored after a solve from rest
 _PETSC_TR_DELTA0 = 0.2
 
+#: ``reuse_factorisation``: the Jacobian of an iterate keeps the last factorisation if Newton's
+#: residual contracted by at least this factor at that iterate with the contributors' state
+#: unchanged (the first Jacobian of a solve is always factorised: the previous increment's
+#: factorisation took more Krylov iterations than it saved, benchmarks/README.md)
+REUSE_CONTRACTION = 0.25
+
 #: PETSc option keys (without prefix) written by the last solver created under each prefix
 _WRITTEN_OPTIONS: Dict[str, set] = {}
 
@@ -113,6 +119,9 @@ class SolveInfo:
     #: None with a solver that is not MUMPS): a positive count means a singular Newton matrix,
     #: a motion that nothing holds (see :data:`NULL_PIVOT_HINT`)
     null_pivots: List[Optional[int]] = field(default_factory=list)
+    #: factorisations of the Newton matrix made during the solve (one per Newton iteration
+    #: unless ``SolverOptions.reuse_factorisation`` keeps them)
+    factorisations: int = 0
 
 
 class ContactNewtonSolver:
@@ -125,6 +134,11 @@ class ContactNewtonSolver:
         options: :class:`SolverOptions`.
         fieldsplit_is: optional (velocity IS, pressure IS) for the field-split preconditioner.
     """
+
+    #: Krylov iterations of the steps solved again with a new factorisation (this solve)
+    _resolved_its = 0
+    #: the next Jacobian may keep the factorisation (see :meth:`_converged`)
+    _reuse_ok = False
 
     def __init__(self, problem: NonlinearProblem, options: Optional[SolverOptions] = None,
                  fieldsplit_is=None):
@@ -180,6 +194,9 @@ class ContactNewtonSolver:
         #: the active-set prediction of the Newton steps (None when off); its ``stats``
         self.prediction = None
         self._set_prediction()
+        #: factorisations made since the solver was built (``reuse_factorisation``: the
+        #: Jacobians that were factorised; else one per Jacobian)
+        self.factorisations = 0
         PETSc.Log.begin()   # PETSc's event log on (benchmarks read its events)
 
     def _enable_element_condensation(self):
@@ -292,6 +309,9 @@ class ContactNewtonSolver:
             pc = ksp.getPC()
             pc.setType(PETSc.PC.Type.PYTHON)
             pc.setPythonContext(BorderedPC(pc_fs, self.border))
+        #: factorise at the next Jacobian (``reuse_factorisation``): no factorisation yet,
+        #: or the last Krylov solve took too many iterations
+        self._refactor_next = True
         self.snes = snes
 
     def set_border(self, border):
@@ -302,6 +322,12 @@ class ContactNewtonSolver:
         back to the plain system. Rebuilds the SNES (collective)."""
         if border is self.border:
             return
+        if border is not None and self.options.reuses_factorisation and self.comm.size > 1:
+            # a 2-rank bordered ring-rolling run with the kept factorisation hung (one rank in
+            # an FGMRES solve, the other past the end of the run): refused until understood
+            raise ValueError("reuse_factorisation is not supported with a bordered Newton "
+                             "system (an idle tool with idle_method='bordered') on more than "
+                             "one rank: set reuse_factorisation=False, or run on one rank")
         self.border = border
         self.reset()
 
@@ -342,13 +368,59 @@ class ContactNewtonSolver:
                 self._timed("jacobian", self.problem.jacobian, snes, x, A, P, self.element)
         finally:
             self._linear_start = time.perf_counter()
+        self._keep_factorisation(self._reuse_ok and not self._refactor_next)
+
+    def _keep_factorisation(self, keep: bool):
+        """Whether the coming PC set-up keeps the last factorisation (``reuse_factorisation``;
+        without it every Jacobian is factorised)."""
+        keep = keep and self.options.reuses_factorisation
+        if not keep:
+            self.factorisations += 1
+            self._refactor_next = False
+        if self._condensed_pc is not None:
+            self._condensed_pc.reuse = keep
+
+    def _krylov_check(self, ksp: PETSc.KSP) -> bool:
+        """After the linear solve of a Newton step (``reuse_factorisation``): factorise at the
+        next Jacobian if it took more than ``reuse_max_krylov`` Krylov iterations; returns
+        False if the Krylov solve did not converge."""
+        if not self.options.reuses_factorisation:
+            return True
+        its, reason = ksp.getIterationNumber(), ksp.getConvergedReason()
+        log.debug("Newton step: %d Krylov iterations (reason %d)", its, reason)
+        if reason <= 0 or 2 * its > self.options.reuse_max_krylov:
+            self._refactor_next = True
+        return reason > 0
+
+    def _solve_again(self, y: PETSc.Vec):
+        """The Newton step whose Krylov solve with a kept factorisation did not converge,
+        solved again with a new factorisation (collective)."""
+        ksp = self.snes.getKSP()
+        self._keep_factorisation(False)
+        op, P = ksp.getOperators()
+        op.assemble()   # a new state: the PCs are set up again
+        if P.handle != op.handle:
+            P.assemble()
+        ksp.setOperators(op, P)
+        ksp.solve(self.snes.getFunction()[0], y)
+        self._resolved_its += ksp.getIterationNumber()
+        if not self._krylov_check(ksp):
+            raise RuntimeError(f"the linear solve of the Newton step failed with a new "
+                               f"factorisation (KSP reason {ksp.getConvergedReason()})")
 
     def _precheck(self, x, y):
         """Line-search pre-check: the linear solve ends here; the step's Dirichlet entries
         are made exact (``NonlinearProblem.exact_dirichlet_step``: an iterative linear solve
         leaves them within its tolerance)."""
-        self._end_linear()
+        converged = self._end_linear()
         changed = False
+        if not converged:
+            t0 = time.perf_counter()
+            try:
+                self._solve_again(y)
+            finally:
+                self.linear_time += time.perf_counter() - t0
+            changed = True
         if self.prediction is not None:
             # more linear solves (with the same factorisation/preconditioner): linear time
             t0 = time.perf_counter()
@@ -360,10 +432,14 @@ class ContactNewtonSolver:
         fixed = bool(fix(x, y)) if fix is not None else False
         return changed or fixed
 
-    def _end_linear(self):
-        if self._linear_start is not None:
-            self.linear_time += time.perf_counter() - self._linear_start
-            self._linear_start = None
+    def _end_linear(self) -> bool:
+        """The linear solve of a Newton step ended (its wall time, the Krylov check of
+        ``reuse_factorisation``); returns False when its Krylov solve did not converge."""
+        if self._linear_start is None:
+            return True
+        self.linear_time += time.perf_counter() - self._linear_start
+        self._linear_start = None
+        return self._krylov_check(self.snes.getKSP())
 
     def _converged_timed(self, snes, it, norms):
         return self._timed("test", self._converged, snes, it, norms)
@@ -396,6 +472,11 @@ class ContactNewtonSolver:
             # (called at every iteration, including 0, so each contributor takes its snapshot)
             stable = all([c.stable() for c in contributors])
             period = self._cycle_period(contributors, fnorm)
+            # the Jacobian of this iterate may keep the factorisation (reuse_factorisation)
+            # where Newton contracts fast with an unchanged contact state: the iterates, and
+            # so the Newton matrices, then change little
+            self._reuse_ok = (it > 0 and stable
+                              and fnorm <= REUSE_CONTRACTION * self._norms[-2])
         self._last_it, self._last_stable = it, stable
         log.debug("Newton it %d: |R| = %.3e  |dx| = %.3e  stable=%s", it, fnorm, snorm, stable)
         if stable and it > 0 and fnorm <= self._residual_floor(contributors):
@@ -551,6 +632,7 @@ class ContactNewtonSolver:
         info = self._solve()
         info.iterations += first.iterations
         info.linear_iterations += first.linear_iterations
+        info.factorisations += first.factorisations
         for key, val in first.times.items():
             info.times[key] = info.times.get(key, 0.0) + val
         for key, val in first.evaluations.items():
@@ -572,6 +654,8 @@ class ContactNewtonSolver:
         self._cycle_message = ""
         self._last_it = -1
         self._pivots = []
+        self._resolved_its = 0
+        fact0 = self.factorisations
         calls0 = dict(self.callback_calls)
         lin0 = self.linear_time
         self._linear_start = None
@@ -613,8 +697,8 @@ class ContactNewtonSolver:
         if cpc is not None:
             lin_its = cpc.inner_iterations - inner0
             cond = cpc.times["condense"] - cond0
-        else:
-            lin_its = self.snes.getLinearSolveIterations()
+        if cpc is None or self.options.reuses_factorisation:   # the Krylov iterations
+            lin_its = self.snes.getLinearSolveIterations() + self._resolved_its
         if not converged:
             # a failed attempt must not poison the next one (factorisation, locked vectors)
             self.reset()
@@ -643,7 +727,8 @@ class ContactNewtonSolver:
         if converged and pivots and (pivots[-1] or 0) > 0:
             self._warn_singular(pivots[-1])
         return SolveInfo(converged, its, reason, list(self._norms), msg, times, lin_its,
-                         evaluations=evals, null_pivots=pivots)
+                         evaluations=evals, null_pivots=pivots,
+                         factorisations=self.factorisations - fact0)
 
     def _failure_message(self, reason: int, its: int) -> str:
         """Why a Newton solve stopped without converging, in words, with the residual reached

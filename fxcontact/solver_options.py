@@ -76,6 +76,21 @@ LINEAR_SOLVERS["condensed-amg-robust"] = {
     "condensed_fieldsplit_u_ksp_rtol": 1e-2,
 }
 
+#: relative tolerance of the Krylov solve of a Newton step preconditioned by a kept
+#: factorisation (``SolverOptions.reuse_factorisation``)
+REUSE_KRYLOV_RTOL = 1e-4
+
+
+def _reuse_options(max_krylov: int) -> Dict[str, object]:
+    """PETSc options (without prefix) of ``SolverOptions.reuse_factorisation``: FGMRES (right
+    preconditioning: the true residual of the Newton system) on the Newton matrix, stopped at
+    2 × ``max_krylov`` iterations without failing the Newton solve (the solver then factorises
+    again and solves the step anew)."""
+    return {"ksp_type": "fgmres", "ksp_rtol": REUSE_KRYLOV_RTOL, "ksp_atol": 1e-50,
+            "ksp_max_it": max_krylov, "ksp_gmres_restart": max_krylov,
+            "snes_max_linear_solve_fail": 1000000}
+
+
 #: PETSc SNES line searches accepted by :class:`SolverOptions`
 #: globalisations of the Newton step: PETSc's line searches (SNES ``newtonls``) and
 #: ``"trust-region"`` (SNES ``newtontr``: dogleg steps inside a trust region, no line search)
@@ -152,6 +167,23 @@ class SolverOptions:
             of condensing the assembled MINI matrix (:class:`~fxcontact.condense.CondensedPC`).
             ``"auto"`` (default): wherever the Jacobian allows it (cell integrals over the whole
             mesh); True: required (ValueError otherwise); False: the algebraic condensation.
+        reuse_factorisation: keep the factorisation of an earlier Newton iteration as the
+            preconditioner of a Krylov solve (FGMRES to the relative tolerance
+            :data:`REUSE_KRYLOV_RTOL`, an inexact Newton step) of the Newton step with the exact
+            Newton matrix. Kept at the iterates where Newton contracts fast with an unchanged
+            contact state (:data:`fxcontact.solver.REUSE_CONTRACTION`; the first Jacobian of a
+            solve is always factorised); factorised again at the next iteration after a step
+            that took more than half of ``reuse_max_krylov`` Krylov iterations, and at once
+            (the step solved again) when the Krylov solve does not converge within them. The
+            condensed direct linear solver only (``"condensed-mumps"``). Same residual, same
+            converged solution; fewer factorisations, some Krylov iterations (one triangular
+            solve and one product with the Newton matrix each). False (default: not yet
+            measured faster at the thesis size), ``"auto"`` (on with ``"condensed-mumps"``),
+            True (with another linear solver: ValueError). Figures in
+            ``benchmarks/README.md`` (``bench_element_newton.py``). Not with a bordered Newton
+            system (an idle tool, ``idle_method="bordered"``) on more than one rank: a 2-rank
+            run hung, so ``set_border`` refuses it (ValueError) until that is understood.
+        reuse_max_krylov: see ``reuse_factorisation``.
         prefix: PETSc options prefix.
         petsc_options: extra PETSc options (without prefix) that override the presets.
     """
@@ -169,6 +201,8 @@ class SolverOptions:
     prediction_max_nodes: int = 200
     material_tangent: str = "auto"
     element_condensation: object = "auto"
+    reuse_factorisation: object = False
+    reuse_max_krylov: int = 10
     prefix: str = "fxc_"
     petsc_options: Dict[str, object] = field(default_factory=dict)
 
@@ -211,13 +245,33 @@ class SolverOptions:
                 or self.element_condensation == "auto"):
             raise ValueError(f"element_condensation must be 'auto', True or False, got "
                              f"{self.element_condensation!r}")
+        if not (isinstance(self.reuse_factorisation, (bool, np.bool_))
+                or self.reuse_factorisation == "auto"):
+            raise ValueError(f"reuse_factorisation must be 'auto', True or False, got "
+                             f"{self.reuse_factorisation!r}")
+        if not (isinstance(self.reuse_max_krylov, (int, np.integer))
+                and self.reuse_max_krylov >= 1):
+            raise ValueError(f"reuse_max_krylov must be an integer >= 1, got "
+                             f"{self.reuse_max_krylov!r}")
+        if self.reuse_factorisation is True and self.linear_solver != "auto" \
+                and not self._reusable():
+            raise ValueError(f"reuse_factorisation=True needs the condensed direct linear "
+                             f"solver ('condensed-mumps'), not {self.linear_solver!r}: use "
+                             f"reuse_factorisation=False or 'auto'")
         if not (np.isfinite(self.continuation_rtol) and 0.0 < self.continuation_rtol < 1.0):
             raise ValueError(f"continuation_rtol must be in (0, 1), got "
                              f"{self.continuation_rtol!r}")
 
     def linear_options(self) -> Dict[str, object]:
-        """PETSc options of the linear solver: the preset (or dict) with ``petsc_options``
-        (``"auto"``, not resolved yet: the ``petsc_options`` alone)."""
+        """PETSc options of the linear solver: the preset (or dict), the Krylov solve of
+        ``reuse_factorisation`` and ``petsc_options`` (``"auto"``, not resolved yet: the
+        ``petsc_options`` alone)."""
+        reuse = _reuse_options(self.reuse_max_krylov) if self.reuses_factorisation else {}
+        lin = self._preset_options()
+        return {**lin, **reuse, **{k: lin[k] for k in self.petsc_options}}
+
+    def _preset_options(self) -> Dict[str, object]:
+        """The preset (or dict) with ``petsc_options``, without ``reuse_factorisation``."""
         if self.linear_solver == "auto":
             lin = {}
         else:
@@ -226,15 +280,32 @@ class SolverOptions:
         return {**lin, **self.petsc_options}
 
     @property
+    def reuses_factorisation(self) -> bool:
+        """``reuse_factorisation`` resolved: ``"auto"`` means with ``"condensed-mumps"``; never
+        with an iterative linear solver, nor while the linear solver is ``"auto"``, not
+        resolved yet."""
+        if self.reuse_factorisation == "auto":
+            on = self.linear_solver == "condensed-mumps"
+        else:
+            on = bool(self.reuse_factorisation) and self.linear_solver != "auto"
+        return on and self._reusable()
+
+    def _reusable(self) -> bool:
+        """A factorisation that ``reuse_factorisation`` can keep: the condensed system's, solved
+        by a direct solver (the condensed PC decides at each set-up; PETSc's SNES resets the
+        reuse flag of its own KSP's PC after every Jacobian)."""
+        return self.uses_condensation and self.uses_direct_solver
+
+    @property
     def uses_fieldsplit(self) -> bool:
         """True if the preconditioner is a field split (it needs velocity/pressure ISs)."""
-        return self.linear_options().get("pc_type") == "fieldsplit"
+        return self._preset_options().get("pc_type") == "fieldsplit"
 
     @property
     def uses_direct_solver(self) -> bool:
         """True if the linear solve is a direct one (``ksp_type preonly``, and so is the
         condensed system's solve): extra solves with its factorisation are cheap."""
-        lin = self.linear_options()
+        lin = self._preset_options()
         if lin.get("ksp_type") != "preonly":
             return False
         return not self.uses_condensation or lin.get("condensed_ksp_type") == "preonly"
@@ -252,7 +323,7 @@ class SolverOptions:
         """True if the linear solver condenses the cell-interior (bubble) dofs
         (:class:`~fxcontact.condense.CondensedPC`: ``pc_type python`` without a
         ``pc_python_type``)."""
-        lin = self.linear_options()
+        lin = self._preset_options()
         return lin.get("pc_type") == "python" and "pc_python_type" not in lin
 
 

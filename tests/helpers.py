@@ -90,6 +90,9 @@ def run_script(path, args=(), nranks=1, timeout=HANG_TIMEOUT):
     env = dict(os.environ, PYTHONPATH=root + os.pathsep + os.environ.get("PYTHONPATH", ""),
                OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OPENBLAS_NUM_THREADS="1")
+    for k in list(env):  # the child is its own MPI job (also when the tests run under mpirun)
+        if k.startswith(("OMPI_COMM", "PMIX_", "OMPI_MCA_ess", "OMPI_MCA_orte")):
+            env.pop(k)
     cmd = [sys.executable, str(path), *map(str, args)]
     if nranks > 1:
         cmd = ["mpirun", "-n", str(nranks), "--oversubscribe"] + cmd
@@ -152,29 +155,6 @@ def assert_newton_counts_match(a: int, b: int, bitwise: bool = False):
         assert a == b, (a, b)
     else:
         assert abs(a - b) <= 1, (a, b)
-
-
-def run_demo(name, *args, nranks=1, timeout=HANG_TIMEOUT):
-    """Run ``demos/<name>.py`` with ``args`` as its own job (``mpirun -n nranks`` when more
-    than one) in a subprocess from the repository root; returns the ``CompletedProcess`` (its
-    output as text). A demo that hangs is killed after ``timeout``."""
-    import os
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parents[1]
-    env = dict(os.environ, PYTHONPATH=str(root) + os.pathsep + os.environ.get("PYTHONPATH", ""),
-               OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OPENBLAS_NUM_THREADS="1")
-    for k in list(env):  # the child is its own MPI job
-        if k.startswith(("OMPI_COMM", "PMIX_", "OMPI_MCA_ess", "OMPI_MCA_orte")):
-            env.pop(k)
-    cmd = [sys.executable, str(root / "demos" / f"{name}.py"), *map(str, args)]
-    if nranks > 1:
-        cmd = ["mpirun", "-n", str(nranks), "--oversubscribe"] + cmd
-    return subprocess.run(cmd, env=env, cwd=str(root), capture_output=True, text=True,
-                          timeout=timeout)
 
 
 def run_readme_block(title, replacements, max_lines=40):

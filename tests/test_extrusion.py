@@ -8,10 +8,14 @@ force equals 2 m̄ k L_c/R₀ × A₀ within 3 %; volume, element quality and th
 container and the die as two tools of one contact give the answer of one profile; 1 vs 2 ranks.
 Other angles and reductions: ``benchmarks/bench_extrusion.py``."""
 
+import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fxcontact.processes import ExtrusionCase, run_extrusion
+import dolfinx.mesh
+
+from fxcontact.meshing import DRAWING_BAR_TAGS
+from fxcontact.processes import ExtrusionCase, build_extrusion, run_extrusion
 
 
 @pytest.fixture(scope="module")
@@ -98,3 +102,26 @@ def test_bad_case():
         ExtrusionCase.quick(container_shear_limit=-1.0)
     with pytest.raises(ValueError, match="too short"):
         ExtrusionCase.quick(length=6.0)
+
+
+def test_punch_reaction_takes_the_rim_contact():
+    """The punched face's rim nodes are under the punch's velocity condition and slide on the
+    container (contact with friction): the punch's reaction (``Simulation.add_reaction``)
+    takes their contact forces, so it balances the contact's forces on the container and the
+    die, summed independently over all the contact nodes, to Newton's tolerance (the symmetry
+    planes carry no axial force). The rim's share is far above that tolerance."""
+    case = ExtrusionCase.quick(container="separate", mbar_container=0.1)
+    s = build_extrusion(case)
+    msh, ct = s.sim.mesh, s.contact
+    back = s.sim.facets(s.facet_tags, DRAWING_BAR_TAGS["back"])
+    verts = dolfinx.mesh.compute_incident_entities(msh, back, msh.topology.dim - 1, 0)
+    rim = np.isin(ct.boundary.vertices, verts)
+    comm = s.sim.comm
+    for _ in range(2):
+        q = s.sim.step(case.dt).row
+        forces = sum(q[f"{t.name}_force_z"] for t in s.tools)      # on the tools
+        on_rim = comm.allreduce(float(np.sum((ct._r + ct._rf)[rim & (ct._h > 0), 2])),
+                                op=MPI.SUM)
+        assert abs(on_rim) > 1e-4 * abs(forces), on_rim
+        assert q["punch_z"] == pytest.approx(forces, rel=1e-6), (q["punch_z"], forces)
+    s.sim.close()

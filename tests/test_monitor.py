@@ -10,7 +10,8 @@ import pytest
 from mpi4py import MPI
 
 from fxcontact import IncrementError
-from fxcontact.processes.monitor import SteadyMonitor, StopRules, gather, window_increments
+from fxcontact.processes.common import gather
+from fxcontact.processes.monitor import SteadyMonitor, StopRules, window_increments
 
 
 class ScriptedSim:

@@ -79,8 +79,12 @@ def test_idle_rotation_and_axis_update_state_round_trip():
 def _scale(row, key):
     """Scale of a history value: forces and torques are compared with the largest force or
     torque of the row (the frictionless tools' torques, the friction components normal to the
-    rolling direction are round-off of it), the volume rate ∫div v with the volume per
-    increment, the rest with their own size (at least 1)."""
+    rolling direction are round-off of it), the powers with the largest power of the row (the
+    idle mandrel's rotation power is round-off of it), the volume rate ∫div v with the volume
+    per increment, the rest with their own size (at least 1)."""
+    if key.endswith("_power") or key == "power_in":
+        return max(max(abs(v) for k, v in row.items()
+                       if k.endswith("_power") or k == "power_in"), 1.0)
     for word, family in (("torque", ("torque",)), ("force", ("force", "friction")),
                          ("friction", ("force", "friction"))):
         if word in key:

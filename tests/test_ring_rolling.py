@@ -96,6 +96,29 @@ def test_idle_mandrel_zero_torque_and_rolling_speed(short):
         assert q["mandrel_omega"] * 40.0 == pytest.approx(q["bore_speed"], rel=0.02)
 
 
+def test_power_balance(short):
+    """What the tools deliver equals the dissipation (on the increment's start configuration),
+    the friction power and the penalty work to 1e-5 at every increment: the discrete
+    virtual-power identity, whose error is Newton's (relative residual 1e-9, times the ratio of
+    the tools' power to the power balanced, a few, and the condition of the sum of powers of
+    both signs). The main roll delivers its torque × ω; the idle mandrel's rotation nothing
+    (its torque is zero to its tolerance), its feed its force × feed speed. Without the
+    penalty work the balance does not close in this coarse run: the ring turns by
+    more than the bite's length per increment (``bite_increments`` < 1)."""
+    w1 = 2 * math.pi                          # 60 rpm
+    for q in short.history:
+        assert abs(q["power_balance_penalty"]) < 1e-5, q["power_balance_penalty"]
+        assert q["dissipation"] > 0 and q["friction_power"] > 0
+        assert q["main_power"] == pytest.approx(q["main_torque"] * w1, rel=1e-10)
+        assert q["mandrel_power"] == pytest.approx(-q["mandrel_force_x"] * 1.5, rel=1e-8)
+        assert abs(q["mandrel_rotation_power"]) <= q["mandrel_idle_tolerance"] * q["mandrel_omega"]
+        assert q["power_in"] == pytest.approx(q["main_power"] + q["mandrel_power"]
+                                              + q["guide_power"], rel=1e-10)
+    assert abs(short.power_balance_penalty) < 1e-5
+    assert short.bite_increments < 1.0
+    assert "balance P_in/(D + P_f) - 1" in short.report()
+
+
 def test_ring_stays_centred_and_keeps_its_volume(short):
     """The centroid stays on the mill line within a fraction of the circumferential spacing;
     the cylindrical update keeps the volume (no volume correction in the demo) to 0.5 %, and
@@ -127,7 +150,7 @@ def test_one_and_two_ranks_agree(short):
     assert len(hs[1]) == 1
     for a, b in zip(*hs):
         for k in ("main_force_x", "main_torque", "mandrel_force_x", "mandrel_omega",
-                  "ring_omega", "outer_diameter"):
+                  "ring_omega", "outer_diameter", "dissipation", "power_in", "penalty_power"):
             assert abs(a[k] - b[k]) <= 1e-8 * abs(b[k]), (k, a[k], b[k])
 
 

@@ -1,6 +1,5 @@
 """Pieces shared by the forming processes: nodal gathers, the numerics columns of a history
-row and their summary, steady values over a window, the power balance of an increment, a
-meridian (symmetry-face) section of cell fields, curve and section pictures, the CSV of the
+row and their summary, steady values over a window, a meridian (symmetry-face) section of cell fields, curve and section pictures, the CSV of the
 rows.
 
 Every function that communicates is collective (call it on every rank); the pictures are drawn
@@ -19,15 +18,12 @@ from typing import Callable, Dict, Optional, Sequence
 import numpy as np
 from mpi4py import MPI
 
-import dolfinx.mesh
-
 from fxcontact import compat
-from fxcontact.power import PlasticDissipation, PressurePower, on_configuration, penalty_power
 from fxcontact.simulation import IncrementError, wall_split
 from fxcontact.steady import steady_window
 
-__all__ = ["CaseBase", "script_main", "gather", "contact_nodes_on", "contact_force_on_body", "numerics_columns", "run_summary", "steady_values", "run_increments",
-           "ProcessResult", "PowerBalance", "meridian_section", "vertex_field", "plot_sections",
+__all__ = ["CaseBase", "script_main", "gather", "numerics_columns", "run_summary", "steady_values", "run_increments",
+           "ProcessResult", "meridian_section", "vertex_field", "plot_sections",
            "plot_curves", "write_rows"]
 
 
@@ -98,27 +94,6 @@ def gather(comm, arr) -> np.ndarray:
     """The ranks' arrays concatenated, on every rank (rank order)."""
     parts = comm.allgather(np.asarray(arr))
     return np.concatenate(parts) if parts else np.asarray(arr)
-
-
-def contact_nodes_on(contact, facets) -> np.ndarray:
-    """Mask of the contact's nodes that are vertices of ``facets`` (local facet indices)."""
-    msh = contact.boundary.mesh
-    verts = dolfinx.mesh.compute_incident_entities(msh, np.asarray(facets, np.int32),
-                                             msh.topology.dim - 1, 0)
-    return np.isin(contact.boundary.vertices, verts)
-
-
-def contact_force_on_body(contact, mask) -> np.ndarray:
-    """Force (gdim,) of the contact (pressure and friction) on the body at the contact nodes of
-    ``mask`` (:func:`contact_nodes_on`), at its last evaluation, summed over ranks.
-
-    A face driven by a velocity condition whose vertices are also contact nodes (the punched
-    face's rim, which slides on the container) takes these forces too: the reaction of
-    :meth:`~fxcontact.Simulation.add_reaction` sums the internal forces at the face's velocity
-    dofs only, so the force that drives the face is the reaction *minus* this force."""
-    r = contact._r + contact._rf                      # on the tool, per node
-    local = np.sum(r[mask], axis=0) if np.any(mask) else np.zeros(r.shape[1])
-    return -contact.boundary.comm.allreduce(local, op=MPI.SUM)
 
 
 def numerics_columns(r: dict) -> Dict[str, float]:
@@ -252,41 +227,6 @@ def steady_values(rows: Sequence[dict], first: int, last: int, keys: Sequence[st
         out[key] = mean
         out[f"{key}_oscillation"] = float(np.ptp(vals) / (2.0 * abs(mean))) if mean else 0.0
     return out
-
-
-class PowerBalance:
-    """The power balance of a forming increment (THEORY §14.5): the power the tools and the
-    prescribed velocities put in against the plastic dissipation ∫ s:D dV (less the pressure
-    power of the volume correction, THEORY §1.5), the friction power of the ``contacts`` and,
-    apart, their penalty work. Collective; call after each increment (``sim.step``).
-
-    The dissipation is taken on the configuration the increment was solved on (the start of
-    the increment, ``X − dt v``), like the history's forces."""
-
-    def __init__(self, sim, contacts):
-        self.sim = sim
-        self.contacts = list(contacts)
-        self._dissipation = PlasticDissipation(sim)
-        self._pressure = PressurePower(sim)
-
-    def __call__(self, row: dict, power_in: float, losses: float = 0.0) -> Dict[str, float]:
-        """``row``: the increment's history row; ``power_in``: the power of the tools and
-        prescribed velocities on the body; ``losses``: other dissipated power (a damper).
-        Returns ``dissipation``, ``friction_power``, ``penalty_power``, ``power_in``,
-        ``power_balance`` = P_in/(D + P_f + losses) − 1 and ``power_balance_penalty`` (the
-        same with the penalty work in the denominator)."""
-        sim = self.sim
-        X = sim.vertex_positions()
-        v = sim.w.x.array[sim.space.vertex_dofs]
-        X0 = X - row["dt"] * v
-        D = on_configuration(sim, X0, self._dissipation)
-        D -= on_configuration(sim, X0, self._pressure)
-        Pf = sum(row.get(f"{c.name}_friction_power", 0.0) for c in self.contacts)
-        Pp = sum(penalty_power(c, v, sim.t) for c in self.contacts)
-        out = D + Pf + losses
-        return dict(dissipation=D, friction_power=Pf, penalty_power=Pp, power_in=power_in,
-                    power_balance=power_in / out - 1.0 if out > 0 else math.nan,
-                    power_balance_penalty=power_in / (out + Pp) - 1.0 if out > 0 else math.nan)
 
 
 def vertex_field(sim, values) -> np.ndarray:

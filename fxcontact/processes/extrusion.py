@@ -62,8 +62,8 @@ from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
 from fxcontact.meshing import DRAWING_BAR_TAGS
-from fxcontact.processes.common import (CaseBase, PowerBalance, ProcessResult,
-                                        contact_force_on_body, contact_nodes_on,
+from fxcontact.power import PowerBalance
+from fxcontact.processes.common import (CaseBase, ProcessResult,
                                         meridian_section, numerics_columns, plot_curves,
                                         plot_sections, run_increments, run_summary,
                                         steady_values, vertex_field, finish_run)
@@ -215,7 +215,6 @@ class ExtrusionSetup:
     tools: list                  #: [container, die] or [profile]
     profile: RevolvedProfile     #: container + die as one profile (the outline, pictures)
     corner: float                #: axial position where the container ends (the die begins)
-    punch_nodes: np.ndarray      #: mask of the contact nodes on the punched face (its rim)
     facet_tags: object
     layout: object
     dofs: int
@@ -267,7 +266,7 @@ def build(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
                           zones=_die_zone(case))
     dofs = space.W.dofmap.index_map.size_global * space.W.dofmap.index_map_bs
     return ExtrusionSetup(case, sim, contact, tools, profile, float(profile.points[1, 0]),
-                          contact_nodes_on(contact, f["back"]), ft, g, dofs)
+                          ft, g, dofs)
 
 
 def _die_zone(case: ExtrusionCase) -> list:
@@ -282,12 +281,10 @@ def _die_zone(case: ExtrusionCase) -> list:
 
 
 def _follow_remesh(s: ExtrusionSetup, seen: list):
-    """After a remesh: the facet tags and the punched face's contact nodes of the new mesh."""
+    """After a remesh: the facet tags of the new mesh."""
     if len(s.sim.remeshes) != seen[0]:
         seen[0] = len(s.sim.remeshes)
         s.facet_tags = s.sim._remesh_facet_tags
-        s.punch_nodes = contact_nodes_on(s.contact, s.sim.facets(s.facet_tags,
-                                                                 DRAWING_BAR_TAGS["back"]))
 
 
 @dataclass
@@ -360,9 +357,9 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
 
     def row(r):
         _follow_remesh(s, remeshes)
-        # the punch's force: the back face's reaction, less the container's friction on the
-        # face's rim (its nodes are driven by the punch and slide on the container)
-        F = r["punch_z"] - contact_force_on_body(contact, s.punch_nodes)[2]
+        # the punch's force: the back face's reaction (its rim's nodes are driven by the punch
+        # and slide on the container: the reaction takes the container's friction there)
+        F = r["punch_z"]
         Lc = max(s.corner - case.speed * r["time"], 0.0)
         Fc = r["container_force_z"] if separate else math.nan
         Fc_th = case.mbar_container * k_c * math.radians(case.sector) * case.R0 * Lc

@@ -36,8 +36,9 @@ import dolfinx.mesh
 import fxcontact as fx
 from fxcontact import compat, rolling
 from fxcontact.power import PowerBalance
+from fxcontact.processes.common import gather
 from fxcontact.processes.monitor import (RunNumerics, SteadyMonitor, SteadyRun, StopRules,
-                                         gather, is_number, window_increments)
+                                         is_number, window_increments)
 
 __all__ = ["FlatRollingCase", "FlatRollingSetup", "FlatRollingResult", "build", "run",
            "strip_mesh", "faceted_roll", "ROLLS"]

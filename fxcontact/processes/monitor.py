@@ -21,8 +21,6 @@ The rows must hold ``front`` and ``tail`` (positions along the process direction
 ``settle``, ``grip_travel``, ``tail_limit``), ``contact_nodes`` and, with a pusher,
 ``pusher_nodes``; ``newton_iterations``, ``volume_change``, ``min_quality`` and the wall-time
 columns feed the run's summary (:class:`SteadyRun`).
-
-Also here for now: :func:`gather`, the nodal values of every rank on every rank.
 """
 
 from __future__ import annotations
@@ -39,7 +37,7 @@ from fxcontact.simulation import IncrementError, format_wall_split, wall_split
 from fxcontact.steady import steady_window
 
 __all__ = ["StopRules", "SteadyMonitor", "SteadyRun", "RunNumerics", "STATUSES",
-           "window_increments", "gather", "is_number"]
+           "window_increments", "is_number"]
 
 log = logging.getLogger("fxcontact.processes")
 
@@ -51,12 +49,6 @@ def window_increments(travel: float, speed: float, dt: float, minimum: int) -> i
     """Increments in a window of ``travel`` of the tool at ``speed`` with steps ``dt`` (at least
     ``minimum``): the window should span several element passages into the tool."""
     return max(int(minimum), int(math.ceil(travel / (speed * dt))))
-
-
-def gather(comm, arr) -> np.ndarray:
-    """The rows of ``arr`` of every rank, concatenated in rank order, on every rank."""
-    parts = comm.allgather(np.asarray(arr))
-    return np.concatenate(parts) if parts else np.asarray(arr)
 
 
 def is_number(x) -> bool:

@@ -5,7 +5,8 @@
   on the mill line) and the re-set of the cylindrical update's centre
   (:class:`fxcontact.kinematics.RingAxisUpdate`);
 * :class:`AxialRolls` — idle, frictionless axial (cone) rolls of a radial–axial mill whose apex
-  follows the ring's centre on the mill line, moving along the ring axis at a given speed.
+  follows the ring's centre on the mill line, moving along the ring axis at a given speed;
+* :func:`cone_row` — the upper cone's outputs and its axial-force estimate.
 
 They are registered with :meth:`fxcontact.Simulation.add_controller`, save what changes with
 ``checkpoint_state()`` and get it back with ``restore_state()``. The tool motions they drive
@@ -22,12 +23,13 @@ from typing import Dict, Optional, Sequence
 import numpy as np
 from mpi4py import MPI
 
+from fxcontact import forming
 from fxcontact.contact.friction import LAW_NONE
 from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.mill import _controlled, rolling_speed
 from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
 
-__all__ = ["RingCentring", "AxialRolls"]
+__all__ = ["RingCentring", "AxialRolls", "cone_row"]
 
 
 class RingCentring:
@@ -249,3 +251,33 @@ class AxialRolls:
         self.omega = [float(w) for w in state["omega"]]
         for m, st in zip(self.motions, state["motions"]):
             m.restore_state(st)
+
+
+def cone_row(q, nodes, depth, Hm, Ro, Ri, w_ring, geo, K, m) -> dict:
+    """The upper cone's outputs and the axial-force estimate of ring-rolling theory.
+
+    The cone reduces the half height Hm/2 of the arriving ring to its apex level z_a: the
+    reduction δ = Hm/2 − z_a, less the penalty penetration of the nodes (δ_eff = δ − depth),
+    is taken by a flat face under a cone whose normal radius of curvature across the
+    generatrix is R_c = s tan α at the mid-wall s = (R + r)/2 from the apex: contact length
+    L_a = √(2 δ_eff R_c) (THEORY §14.4 with Σ = 1/R_c), force ≈ 2k B L_a with B the wall and
+    k = σ₀/√3 at the axial bite's strain rate (δ_eff/(Hm/2)) · ω_ring s / L_a. The factor Q
+    of the radial estimate is not applied: Hm/L_a is far above its range (the cone does not
+    penetrate the height plastically; for such shallow bites the mean pressure lies between
+    2k and the indentation value (2 + π)k)."""
+    za = q["cone_apex_axial"]
+    s_m = 0.5 * (Ro + Ri)
+    Rc = s_m * math.tan(geo["alpha"])
+    delta = 0.5 * Hm - za
+    depth = max(depth, 0.0)             # < 0: the cone is off the face by −depth
+    d_eff = delta - depth
+    est = L_a = 0.0
+    if delta > 0 and d_eff > 0 and nodes > 0:
+        L_a = math.sqrt(2.0 * d_eff * Rc)
+        rate = d_eff / (0.5 * Hm) * abs(w_ring) * s_m / L_a
+        k = float(forming.flow_stress(K, m, rate)) / math.sqrt(3.0)
+        est = 2.0 * k * (Ro - Ri) * L_a
+    return dict(cone_force=q["cone_force_z"], cone_force_line=q["cone_force_x"],
+                nodes_cone=nodes, cone_penetration=depth, cone_gap=2.0 * za,
+                cone_apex_x=q["cone_apex_line"], cone_omega=q["cone_omega"],
+                cone_reduction=delta, cone_contact_length=L_a, cone_force_estimate=est)

@@ -50,8 +50,9 @@ import fxcontact as fx
 from fxcontact import compat, forming
 from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.mill import IDLE_METHODS, ControlledMotion, IdleRotation
+from fxcontact.power import PowerBalance, delivered_power
 from fxcontact.processes.monitor import RunNumerics, SteadyRun, is_number
-from fxcontact.processes.ring_mill import AxialRolls, RingCentring
+from fxcontact.processes.ring_mill import AxialRolls, RingCentring, cone_row
 
 __all__ = ["RingRollingCase", "RingRollingSetup", "RingRollingResult", "build", "run",
            "K_THESIS", "K_HOT", "QUICK", "TOOLS", "UPDATES"]
@@ -423,6 +424,7 @@ class _Measure:
         self.comm = s.sim.comm
         self.V0 = s.sim.initial_volume
         self.nown = s.sim.mesh.topology.index_map(0).size_local
+        self.power = PowerBalance(s.sim, [s.contact])
 
     def _sum(self, *values):
         return self.comm.allreduce(np.array(values, dtype=float), op=MPI.SUM)
@@ -473,10 +475,29 @@ class _Measure:
         ct = self.s.contact
         return self.comm.allreduce(int(np.sum((ct._tool == k) & (ct._h > 0))), op=MPI.SUM)
 
+    def power_columns(self, q) -> dict:
+        """The power balance of the increment, whole ring (THEORY §14.5): what each tool
+        delivers (−Σ f·v_tool at the contact points: the main roll's is its torque × ω, the
+        idle mandrel's its feed force × feed speed, its rotation's ≈ 0), the dissipation on the
+        increment's start configuration, the friction and penalty powers
+        (:class:`fxcontact.power.PowerBalance` with the velocities turned by the cylindrical
+        update)."""
+        s = self.s
+        pw = self.power(q)
+        P = [2 * delivered_power(s.contact, s.sim.t, k) for k in range(len(s.tools))]
+        return dict(main_power=P[0], mandrel_power=P[1], guide_power=P[2] + P[3],
+                    cone_power=sum(P[4:]),
+                    mandrel_rotation_power=-2 * q.get("mandrel_torque", 0.0) * q["mandrel_omega"],
+                    power_in=2 * pw["power_in"], dissipation=2 * pw["dissipation"],
+                    friction_power=2 * pw["friction_power"],
+                    penalty_power=2 * pw["penalty_power"], power_balance=pw["power_balance"],
+                    power_balance_penalty=pw["power_balance_penalty"])
+
     def __call__(self, res) -> dict:
         s = self.s
         sim, c, t_rev = s.sim, s.case, s.case.t_rev
         q = res.row
+        power = self.power_columns(q)
         ctr = np.array([q["ring_center_x"], q["ring_center_y"], q["ring_center_z"]])
         Ro, Ri = self.surface_radius(s.outer, ctr), self.surface_radius(s.inner, ctr)
         Hm = self.top_height()
@@ -518,41 +539,11 @@ class _Measure:
                    center_x=ctr[0], center_y=ctr[1], center_offset=q["ring_center_offset"],
                    max_strain=self._max(np.max(sim.strain.x.array, initial=0.0)),
                    max_strain_rate=self._max(np.max(sim.strain_rate.x.array, initial=0.0)),
-                   min_quality=q["min_quality"])
+                   min_quality=q["min_quality"], **power)
         if c.cones:
-            row.update(_cone_row(q, self.nodes_on(4), self.cone_depth(), Hm, Ro, Ri, w_ring,
+            row.update(cone_row(q, self.nodes_on(4), self.cone_depth(), Hm, Ro, Ri, w_ring,
                                  s.cone_geometry, c.K, c.m))
         return row
-
-
-def _cone_row(q, nodes, depth, Hm, Ro, Ri, w_ring, geo, K, m) -> dict:
-    """The upper cone's outputs and the axial-force estimate of ring-rolling theory.
-
-    The cone reduces the half height Hm/2 of the arriving ring to its apex level z_a: the
-    reduction δ = Hm/2 − z_a, less the penalty penetration of the nodes (δ_eff = δ − depth),
-    is taken by a flat face under a cone whose normal radius of curvature across the
-    generatrix is R_c = s tan α at the mid-wall s = (R + r)/2 from the apex: contact length
-    L_a = √(2 δ_eff R_c) (THEORY §14.4 with Σ = 1/R_c), force ≈ 2k B L_a with B the wall and
-    k = σ₀/√3 at the axial bite's strain rate (δ_eff/(Hm/2)) · ω_ring s / L_a. The factor Q
-    of the radial estimate is not applied: Hm/L_a is far above its range (the cone does not
-    penetrate the height plastically; for such shallow bites the mean pressure lies between
-    2k and the indentation value (2 + π)k)."""
-    za = q["cone_apex_axial"]
-    s_m = 0.5 * (Ro + Ri)
-    Rc = s_m * math.tan(geo["alpha"])
-    delta = 0.5 * Hm - za
-    depth = max(depth, 0.0)             # < 0: the cone is off the face by −depth
-    d_eff = delta - depth
-    est = L_a = 0.0
-    if delta > 0 and d_eff > 0 and nodes > 0:
-        L_a = math.sqrt(2.0 * d_eff * Rc)
-        rate = d_eff / (0.5 * Hm) * abs(w_ring) * s_m / L_a
-        k = float(forming.flow_stress(K, m, rate)) / math.sqrt(3.0)
-        est = 2.0 * k * (Ro - Ri) * L_a
-    return dict(cone_force=q["cone_force_z"], cone_force_line=q["cone_force_x"],
-                nodes_cone=nodes, cone_penetration=depth, cone_gap=2.0 * za,
-                cone_apex_x=q["cone_apex_line"], cone_omega=q["cone_omega"],
-                cone_reduction=delta, cone_contact_length=L_a, cone_force_estimate=est)
 
 
 # ---- the result
@@ -564,10 +555,14 @@ _NAN = math.nan
 class RingRollingResult(SteadyRun):
     """A ring rolled (:func:`run`; ``status`` "done" or "failed"): the history (one row per
     increment: diameters, forces and torques of the whole ring in N and N mm, speeds,
-    penetrations), the theory of the pass and the summary. The power balance of
-    :class:`~fxcontact.processes.monitor.SteadyRun` is not filled: with the cylindrical update
-    the nodal velocity is not the physical one of the end configuration (the increment turns
-    the ring by ω dt) and :class:`fxcontact.power.PowerBalance` assumes X_t = X − dt v."""
+    penetrations, powers), the theory of the pass and the summary. The power balance of
+    :class:`~fxcontact.processes.monitor.SteadyRun` holds the second half's means (whole ring):
+    ``power_balance = P_in / (D + P_f) − 1`` and ``power_balance_penalty`` with the penalty
+    work, from the means of the powers. With the penalty work the balance is the discrete
+    virtual-power identity (Newton's tolerance); without it, it closes only when a node takes
+    many increments to cross the bite: the penalty work Σ r_n · (v − v_tool) is the
+    penetration's change of the nodes as they enter and leave the bite, not zero when each
+    increment turns the ring by a good part of the bite's length (``bite_increments``)."""
 
     case: Optional[RingRollingCase] = None
     t_rev: float = _NAN                #: one ring revolution [s]
@@ -584,6 +579,11 @@ class RingRollingResult(SteadyRun):
     sim_history: list = field(default_factory=list)   #: the Simulation's rows
     cone_geometry: Optional[dict] = None
     revolutions: float = _NAN          #: done
+    bite_increments: float = _NAN      #: increments a point of the ring takes to cross the bite
+    power_in: float = _NAN             #: what the tools deliver, second-half mean [N mm/s]
+    main_power: float = _NAN           #: ... the main roll (torque × ω)
+    mandrel_power: float = _NAN        #: ... the mandrel (feed force × feed speed)
+    mandrel_rotation_power_max: float = _NAN   #: max |torque × ω| of the idle mandrel
     volume_change: float = _NAN        #: at the end
     volume_drift_per_rev: float = _NAN
     diameter_volume_error: float = _NAN   #: max |mean D / V/(πHB) − 1|
@@ -656,6 +656,15 @@ class RingRollingResult(SteadyRun):
             f"max penetration {self.max_penetration:.4f} mm; centre off the mill line max "
             f"{self.max_center_offset:.4f} mm (smallest edge {self.min_edge:.2f} mm); max "
             f"strain {self.max_strain:.3f}, max strain rate {self.max_strain_rate:.3f} 1/s"]
+        lines.append(
+            f"power (second half mean, whole ring): tools {self.power_in / 1e6:.4g} kW = main "
+            f"roll {self.main_power / 1e6:.4g} + mandrel feed {self.mandrel_power / 1e6:.4g} "
+            f"(idle rotation max {self.mandrel_rotation_power_max / 1e3:.2g} W) + guides/cones; "
+            f"dissipation {self.dissipation / 1e6:.4g} kW, friction {self.friction_power / 1e6:.4g}"
+            f" kW, penalty {self.penalty_power / 1e6:.4g} kW; balance P_in/(D + P_f) - 1 = "
+            f"{100 * self.power_balance:.1f} % (with the penalty work "
+            f"{self.power_balance_penalty:.1e}; the bite is crossed in "
+            f"{self.bite_increments:.2g} increments)")
         return "\n".join(lines + [self.run_summary()])
 
 
@@ -696,6 +705,17 @@ def _summarize(res: RingRollingResult, comm, msh) -> None:
                                         for q in est])) if est else math.nan),
             height_max=max(q["height_max"] for q in rows), gap_last=rows[-1]["cone_gap"])
     res.wall_per_rev = res.wall / max(last["revolutions"], 1e-300)
+    pw = {k: float(np.mean([q[k] for q in second]))
+          for k in ("power_in", "main_power", "mandrel_power", "dissipation", "friction_power",
+                    "penalty_power")}
+    for k, v in pw.items():
+        setattr(res, k, v)
+    out = pw["dissipation"] + pw["friction_power"]
+    res.power_balance = pw["power_in"] / out - 1.0 if out > 0 else math.nan
+    res.power_balance_penalty = (pw["power_in"] / (out + pw["penalty_power"]) - 1.0
+                                 if out > 0 else math.nan)
+    res.mandrel_rotation_power_max = max(abs(q["mandrel_rotation_power"]) for q in rows)
+    res.bite_increments = res.contact_length / (res.case.omega_main * res.case.R1 * res.dt)
 
 
 def _edge_lengths(msh):
