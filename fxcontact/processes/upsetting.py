@@ -71,9 +71,10 @@ from fxcontact.contact.friction import Coulomb, Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
-from fxcontact.processes.common import (CaseBase, PowerBalance, ProcessResult, _pyplot,
-                                        finish_run, meridian_section, numerics_columns,
-                                        plot_curves, run_summary)
+from fxcontact.power import PowerBalance
+from fxcontact.processes.common import (CaseBase, ProcessResult, _pyplot, finish_run,
+                                        meridian_section, numerics_columns, plot_curves,
+                                        run_summary)
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone
 from fxcontact.simulation import IncrementError, Simulation
