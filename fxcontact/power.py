@@ -155,14 +155,21 @@ class PowerBalance:
     simulation's configuration update takes them with the increment's velocity to the current
     positions. Under the Cartesian update ``x_t = X − dt v`` also without them (a balance
     not called at every increment); under another update (the cylindrical one of rings) it
-    must be called after every increment (ValueError otherwise)."""
+    must be called after every increment (ValueError otherwise). After a remesh its forms
+    follow the new mesh; the row of the increment that ended with the remesh is then evaluated
+    on the new mesh moved back by ``dt v`` (an approximation: a few % off)."""
 
     def __init__(self, sim, contacts):
         self.sim = sim
         self.contacts = list(contacts)
-        self._dissipation = PlasticDissipation(sim)
-        self._pressure = PressurePower(sim)
+        self._bind()
         self._x_start = sim.vertex_positions()
+
+    def _bind(self):
+        """The dissipation forms on the simulation's current mesh (again after a remesh)."""
+        self._space = self.sim.space
+        self._dissipation = PlasticDissipation(self.sim)
+        self._pressure = PressurePower(self.sim)
 
     def _start_configuration(self, X, v, dt):
         """The increment's start configuration (see the class)."""
@@ -183,6 +190,8 @@ class PowerBalance:
 
     def __call__(self, row: dict, tool_power: float = None, absorbed: float = 0.0) -> dict:
         sim = self.sim
+        if sim.space is not self._space:   # remeshed: forms on the new mesh
+            self._bind()
         X = sim.vertex_positions()
         v = sim.w.x.array[sim.space.vertex_dofs]
         X0 = self._start_configuration(X, v, row["dt"])   # the increment's equations live there

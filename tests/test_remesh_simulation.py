@@ -189,3 +189,9 @@ def test_extrusion_through_a_wide_die_with_remeshing():
     for i in after:
         before = max(abs(a - b) for a, b in zip(p[i - 3: i], p[i - 4: i - 1]))
         assert abs(p[i] - p[i - 1]) <= max(before, 0.05 * p[i - 1])
+    # the power balance follows the new meshes: the discrete identity (penalty work included)
+    # to round-off at every increment not ended by a remesh, the first on a new mesh included
+    kept = [q for q, nxt in zip(rows, rows[1:] + [None])
+            if nxt is None or nxt["remesh"] == q["remesh"]][1:]
+    assert any(q["remesh"] >= 1 for q in kept)
+    assert max(abs(q["power_balance_penalty"]) for q in kept) < 1e-6

@@ -360,12 +360,10 @@ def run(case: UpsettingCase, comm=None, output_dir: Optional[str] = None,
     comm = comm or MPI.COMM_WORLD
     s = build(case, comm, output_dir, vtk_every)
     sim, contact = s.sim, s.contact
-    balance = [PowerBalance(sim, [contact]), 0]
+    balance = PowerBalance(sim, [contact])
     volume = [sim.volume()]
 
     def row(r):
-        if len(sim.remeshes) != balance[1]:   # its forms on the new mesh
-            balance[:] = [PowerBalance(sim, [contact]), len(sim.remeshes)]
         t0 = r["time"] - r["dt"]
         h0 = case.H0 - case.speed * t0
         F = s.scale * r["die_force_z"]
@@ -386,7 +384,7 @@ def run(case: UpsettingCase, comm=None, output_dir: Optional[str] = None,
             r_face=rd["face"], r_free=rd["free"],
             r_homogeneous=math.sqrt(s.volume_scale * volume[-1] / (math.pi * _height(case, r["time"]))),
             penetration=r["contact_penetration_true"], contact_nodes=r["contact_nodes"],
-            remesh=r["remesh"], **numerics_columns(r), **balance[0](r, p_in))
+            remesh=r["remesh"], **numerics_columns(r), **balance(r, p_in))
 
     def progress(q):
         if comm.rank == 0:
