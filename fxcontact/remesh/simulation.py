@@ -37,6 +37,7 @@ from mpi4py import MPI
 
 from fxcontact.collective import together
 from fxcontact.protocols import Remeshable
+from fxcontact.registration import label
 from fxcontact.remesh import criteria as _criteria
 from fxcontact.remesh.selection import facet_tags_of, rederived_calls
 from fxcontact.remesh.volume import SizeZone
@@ -212,7 +213,6 @@ def remesh_simulation(sim, size: Optional[float] = None,
     from fxcontact.remesh.boundary import gather_boundary
     from fxcontact.remesh.state import transfer_simulation_state
     from fxcontact.remesh.volume import volume_mesh
-    from fxcontact.simulation import _label
     from fxcontact.spaces import MixedSpace
     settings = sim._remeshing
     with together(sim.comm, "Simulation.remesh()", reason=reason):
@@ -222,7 +222,7 @@ def remesh_simulation(sim, size: Optional[float] = None,
         if sim.mesh.topology.dim != 3:
             raise ValueError(f"remesh: remeshing needs a tetrahedral mesh, got tdim = "
                              f"{sim.mesh.topology.dim}")
-        bad = [_label(c) for c in sim.contributors if not isinstance(c, Remeshable)]
+        bad = [label(c) for c in sim.contributors if not isinstance(c, Remeshable)]
         if bad:
             raise ValueError(f"remesh: contributor(s) {bad} cannot be rebound to a new mesh: "
                              f"give them a method remesh(space, facet_tags) "
