@@ -189,3 +189,43 @@ def test_extrusion_through_a_wide_die_with_remeshing():
     for i in after:
         before = max(abs(a - b) for a, b in zip(p[i - 3: i], p[i - 4: i - 1]))
         assert abs(p[i] - p[i - 1]) <= max(before, 0.05 * p[i - 1])
+
+
+def test_rescue_remesh_before_an_inverting_increment_fails():
+    """The 45° extrusion with one cut-back allowed and no criterion: at t = 0.1 an entry cell
+    (quality 0.02) inverts at dt and at dt/2; the rescue remeshes once, takes the increment
+    again from dt on the new mesh, and the run goes on (without the rescue it stops there
+    with a MeshInversionError: benchmarks/bench_remesh_extrusion.py)."""
+    from fxcontact.processes import ExtrusionCase
+    from fxcontact.processes.extrusion import build
+    case = ExtrusionCase.quick(alpha=45.0, stop_at_steady=False)
+    sim = build(case, COMM, None, 0).sim
+    sim.set_remeshing(criteria=None, size=case.h)
+    while sim.t < 0.125 - 1e-9:
+        sim.step(case.dt, max_cutbacks=1)
+    assert [r.reason for r in sim.remeshes] == ["an element would invert"]
+    rec = sim.remeshes[0]
+    assert rec.increment == sim.increment - 1 and rec.min_quality_after > 0.3
+    # the increment after the remesh is the one that inverted, taken again from dt
+    row = sim.history[rec.increment]
+    assert row["remesh"] == 1 and row["dt"] == case.dt and row["min_quality"] > 0.3
+    assert abs(row["volume_change"]) < 5e-3
+
+
+def test_contact_coverage_criterion_refines_the_bite():
+    """min_elements_across: the die's contact on the coarse billet is spanned by about 5
+    elements; with a threshold of 8 the first increment calls a remesh, whose zone of size H/3
+    under the die spans it by about 12: no further remesh in the next increments."""
+    from fxcontact.remesh.volume import SizeZone
+    sim, _, _ = _setup()
+    zone = SizeZone(h=H / 3, box=([0.0, 0.0, 12.0], [12.0, 12.0, 16.0]))
+    sim.set_remeshing(RemeshCriteria(min_quality=None, min_volume_ratio=None,
+                                     min_elements_across=8.0), size=H, zones=[zone])
+    for _ in range(3):
+        sim.step(DT)
+    assert len(sim.remeshes) == 1
+    assert sim.remeshes[0].increment == 1
+    assert "contact 'die' spanned by" in sim.remeshes[0].reason
+    assert sim.remeshes[0].cells_after > 2 * sim.remeshes[0].cells_before
+    assert [r["remesh"] for r in sim.history] == [0, 1, 1]
+    assert sim.history[-1]["contact_nodes"] > 0
