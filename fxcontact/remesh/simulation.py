@@ -29,7 +29,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Callable, List, Optional, Sequence, Union
 
 import numpy as np
@@ -62,6 +62,10 @@ class RemeshRecord:
     min_quality_before: float
     min_quality_after: float
     wall: float
+    #: this rank's wall time of each phase: ``boundary`` (gathered on rank 0), ``generate``
+    #: (gmsh), ``distribute`` (the new mesh over the ranks), ``spaces``, ``transfer`` (the
+    #: state), ``rebind`` (conditions, contributors, outputs), ``setup`` (forms, solver)
+    phases: dict = field(default_factory=dict)
 
     def line(self) -> str:
         return (f"remesh {self.number} at t = {self.t:.6g} (after increment {self.increment}): "
@@ -198,6 +202,21 @@ def _contact_zones(sim) -> dict:
     return out
 
 
+class _Clock:
+    """The wall times of consecutive phases (this rank's): ``lap(name)`` records the time
+    since the last lap under ``name`` (``lap()`` only restarts)."""
+
+    def __init__(self):
+        self.times = {}
+        self._t = time.perf_counter()
+
+    def lap(self, name: Optional[str] = None):
+        t = time.perf_counter()
+        if name is not None:
+            self.times[name] = t - self._t
+        self._t = t
+
+
 def _global_cells(msh) -> int:
     return int(msh.topology.index_map(msh.topology.dim).size_global)
 
@@ -243,16 +262,25 @@ def remesh_simulation(sim, size: Optional[float] = None,
     zone_list = list(zones(sim) if callable(zones) else zones)
     cells0, vol0 = _global_cells(sim.mesh), sim.volume()
     q0 = sim.mesh_health()["min_quality"]
+    clock = _Clock()
     surface = gather_boundary(sim.mesh, ft)
-    msh, _, nft = volume_mesh(sim.comm, surface, size, zone_list, feature_angle)
+    clock.lap("boundary")
+    msh, _, nft = volume_mesh(sim.comm, surface, size, zone_list, feature_angle,
+                              times=clock.times)
+    clock.lap()
     space = MixedSpace(msh, sim.space.element, sim.space.quadrature_degree)
+    clock.lap("spaces")
     state = transfer_simulation_state(sim, space)
-    rebind(sim, space, nft, state)
+    clock.lap("transfer")
+    rebind(sim, space, nft, state, build=False)
+    clock.lap("rebind")
+    build_keeping_volume(sim, state["volume_initial"])
+    clock.lap("setup")
     rec = RemeshRecord(number=len(sim.remeshes) + 1, increment=sim.increment, t=sim.t,
                        reason=reason, cells_before=cells0, cells_after=_global_cells(msh),
                        volume_change=sim.volume() / vol0 - 1.0, min_quality_before=q0,
                        min_quality_after=sim.mesh_health()["min_quality"],
-                       wall=time.perf_counter() - t0)
+                       wall=time.perf_counter() - t0, phases=clock.times)
     sim.remeshes.append(rec)
     if settings is not None:
         settings.after_remesh(sim, rec)
@@ -293,10 +321,16 @@ def rebind(sim, space, facet_tags, state=None, build: bool = True):
     sim._outputs = Outputs(sim)
     sim._outputs.opened = opened
     if build:
-        v0 = sim._volume_initial
-        sim._build()
-        sim._volume_initial = state["volume_initial"] if state is not None else v0
-        sim._update_volume_correction()
+        build_keeping_volume(sim, state["volume_initial"] if state is not None else
+                             sim._volume_initial)
+
+
+def build_keeping_volume(sim, volume_initial: float):
+    """The forms and the solver of the rebound ``sim``, with the volume correction's
+    reference ``volume_initial`` (the body's volume at t = 0) kept (collective)."""
+    sim._build()
+    sim._volume_initial = volume_initial
+    sim._update_volume_correction()
 
 
 # ------------------------------------------------------------------------------ checkpoints
