@@ -15,9 +15,12 @@ A remesh (:func:`remesh_simulation`):
 3. binds the simulation to the new space (:func:`rebind`): the velocity conditions, reactions
    and symmetry planes are made again, in their order, on the facets of the same tags
    (:mod:`~fxcontact.remesh.selection`), each contributor rebinds itself
-   (``remesh(space, facet_tags)``, :class:`~fxcontact.protocols.Remeshable`), the forms and the
-   solver are built again. Tools, friction laws, controllers, the history, ``t`` and the
-   increment are kept.
+   (``remesh(space, facet_tags)``, :class:`~fxcontact.protocols.Remeshable`), and so does each
+   controller (the ring's centring its outer surface, an idle rotation its vectors of the old
+   system; a controller without ``remesh`` stops a remesh: it may keep something of the old
+   mesh) and the kinematics if it has ``remesh``; the forms and the solver are built again.
+   Tools, friction laws, the controllers' states, the history, ``t`` and the increment are
+   kept.
 
 The VTK series goes on in a new segment of files (``<name>_r<k>…``) referenced from the same
 ``.pvd``; the history's ``remesh`` column counts the remeshes before each increment;
@@ -127,6 +130,11 @@ class Remeshing:
             if criteria is not None and not isinstance(criteria, _criteria.RemeshCriteria):
                 raise ValueError(f"set_remeshing(criteria): give a fxcontact.remesh.criteria."
                                  f"RemeshCriteria or None, got {criteria!r}")
+            every = getattr(criteria, "every", None)
+            if every is not None and not (isinstance(every, (int, np.integer)) and every >= 1):
+                raise ValueError(f"set_remeshing(criteria): RemeshCriteria.every must be an "
+                                 f"integer >= 1 (increments between remeshes) or None, got "
+                                 f"{every!r}")
             if size is not None:
                 _check_size(size)
             _check_zones(zones)
@@ -163,6 +171,9 @@ class Remeshing:
         res = _criteria.check(sim.comm, crit, cells, mh._vol0, sim.strain.x.array[:n],
                               self.strain_ref[:n],
                               _contact_zones(sim) if crit.min_elements_across else None)
+        since = sim.increment - (sim.remeshes[-1].increment if sim.remeshes else 0)
+        if crit.every and since >= crit.every:
+            res["reasons"].append(f"{since} increments since the last remesh")
         return res["reasons"]
 
     def after_increment(self, sim):
@@ -241,11 +252,12 @@ def remesh_simulation(sim, size: Optional[float] = None,
         if sim.mesh.topology.dim != 3:
             raise ValueError(f"remesh: remeshing needs a tetrahedral mesh, got tdim = "
                              f"{sim.mesh.topology.dim}")
-        bad = [label(c) for c in sim.contributors if not isinstance(c, Remeshable)]
-        if bad:
-            raise ValueError(f"remesh: contributor(s) {bad} cannot be rebound to a new mesh: "
-                             f"give them a method remesh(space, facet_tags) "
-                             f"(fxcontact.protocols.Remeshable)")
+        for kind, objs in (("contributor", sim.contributors), ("controller", sim.controllers)):
+            bad = [label(c) for c in objs if not isinstance(c, Remeshable)]
+            if bad:
+                raise ValueError(f"remesh: {kind}(s) {bad} cannot be rebound to a new mesh: "
+                                 f"give them a method remesh(space, facet_tags) "
+                                 f"(fxcontact.protocols.Remeshable)")
         ft = facet_tags_of(sim, [getattr(getattr(c, "boundary", None), "facet_tags", None)
                                  for c in sim.contributors])
         zones = zones if zones is not None else (settings.zones if settings else ())
@@ -315,8 +327,9 @@ def rebind(sim, space, facet_tags, state=None, build: bool = True):
     for name, call in calls:
         getattr(sim, name)(**call)
     sim._labels = labels
-    for c in sim.contributors:
-        c.remesh(space, facet_tags)
+    for c in sim.contributors + sim.controllers + [sim.kinematics]:
+        if isinstance(c, Remeshable):
+            c.remesh(space, facet_tags)
     sim._remesh_facet_tags = facet_tags
     sim._outputs = Outputs(sim)
     sim._outputs.opened = opened
