@@ -172,6 +172,24 @@ def test_contributor_without_remesh_refused():
         sim.remesh(size=H)
 
 
+def test_controller_without_remesh_refused():
+    """A controller may keep something of the mesh (a surface, vectors of the system): one
+    without remesh(space, facet_tags) stops a remesh on every rank, naming it; a bad
+    RemeshCriteria.every is refused by set_remeshing."""
+    sim, _, _ = _setup()
+
+    class Counter:
+        def begin_increment(self, sim, t, dt, x_t):
+            pass
+
+    sim.add_controller(Counter())
+    with pytest.raises(ValueError, match=r"controller\(s\) \['Counter'\].*remesh\(space, "
+                                         r"facet_tags\)"):
+        sim.remesh(size=H)
+    with pytest.raises(ValueError, match="every must be an integer >= 1"):
+        sim.set_remeshing(RemeshCriteria(every=0))
+
+
 def test_extrusion_through_a_wide_die_with_remeshing():
     """The reduced extrusion through a 45° die: without remeshing an entry element inverts
     after 1 mm of punch stroke (benchmarks/bench_remesh_extrusion.py); with remeshing the run
@@ -229,3 +247,52 @@ def test_contact_coverage_criterion_refines_the_bite():
     assert sim.remeshes[0].cells_after > 2 * sim.remeshes[0].cells_before
     assert [r["remesh"] for r in sim.history] == [0, 1, 1]
     assert sim.history[-1]["contact_nodes"] > 0
+
+
+def _ring_case(**kw):
+    import dataclasses
+    from fxcontact.processes import ring_rolling as rr
+    return dataclasses.replace(rr.RingRollingCase().quick(), remesh=True, **kw)
+
+
+def test_ring_remesh_refines_in_front_of_the_bite():
+    """BiteZones: a remesh of the rolled ring is finer (the zone's size h_theta) over the arc
+    in front of the bite than on the opposite side (the mean edge length there); the
+    centring's outer surface and the contact are on the new mesh."""
+    from fxcontact.processes import ring_rolling as rr
+    s = rr.build(_ring_case(remesh_arc=60.0), COMM)
+    sim = s.sim
+    sim.step(s.dt)
+    sim.remesh()
+    assert s.centring.outer.mesh is sim.mesh and s.contact.boundary.mesh is sim.mesh
+    X = sim.vertex_positions()[sim._mesh_health._c2v_owned]
+    theta = np.degrees(np.arctan2(X[:, :, 1].mean(axis=1), X[:, :, 0].mean(axis=1)))
+    edges = np.mean([np.linalg.norm(X[:, i] - X[:, j], axis=1)
+                     for i in range(4) for j in range(i + 1, 4)], axis=0)
+    # the ring turns counterclockwise: the arc in front of the bite is at -60° < theta < 0
+    sums = [COMM.allreduce(np.array([np.sum(edges[m]), np.sum(m)]), op=MPI.SUM)
+            for m in ((theta > -55.0) & (theta < -5.0), np.abs(theta) > 120.0)]
+    front, back = (a / n for a, n in sums)
+    assert front < 0.7 * back
+    assert front < 1.5 * s.h_theta
+
+
+def test_ring_rolling_with_remeshing():
+    """RingRollingCase(remesh=True) over 0.3 revolution, remeshed every 4 increments (3/4 of
+    a 40° arc): the run goes on across the remeshes (centring, idle mandrel, measures on
+    each new mesh), the volume is kept, and the main roll's force and the mandrel's speed do
+    not jump at a remesh beyond the change between the increments before it."""
+    from fxcontact.processes import ring_rolling as rr
+    res = rr.run(_ring_case(revolutions=0.3, remesh_arc=40.0), COMM, pictures=False)
+    rows = res.history
+    assert res.status == "done" and res.revolutions > 0.29
+    assert len(res.remeshes) >= 2
+    assert all("increments since the last remesh" in r.reason for r in res.remeshes)
+    assert abs(rows[-1]["volume_change"]) < 1e-3
+    counts = [q["remesh"] for q in res.sim_history]
+    jumps = [i for i in range(3, len(rows)) if counts[i] != counts[i - 1]]
+    assert jumps
+    for i in jumps:
+        F = [abs(q["main_force_x"]) for q in rows[i - 3: i + 1]]
+        assert abs(F[3] - F[2]) <= max(abs(F[2] - F[1]), abs(F[1] - F[0])) + 0.1 * F[2]
+        assert abs(rows[i]["mandrel_omega"] / rows[i - 1]["mandrel_omega"] - 1) < 0.1

@@ -624,6 +624,7 @@ class RingRollingResult(SteadyRun):
     outer_growth: float = _NAN         #: outer diameter / 2R − 1
     wall_per_rev: float = _NAN
     cone: dict = field(default_factory=dict)   #: the cones' summary (with cones)
+    remeshes: list = field(default_factory=list)   #: the RemeshRecords (``remesh=True``)
     pictures: Dict[str, str] = field(default_factory=dict)
 
     def second_half(self) -> List[dict]:
@@ -777,7 +778,8 @@ def run(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
         feed_window=th["window"], contact_length=th["contact_length"],
         strain_rate_bite=th["strain_rate_bite"], sigma0=th["sigma0"],
         force_estimate=th["force_estimate"], Q=th["Q"], volume_initial=2.0 * measure.V0,
-        sim_history=list(sim.history), cone_geometry=s.cone_geometry)
+        sim_history=list(sim.history), cone_geometry=s.cone_geometry,
+        remeshes=list(sim.remeshes))
     if rows:
         _summarize(res, comm, sim.mesh)
     paths = {}
