@@ -2,7 +2,7 @@
 
 Usage::
 
-    python benchmarks/bench_remesh.py                       # ~10k and ~150k MINI dofs
+    python benchmarks/bench_remesh.py                       # ~8k and ~140k MINI dofs
     mpirun -n 2 python benchmarks/bench_remesh.py --sizes 1.55
     python benchmarks/bench_remesh.py --sizes 1.55 --profile    # where the remesh goes
 
@@ -89,8 +89,8 @@ def run(comm, h, profile=False):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--sizes", type=float, nargs="+", default=[1.55, 0.62],
-                    help="element sizes (1.55: ~10k dofs, 0.62: ~150k dofs)")
+    ap.add_argument("--sizes", type=float, nargs="+", default=[1.55, 0.54],
+                    help="element sizes (1.55: 7,851 dofs, 0.54: 138,736 dofs)")
     ap.add_argument("--profile", action="store_true", help="cProfile of the remesh (rank 0)")
     args = ap.parse_args()
     for h in args.sizes:

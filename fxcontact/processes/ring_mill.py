@@ -296,10 +296,8 @@ class BiteZones:
         d = sim.vertex_positions() - c
         z = d @ a
         rho = np.linalg.norm(d - np.outer(z, a), axis=1)
-        lo = sim.comm.allreduce(np.array([np.min(rho, initial=np.inf), np.min(z, initial=np.inf)]),
-                                op=MPI.MIN)
-        hi = sim.comm.allreduce(np.array([np.max(rho, initial=-np.inf),
-                                          np.max(z, initial=-np.inf)]), op=MPI.MAX)
+        lo = [sim.comm.allreduce(float(np.min(v, initial=np.inf)), op=MPI.MIN) for v in (rho, z)]
+        hi = [sim.comm.allreduce(float(np.max(v, initial=-np.inf)), op=MPI.MAX) for v in (rho, z)]
         h = self.h
         radii = np.linspace(lo[0], hi[0], max(2, int(math.ceil((hi[0] - lo[0]) / h)) + 1))
         heights = np.linspace(lo[1], hi[1], max(2, int(math.ceil((hi[1] - lo[1]) / h)) + 1))
