@@ -1,78 +1,100 @@
-"""Cost of one remesh: boundary gather, mesh generation + distribution, field transfer.
+"""Cost of one remesh of a running simulation, phase by phase, against one of its increments.
 
 Usage::
 
-    python benchmarks/bench_remesh.py                  # ~10k and ~150k MINI dofs
-    mpirun -n 2 python benchmarks/bench_remesh.py --sizes 2.0
+    python benchmarks/bench_remesh.py                       # ~8k and ~140k MINI dofs
+    mpirun -n 2 python benchmarks/bench_remesh.py --sizes 1.55
+    python benchmarks/bench_remesh.py --sizes 1.55 --profile    # where the remesh goes
 
-Problem: the quarter billet of ``fxcontact.meshing.cylinder_billet`` (R 10, H 15) barrelled and
-sheared, remeshed at the same element size h with a zone of size h/2 under the top die. Timed
-(max over ranks): ``boundary`` (:func:`fxcontact.remesh.boundary.gather_boundary`), ``mesh``
-(:func:`fxcontact.remesh.volume.volume_mesh`: gmsh on rank 0 and the distribution),
-``spaces`` (the new ``MixedSpace``), ``transfer`` (the Simulation state: MINI velocity,
-pressure, strain and strain rate, :func:`fxcontact.remesh.state.transfer_simulation_state`,
-without the JIT compilation of the old Simulation's forms). Timings are printed only.
+Problem: the quarter billet of ``fxcontact.meshing.cylinder_billet`` (R 10, H 15, element size
+h) upset by a flat die (5 mm/s, Tresca m̄ 0.3, dt 0.06 s) with its symmetry planes, a velocity
+condition and a reaction, as in ``tests/test_remesh_simulation.py``. Two increments (the first
+builds the forms and makes the start-up solve), a third one timed, then ``Simulation.remesh()``
+at the same size h, then two more increments timed. Printed (max over the ranks): the remesh's
+phases (``RemeshRecord.phases``: ``boundary`` gathered on rank 0, ``generate`` gmsh,
+``distribute`` the new mesh, ``spaces``, ``transfer`` of the state, ``rebind`` conditions and
+contributors, ``setup`` forms and solver), the increments before and after it (wall, Newton
+iterations), and the remesh's cost in increments. ``--profile``: the remesh under cProfile
+(rank 0), the functions with the largest cumulative time. Timings are printed only.
 """
 
 from __future__ import annotations
 
 import argparse
+import cProfile
+import io
+import pstats
 import time
 
-import numpy as np
 from mpi4py import MPI
 
 import fxcontact as fx
-from fxcontact.remesh.boundary import gather_boundary
-from fxcontact.remesh.state import transfer_simulation_state
-from fxcontact.remesh.volume import SizeZone, volume_mesh
+
+DT = 0.06
 
 
-def deformed_billet(comm, h):
+def upsetting(comm, h):
+    """The billet upset by a flat die (the set-up of tests/test_remesh_simulation.py)."""
     msh, _, ft = fx.cylinder_billet(comm, radius=10.0, height=15.0, h=h)
-    x = msh.geometry.x
-    z = x[:, 2].copy()
-    s = 1.0 + 0.15 * np.sin(np.pi * z / 15.0)
-    x[:, 0] = s * x[:, 0] + 0.08 * z
-    x[:, 1] *= s
-    x[:, 2] = 0.8 * z
-    return msh, ft
+    space = fx.MixedSpace(msh)
+    sim = fx.Simulation(space, fx.NortonHoff(K=50.0, m=0.15), name="upset", progress=False)
+    f = {k: sim.facets(ft, v) for k, v in fx.BILLET_TAGS.items()}
+    sim.add_velocity_bc(f["symmetry_x"], 0.0, component=0)
+    sim.add_symmetry_plane(f["symmetry_y"], (0, 1, 0), name="sym_y")
+    sim.add_velocity_bc(f["bottom"], 0.0, component=2)
+    sim.add_reaction("bottom", f["bottom"])
+    die = fx.Plane(point=(0, 0, 15.0), normal=(0, 0, -1), velocity=(0, 0, -5.0), name="die")
+    sim.add_contributor(fx.NodalContact(fx.ContactBoundary(space, ft, fx.BILLET_TAGS["top"]),
+                                        die, friction=fx.Tresca(0.3)))
+    return sim
 
 
-def run(comm, h):
-    msh, ft = deformed_billet(comm, h)
-    sim = fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(K=50.0, m=0.15), progress=False)
-    sim.initial_volume   # the forms compiled here, not in the timing
-    sp = sim.space
-    sim.w_prev.x.array[:] = np.sin(np.arange(len(sim.w_prev.x.array)))
-    sim.strain.x.array[:] = 1.0
-    times = {}
+def run(comm, h, profile=False):
+    say = print if comm.rank == 0 else (lambda *a, **k: None)
+    sim = upsetting(comm, h)
+    dofs0 = sim.space.global_dofs()
+    for _ in range(2):
+        sim.step(DT)
 
-    def timed(name, fn):
+    def increment():
         comm.barrier()
         t0 = time.perf_counter()
-        out = fn()
-        times[name] = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
-        return out
+        row = sim.step(DT).row
+        return comm.allreduce(time.perf_counter() - t0, op=MPI.MAX), row["newton_iterations"]
 
-    surface = timed("boundary", lambda: gather_boundary(msh, ft))
-    zone = SizeZone(h=0.5 * h, box=([0.0, 0.0, 11.0], [14.0, 14.0, 12.5]), grading=0.3)
-    new, _, _ = timed("mesh", lambda: volume_mesh(comm, surface, h=h, zones=[zone]))
-    space = timed("spaces", lambda: fx.MixedSpace(new))
-    timed("transfer", lambda: transfer_simulation_state(sim, space))
-    if comm.rank == 0:
-        print(f"h = {h:g}: old {sp.global_dofs()} dofs, new {space.global_dofs()} dofs, "
-              f"{comm.size} rank(s): " + ", ".join(f"{k} {v:.2f} s" for k, v in times.items()),
-              flush=True)
+    before = increment()
+    prof = cProfile.Profile() if profile and comm.rank == 0 else None
+    comm.barrier()
+    t0 = time.perf_counter()
+    if prof is not None:
+        prof.enable()
+    rec = sim.remesh(size=h)
+    if prof is not None:
+        prof.disable()
+    wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+    phases = {k: comm.allreduce(v, op=MPI.MAX) for k, v in rec.phases.items()}
+    after = [increment() for _ in range(2)]
+    say(f"h = {h:g}: {dofs0} dofs, {rec.cells_before} cells -> {sim.space.global_dofs()} "
+        f"dofs, {rec.cells_after} cells, {comm.size} rank(s)")
+    say(f"  increment before: {before[0]:.2f} s ({before[1]} Newton its); after: "
+        + ", ".join(f"{w:.2f} s ({n} its)" for w, n in after))
+    say(f"  remesh {wall:.2f} s = {wall / before[0]:.2f} increments: "
+        + ", ".join(f"{k} {v:.2f}" for k, v in phases.items())
+        + f" (other {wall - sum(phases.values()):.2f})")
+    if prof is not None:
+        out = io.StringIO()
+        pstats.Stats(prof, stream=out).sort_stats("cumulative").print_stats(25)
+        say(out.getvalue())
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--sizes", type=float, nargs="+", default=[1.55, 0.62],
-                    help="element sizes (1.55: ~10k dofs, 0.62: ~150k dofs)")
+    ap.add_argument("--sizes", type=float, nargs="+", default=[1.55, 0.54],
+                    help="element sizes (1.55: 7,851 dofs, 0.54: 138,736 dofs)")
+    ap.add_argument("--profile", action="store_true", help="cProfile of the remesh (rank 0)")
     args = ap.parse_args()
     for h in args.sizes:
-        run(MPI.COMM_WORLD, h)
+        run(MPI.COMM_WORLD, h, args.profile)
 
 
 if __name__ == "__main__":

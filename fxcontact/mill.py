@@ -710,6 +710,14 @@ class IdleRotation:
             out[f"{n}_surface_slip"] = (self.omegas[j] - w_free) * R
         return out
 
+    def remesh(self, space, facet_tags):
+        """A new mesh of the body (``Simulation.remesh``): the border vectors of the old
+        system are dropped (made again at the next solve); ω and the motions are kept."""
+        for v in (self._U or []) + (self._G or []):
+            v.destroy()
+        self._U = self._G = None
+        self._border.current = None
+
     def checkpoint_state(self) -> dict:
         """ω of the last increment (the first trial of the next one) and the motion of each
         idle tool."""

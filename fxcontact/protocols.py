@@ -18,7 +18,7 @@ outputs and checkpoints check with ``isinstance`` before they call it (the Newto
   (checkpoints);
 * :class:`HasSetupSignature` — contributors (checkpoints);
 * :class:`HasSummary` — contributors (the run's summary);
-* :class:`Remeshable` — contributors (``Simulation.remesh``);
+* :class:`Remeshable` — contributors and controllers (``Simulation.remesh``);
 * :class:`SolvesIncrement` — one controller at most;
 * :class:`SolverHooks` — ``begin_solve``, ``fingerprint``, ``cycle_hint``, ``residual_floor``:
   contributors, called by the Newton solver.
@@ -124,7 +124,8 @@ class Remeshable(Protocol):
     def remesh(self, space, facet_tags) -> None:
         """Rebind to a new mesh of the body (``Simulation.remesh``): ``space`` the new
         :class:`~fxcontact.spaces.MixedSpace`, ``facet_tags`` its facet tags (the old tags on
-        the new boundary). Collective. A contributor without it stops a remesh."""
+        the new boundary). Collective. A contributor or a controller without it stops a
+        remesh; a controller that keeps nothing of the mesh has one that does nothing."""
 
 
 @runtime_checkable

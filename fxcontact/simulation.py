@@ -51,6 +51,11 @@ from fxcontact.outputs import (OutputError, Outputs, format_wall_split, output_d
 from fxcontact.petsc import ContributorError, NodalNonlinearProblem, add_nodal_residual
 from fxcontact.protocols import (BeginsIncrement, Contributor, EndsIncrement, HasDiagnostics,
                                  HasSummary, SolvesIncrement)
+from fxcontact.registration import (VelocityCondition as _BC, bc_label as _bc_label,
+                                    check_added_once as _check_added_once,
+                                    column_labels as _column_labels, label as _label,
+                                    merge_columns as _merge_columns,
+                                    time_value as _time_value)
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.selection import FacetSelection, remembered
 from fxcontact.retry import IncrementError, MeshInversionError, RetryLadder
@@ -73,79 +78,6 @@ class IncrementResult:
 
     row: Dict[str, float]
     info: SolveInfo
-
-
-@dataclass
-class _BC:
-    bc: object
-    g: object
-    value: object
-    gdim: Optional[int]
-    #: how the messages name it: number, component, facets
-    label: str = "velocity boundary condition"
-
-
-def _bc_label(sim, k: int, facets, component) -> str:
-    """``velocity boundary condition #k (component c, on n facets)`` (collective)."""
-    fdim = sim.mesh.topology.dim - 1
-    owned = sim.mesh.topology.index_map(fdim).size_local
-    n = sim.comm.allreduce(int(np.sum(np.asarray(facets) < owned)), op=MPI.SUM)
-    comp = "all components" if component is None else f"component {component}"
-    return f"velocity boundary condition #{k} ({comp}, on {n} facets)"
-
-
-def _time_value(value, t):
-    """A BC value at time t: constants pass through, f(t) is called, f(x) (vectorised) too."""
-    if callable(value):
-        try:
-            import inspect
-            params = inspect.signature(value).parameters
-        except (TypeError, ValueError):
-            params = {}
-        if "t" in params and len(params) == 1:
-            return value(t)
-        if "t" in params:
-            return lambda x: value(x, t)
-        return value
-    return value
-
-
-def _label(obj) -> str:
-    """``NodalContact 'die'``: a registered object in messages."""
-    name = getattr(obj, "name", None)
-    return type(obj).__name__ + (f" '{name}'" if isinstance(name, str) else "")
-
-
-def _column_labels(contributor) -> Dict[str, str]:
-    """The labels that start a contributor's history columns, with what each labels: its name
-    (a contact's ``{name}_nodes``…) and its tools' names (``{tool}_force_x``…)."""
-    out = {}
-    for tool in getattr(contributor, "tools", None) or []:
-        if isinstance(getattr(tool, "name", None), str):
-            out[tool.name] = f"tool '{tool.name}' of {_label(contributor)}"
-    if isinstance(contributor, HasDiagnostics) and isinstance(getattr(contributor, "name", None),
-                                                               str):
-        out[contributor.name] = _label(contributor)
-    return out
-
-
-def _check_added_once(obj, registered, what: str):
-    """ValueError if ``obj`` (the same object) is already registered."""
-    if any(r is obj for r in registered):
-        raise ValueError(f"{what} {_label(obj)} is already added to this simulation: added "
-                         f"twice, it would act twice (its forces counted twice, its history "
-                         f"columns wrong); add it once")
-
-
-def _merge_columns(row: dict, columns: dict, owner):
-    """Add ``columns`` to a history row; ValueError if one is already there (two contributors
-    or controllers writing the same column would overwrite each other)."""
-    clash = sorted(set(row) & set(columns))
-    if clash:
-        raise ValueError(f"history column(s) {clash} of {_label(owner)} are already written "
-                         f"by another contributor, reaction or symmetry plane: pass a distinct "
-                         f"name= to one of them")
-    row.update(columns)
 
 
 class Simulation:

@@ -172,6 +172,24 @@ def test_contributor_without_remesh_refused():
         sim.remesh(size=H)
 
 
+def test_controller_without_remesh_refused():
+    """A controller may keep something of the mesh (a surface, vectors of the system): one
+    without remesh(space, facet_tags) stops a remesh on every rank, naming it; a bad
+    RemeshCriteria.every is refused by set_remeshing."""
+    sim, _, _ = _setup()
+
+    class Counter:
+        def begin_increment(self, sim, t, dt, x_t):
+            pass
+
+    sim.add_controller(Counter())
+    with pytest.raises(ValueError, match=r"controller\(s\) \['Counter'\].*remesh\(space, "
+                                         r"facet_tags\)"):
+        sim.remesh(size=H)
+    with pytest.raises(ValueError, match="every must be an integer >= 1"):
+        sim.set_remeshing(RemeshCriteria(every=0))
+
+
 def test_extrusion_through_a_wide_die_with_remeshing():
     """The reduced extrusion through a 45° die: without remeshing an entry element inverts
     after 1 mm of punch stroke (benchmarks/bench_remesh_extrusion.py); with remeshing the run
@@ -195,3 +213,92 @@ def test_extrusion_through_a_wide_die_with_remeshing():
             if nxt is None or nxt["remesh"] == q["remesh"]][1:]
     assert any(q["remesh"] >= 1 for q in kept)
     assert max(abs(q["power_balance_penalty"]) for q in kept) < 1e-6
+
+
+def test_rescue_remesh_before_an_inverting_increment_fails():
+    """The 45° extrusion with one cut-back allowed and no criterion: at t = 0.1 an entry cell
+    (quality 0.02) inverts at dt and at dt/2; the rescue remeshes once, takes the increment
+    again from dt on the new mesh, and the run goes on (without the rescue it stops there
+    with a MeshInversionError: benchmarks/bench_remesh_extrusion.py)."""
+    from fxcontact.processes import ExtrusionCase
+    from fxcontact.processes.extrusion import build
+    case = ExtrusionCase.quick(alpha=45.0, stop_at_steady=False)
+    sim = build(case, COMM, None, 0).sim
+    sim.set_remeshing(criteria=None, size=case.h)
+    while sim.t < 0.125 - 1e-9:
+        sim.step(case.dt, max_cutbacks=1)
+    assert [r.reason for r in sim.remeshes] == ["an element would invert"]
+    rec = sim.remeshes[0]
+    assert rec.increment == sim.increment - 1 and rec.min_quality_after > 0.3
+    # the increment after the remesh is the one that inverted, taken again from dt
+    row = sim.history[rec.increment]
+    assert row["remesh"] == 1 and row["dt"] == case.dt and row["min_quality"] > 0.3
+    assert abs(row["volume_change"]) < 5e-3
+
+
+def test_contact_coverage_criterion_refines_the_bite():
+    """min_elements_across: the die's contact on the coarse billet is spanned by about 5
+    elements; with a threshold of 8 the first increment calls a remesh, whose zone of size H/3
+    under the die spans it by about 12: no further remesh in the next increments."""
+    from fxcontact.remesh.volume import SizeZone
+    sim, _, _ = _setup()
+    zone = SizeZone(h=H / 3, box=([0.0, 0.0, 12.0], [12.0, 12.0, 16.0]))
+    sim.set_remeshing(RemeshCriteria(min_quality=None, min_volume_ratio=None,
+                                     min_elements_across=8.0), size=H, zones=[zone])
+    for _ in range(3):
+        sim.step(DT)
+    assert len(sim.remeshes) == 1
+    assert sim.remeshes[0].increment == 1
+    assert "contact 'die' spanned by" in sim.remeshes[0].reason
+    assert sim.remeshes[0].cells_after > 2 * sim.remeshes[0].cells_before
+    assert [r["remesh"] for r in sim.history] == [0, 1, 1]
+    assert sim.history[-1]["contact_nodes"] > 0
+
+
+def _ring_case(**kw):
+    import dataclasses
+    from fxcontact.processes import ring_rolling as rr
+    return dataclasses.replace(rr.RingRollingCase().quick(), remesh=True, **kw)
+
+
+def test_ring_remesh_refines_in_front_of_the_bite():
+    """BiteZones: a remesh of the rolled ring is finer (the zone's size h_theta) over the arc
+    in front of the bite than on the opposite side (the mean edge length there); the
+    centring's outer surface and the contact are on the new mesh."""
+    from fxcontact.processes import ring_rolling as rr
+    s = rr.build(_ring_case(remesh_arc=60.0), COMM)
+    sim = s.sim
+    sim.step(s.dt)
+    sim.remesh()
+    assert s.centring.outer.mesh is sim.mesh and s.contact.boundary.mesh is sim.mesh
+    X = sim.vertex_positions()[sim._mesh_health._c2v_owned]
+    theta = np.degrees(np.arctan2(X[:, :, 1].mean(axis=1), X[:, :, 0].mean(axis=1)))
+    edges = np.mean([np.linalg.norm(X[:, i] - X[:, j], axis=1)
+                     for i in range(4) for j in range(i + 1, 4)], axis=0)
+    # the ring turns counterclockwise: the arc in front of the bite is at -60° < theta < 0
+    sums = [COMM.allreduce(np.array([np.sum(edges[m]), np.sum(m)]), op=MPI.SUM)
+            for m in ((theta > -55.0) & (theta < -5.0), np.abs(theta) > 120.0)]
+    front, back = (a / n for a, n in sums)
+    assert front < 0.7 * back
+    assert front < 1.5 * s.h_theta
+
+
+def test_ring_rolling_with_remeshing():
+    """RingRollingCase(remesh=True) over 0.3 revolution, remeshed every 4 increments (3/4 of
+    a 40° arc): the run goes on across the remeshes (centring, idle mandrel, measures on
+    each new mesh), the volume is kept, and the main roll's force and the mandrel's speed do
+    not jump at a remesh beyond the change between the increments before it."""
+    from fxcontact.processes import ring_rolling as rr
+    res = rr.run(_ring_case(revolutions=0.3, remesh_arc=40.0), COMM, pictures=False)
+    rows = res.history
+    assert res.status == "done" and res.revolutions > 0.29
+    assert len(res.remeshes) >= 2
+    assert all("increments since the last remesh" in r.reason for r in res.remeshes)
+    assert abs(rows[-1]["volume_change"]) < 1e-3
+    counts = [q["remesh"] for q in res.sim_history]
+    jumps = [i for i in range(3, len(rows)) if counts[i] != counts[i - 1]]
+    assert jumps
+    for i in jumps:
+        F = [abs(q["main_force_x"]) for q in rows[i - 3: i + 1]]
+        assert abs(F[3] - F[2]) <= max(abs(F[2] - F[1]), abs(F[1] - F[0])) + 0.1 * F[2]
+        assert abs(rows[i]["mandrel_omega"] / rows[i - 1]["mandrel_omega"] - 1) < 0.1

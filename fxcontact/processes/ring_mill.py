@@ -7,6 +7,9 @@
 * :class:`AxialRolls` — idle, frictionless axial (cone) rolls of a radial–axial mill whose apex
   follows the ring's centre on the mill line, moving along the ring axis at a given speed;
 * :func:`cone_row` — the upper cone's outputs and its axial-force estimate.
+* :class:`BiteZones` — the zones of a remesh (:meth:`fxcontact.Simulation.set_remeshing`): the
+  ring's wall in front of each roll gap, placed again at each remesh
+  (:func:`set_ring_remeshing`: the remeshing of ``RingRollingCase(remesh=True)``).
 
 They are registered with :meth:`fxcontact.Simulation.add_controller`, save what changes with
 ``checkpoint_state()`` and get it back with ``restore_state()``. The tool motions they drive
@@ -29,7 +32,7 @@ from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.mill import _controlled, rolling_speed
 from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
 
-__all__ = ["RingCentring", "AxialRolls", "cone_row"]
+__all__ = ["RingCentring", "AxialRolls", "cone_row", "BiteZones", "set_ring_remeshing"]
 
 
 class RingCentring:
@@ -137,6 +140,12 @@ class RingCentring:
                 "ring_center_z": float(c[2]), "ring_outer_radius": float(self.radius),
                 "ring_center_offset": float(np.linalg.norm(off))}
 
+    def remesh(self, space, facet_tags):
+        """A new mesh of the ring (``Simulation.remesh``): the outer surface selected again by
+        its tags, the centroid's forms made again; the guide rolls' motions are kept."""
+        self.outer = self.outer.remeshed(space, facet_tags)
+        self._forms = None
+
     def checkpoint_state(self) -> dict:
         """The guide rolls' motions and the last measured centre and outer radius."""
         return {"guides": [g.name for g in self.guides],
@@ -240,6 +249,10 @@ class AxialRolls:
             out[f"{cone.name}_omega"] = float(w)
         return out
 
+    def remesh(self, space, facet_tags):
+        """Nothing of the mesh is kept here (the contact and the centring rebind
+        themselves)."""
+
     def checkpoint_state(self) -> dict:
         return {"cones": [c.name for c in self.cones], "omega": list(self.omega),
                 "motions": [m.checkpoint_state() for m in self.motions]}
@@ -281,3 +294,73 @@ def cone_row(q, nodes, depth, Hm, Ro, Ri, w_ring, geo, K, m) -> dict:
                 nodes_cone=nodes, cone_penetration=depth, cone_gap=2.0 * za,
                 cone_apex_x=q["cone_apex_line"], cone_omega=q["cone_omega"],
                 cone_reduction=delta, cone_contact_length=L_a, cone_force_estimate=est)
+
+
+class BiteZones:
+    """The refinement of a ring's remesh: the ring's wall over the arc ``arc`` in front of each
+    roll gap (upstream: the material that the ring's rotation brings into the gap) and
+    ``downstream`` past it, meshed with size ``h``. A callable ``zones(sim) -> [SizeZone]``
+    (:meth:`fxcontact.Simulation.set_remeshing`): evaluated at each remesh on the ring as it is
+    then (its centre from ``centring``, its radii and height from its vertices), since the ring
+    turns under the fixed gaps: each remesh puts the fine arc back in front of the gaps.
+
+    Args:
+        centring: the mill's :class:`RingCentring` (ring axis, mill line, centre).
+        h: the element size in the zones.
+        angles: the gaps' angles [rad] about the ring axis from the mill line's direction
+            (radial rolling: 0; the axial gap of the cones: π).
+        arc: the arc [rad] refined upstream of each gap; ``downstream`` past it.
+        sense: the ring's sense of rotation about the axis (+1: counterclockwise).
+    """
+
+    def __init__(self, centring: RingCentring, h: float, angles: Sequence[float] = (0.0,),
+                 arc: float = 0.5 * math.pi, downstream: float = 0.1, sense: float = 1.0):
+        self.centring = centring
+        self.h, self.angles = float(h), [float(a) for a in angles]
+        self.arc, self.downstream, self.sense = float(arc), float(downstream), float(sense)
+
+    def __call__(self, sim) -> list:
+        from fxcontact.remesh.volume import SizeZone
+        cz = self.centring
+        c, _ = cz.measure(sim)
+        a, e = cz.axis, cz.e
+        f = np.cross(a, e)
+        d = sim.vertex_positions() - c
+        z = d @ a
+        rho = np.linalg.norm(d - np.outer(z, a), axis=1)
+        lo = [sim.comm.allreduce(float(np.min(v, initial=np.inf)), op=MPI.MIN) for v in (rho, z)]
+        hi = [sim.comm.allreduce(float(np.max(v, initial=-np.inf)), op=MPI.MAX) for v in (rho, z)]
+        h = self.h
+        radii = np.linspace(lo[0], hi[0], max(2, int(math.ceil((hi[0] - lo[0]) / h)) + 1))
+        heights = np.linspace(lo[1], hi[1], max(2, int(math.ceil((hi[1] - lo[1]) / h)) + 1))
+        zones = []
+        for phi in self.angles:
+            span = self.arc + self.downstream
+            n = max(2, int(math.ceil(span * hi[0] / h)) + 1)
+            th = phi + self.sense * np.linspace(-self.arc, self.downstream, n)
+            T, P, Z = np.meshgrid(th, radii, heights, indexing="ij")
+            pts = (c + np.outer(P.ravel() * np.cos(T.ravel()), e)
+                   + np.outer(P.ravel() * np.sin(T.ravel()), f) + np.outer(Z.ravel(), a))
+            zones.append(SizeZone(h=h, points=pts))
+        return zones
+
+
+def set_ring_remeshing(sim, centring: RingCentring, case, h_theta: float):
+    """The remeshing of a :class:`~fxcontact.processes.ring_rolling.RingRollingCase` with
+    ``remesh=True`` (its ``remesh_*`` fields): size the initial mean edge length, the
+    :class:`BiteZones` of size ``remesh_zone_h`` (default ``h_theta``) over ``remesh_arc``
+    in front of the radial gap (and of the axial one with cones); a remesh when the ring has
+    turned by 3/4 of that arc (``RemeshCriteria.every``, at the nominal speed), when a cell's
+    quality falls below ``remesh_min_quality``, and when the main roll's or the mandrel's bite
+    is spanned by fewer than ``remesh_min_across`` elements (None: not checked)."""
+    from fxcontact.remesh.criteria import RemeshCriteria
+    from fxcontact.remesh.simulation import mean_edge_length
+    c = case
+    across = None if c.remesh_min_across is None else \
+        dict.fromkeys(("main_roll", "mandrel"), c.remesh_min_across)
+    every = max(1, int(0.75 * c.remesh_arc / 360.0 * c.increments_per_rev))
+    zones = BiteZones(centring, c.remesh_zone_h or h_theta, [0.0, math.pi] if c.cones else [0.0],
+                      math.radians(c.remesh_arc))
+    sim.set_remeshing(RemeshCriteria(min_quality=c.remesh_min_quality, every=every,
+                                     min_elements_across=across),
+                      size=mean_edge_length(sim), zones=zones)

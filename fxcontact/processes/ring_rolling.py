@@ -52,7 +52,7 @@ from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.mill import IDLE_METHODS, ControlledMotion, IdleRotation
 from fxcontact.power import PowerBalance, delivered_power
 from fxcontact.processes.monitor import RunNumerics, SteadyRun, is_number
-from fxcontact.processes.ring_mill import AxialRolls, RingCentring, cone_row
+from fxcontact.processes.ring_mill import AxialRolls, RingCentring, cone_row, set_ring_remeshing
 
 __all__ = ["RingRollingCase", "RingRollingSetup", "RingRollingResult", "build", "run",
            "K_THESIS", "K_HOT", "QUICK", "TOOLS", "UPDATES"]
@@ -149,6 +149,15 @@ class RingRollingCase(RunNumerics):
     sticky_gap: float = 0.0
     max_it: int = 60                #: Newton iterations per solve
     newton_rtol: float = 1e-9       #: Newton's relative residual tolerance
+    # remeshing (off by default; ring_mill.set_ring_remeshing): a new mesh, finer (remesh_zone_h,
+    # default h_theta) over the arc remesh_arc [degrees] in front of each gap (ring_mill.BiteZones),
+    # made when the ring has turned by 3/4 of that arc, when a cell's quality falls below
+    # remesh_min_quality, and when a bite is spanned by fewer than remesh_min_across elements
+    remesh: bool = False
+    remesh_min_quality: float = 0.15
+    remesh_min_across: Optional[float] = None
+    remesh_zone_h: Optional[float] = None
+    remesh_arc: float = 90.0
     # (RunNumerics: scheme, line_search, penalty_continuation, active_set_prediction,
     # max_increments)
 
@@ -184,6 +193,11 @@ class RingRollingCase(RunNumerics):
         if self.cones and self.cone_speed is None:
             raise ValueError("cones need cone_speed (the opening speed of the axial gap, mm/s; "
                              "case1() has 0.4)")
+        if not (0 < self.remesh_min_quality < 1 and 0 < self.remesh_arc < 360
+                and (self.remesh_min_across or 0) >= 0
+                and (self.remesh_zone_h is None or self.remesh_zone_h > 0)):
+            raise ValueError("remesh_min_quality must be in (0, 1), remesh_arc in (0, 360) "
+                             "degrees, remesh_min_across >= 0 and remesh_zone_h > 0 (or None)")
         if self.cone_speed is not None and not is_number(self.cone_speed):
             raise ValueError(f"cone_speed must be a finite number, got {self.cone_speed!r}")
 
@@ -398,6 +412,8 @@ def build(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
         axial = sim.add_controller(AxialRolls(contact, [tools[4]], centring,
                                               [0.5 * c.cone_speed]))
     sim.add_contributor(contact)
+    if c.remesh:
+        set_ring_remeshing(sim, centring, c, h_theta)
     if resume:
         # the state of a checkpoint (True: the newest of this run): fields, geometry, contact,
         # the controllers (guide-roll and mandrel motions, ω, ring centre) and the history
@@ -422,9 +438,14 @@ class _Measure:
     def __init__(self, s: RingRollingSetup):
         self.s = s
         self.comm = s.sim.comm
-        self.V0 = s.sim.initial_volume
+        self.V0 = s.sim.initial_volume   # kept by a remesh
+        if s.outer is not s.centring.outer:   # after a remesh: the boundaries of the new mesh
+            ft = s.sim._remesh_facet_tags
+            s.outer, s.inner, s.top = (s.centring.outer, s.inner.remeshed(s.sim.space, ft),
+                                       s.top.remeshed(s.sim.space, ft))
         self.nown = s.sim.mesh.topology.index_map(0).size_local
         self.power = PowerBalance(s.sim, [s.contact])
+        self.remeshes = len(s.sim.remeshes)
 
     def _sum(self, *values):
         return self.comm.allreduce(np.array(values, dtype=float), op=MPI.SUM)
@@ -603,6 +624,7 @@ class RingRollingResult(SteadyRun):
     outer_growth: float = _NAN         #: outer diameter / 2R − 1
     wall_per_rev: float = _NAN
     cone: dict = field(default_factory=dict)   #: the cones' summary (with cones)
+    remeshes: list = field(default_factory=list)   #: the RemeshRecords (``remesh=True``)
     pictures: Dict[str, str] = field(default_factory=dict)
 
     def second_half(self) -> List[dict]:
@@ -757,6 +779,8 @@ def run(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
         except fx.IncrementError as e:            # raised on every rank: no hang
             status, message = "failed", str(e)
             break
+        if len(sim.remeshes) != measure.remeshes:
+            measure = _Measure(s)
         row = measure(inc)
         rows.append(row)
         if comm.rank == 0:   # progress of a long run (one line per increment; --quiet hides it)
@@ -774,7 +798,8 @@ def run(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
         feed_window=th["window"], contact_length=th["contact_length"],
         strain_rate_bite=th["strain_rate_bite"], sigma0=th["sigma0"],
         force_estimate=th["force_estimate"], Q=th["Q"], volume_initial=2.0 * measure.V0,
-        sim_history=list(sim.history), cone_geometry=s.cone_geometry)
+        sim_history=list(sim.history), cone_geometry=s.cone_geometry,
+        remeshes=list(sim.remeshes))
     if rows:
         _summarize(res, comm, sim.mesh)
     paths = {}

@@ -5,6 +5,8 @@
 * volume ratio: the smallest ratio of a cell's volume to its volume at the last remesh;
 * strain increment: the largest increase of the equivalent strain of a cell since the last
   remesh (a cell that deformed by that much has moved its distortion into the results);
+* increments: how many increments have passed since the last remesh
+  (:class:`~fxcontact.remesh.simulation.Remeshing`: a count, not a measure);
 * contact coverage: how many elements span the contact zone of a tool — the zone's width
   (its smallest in-surface extent, from the second moments of the contact nodes' positions:
   2√3 × the standard deviation along the smallest principal direction in the surface, the
@@ -19,7 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Dict, List, Optional
+from typing import Dict, List, Optional, Union
 
 import numpy as np
 from mpi4py import MPI
@@ -78,13 +80,18 @@ class RemeshCriteria:
         min_volume_ratio: … a cell's volume over its volume at the last remesh falls below it.
         max_strain_increment: … a cell's equivalent strain grew by more since the last remesh.
         min_elements_across: … a contact zone is spanned by fewer elements (zones of fewer than
-            3 nodes are not checked: no contact yet).
+            3 nodes are not checked: no contact yet); a number for every tool, or
+            ``{tool name: number}`` for the tools named (the bites, not the guides).
+        every: … this many increments have passed since the last remesh (or the start): a
+            refinement placed in front of a tool that the body moves under (a ring turning
+            under its rolls) is placed again before the refined part has passed the tool.
     """
 
     min_quality: Optional[float] = 0.15
     min_volume_ratio: Optional[float] = 0.05
     max_strain_increment: Optional[float] = None
-    min_elements_across: Optional[float] = None
+    min_elements_across: Union[float, Dict[str, float], None] = None
+    every: Optional[int] = None
 
 
 def _mean_edge(P: np.ndarray) -> tuple:
@@ -130,10 +137,11 @@ def check(comm, criteria: RemeshCriteria, cells: np.ndarray, vol_ref: np.ndarray
         reasons.append(f"min volume ratio {r:.3g} < {c.min_volume_ratio:g}")
     if c.max_strain_increment is not None and de > c.max_strain_increment:
         reasons.append(f"strain increment {de:.3g} > {c.max_strain_increment:g}")
-    if c.min_elements_across is not None:
-        for name, a in across.items():
-            if 0.0 < a < c.min_elements_across:
-                reasons.append(f"contact '{name}' spanned by {a:.2g} < "
-                               f"{c.min_elements_across:g} elements")
+    limits = c.min_elements_across
+    if not isinstance(limits, dict):
+        limits = {name: limits for name in across}
+    for name, a in across.items():
+        if limits.get(name) is not None and 0.0 < a < limits[name]:
+            reasons.append(f"contact '{name}' spanned by {a:.2g} < {limits[name]:g} elements")
     return {"min_quality": q, "min_volume_ratio": r, "max_strain_increment": de,
             "elements_across": across, "reasons": reasons}

@@ -15,9 +15,12 @@ A remesh (:func:`remesh_simulation`):
 3. binds the simulation to the new space (:func:`rebind`): the velocity conditions, reactions
    and symmetry planes are made again, in their order, on the facets of the same tags
    (:mod:`~fxcontact.remesh.selection`), each contributor rebinds itself
-   (``remesh(space, facet_tags)``, :class:`~fxcontact.protocols.Remeshable`), the forms and the
-   solver are built again. Tools, friction laws, controllers, the history, ``t`` and the
-   increment are kept.
+   (``remesh(space, facet_tags)``, :class:`~fxcontact.protocols.Remeshable`), and so does each
+   controller (the ring's centring its outer surface, an idle rotation its vectors of the old
+   system; a controller without ``remesh`` stops a remesh: it may keep something of the old
+   mesh) and the kinematics if it has ``remesh``; the forms and the solver are built again.
+   Tools, friction laws, the controllers' states, the history, ``t`` and the increment are
+   kept.
 
 The VTK series goes on in a new segment of files (``<name>_r<k>…``) referenced from the same
 ``.pvd``; the history's ``remesh`` column counts the remeshes before each increment;
@@ -29,7 +32,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Callable, List, Optional, Sequence, Union
 
 import numpy as np
@@ -37,6 +40,7 @@ from mpi4py import MPI
 
 from fxcontact.collective import together
 from fxcontact.protocols import Remeshable
+from fxcontact.registration import label
 from fxcontact.remesh import criteria as _criteria
 from fxcontact.remesh.selection import facet_tags_of, rederived_calls
 from fxcontact.remesh.volume import SizeZone
@@ -61,6 +65,10 @@ class RemeshRecord:
     min_quality_before: float
     min_quality_after: float
     wall: float
+    #: this rank's wall time of each phase: ``boundary`` (gathered on rank 0), ``generate``
+    #: (gmsh), ``distribute`` (the new mesh over the ranks), ``spaces``, ``transfer`` (the
+    #: state), ``rebind`` (conditions, contributors, outputs), ``setup`` (forms, solver)
+    phases: dict = field(default_factory=dict)
 
     def line(self) -> str:
         return (f"remesh {self.number} at t = {self.t:.6g} (after increment {self.increment}): "
@@ -122,6 +130,11 @@ class Remeshing:
             if criteria is not None and not isinstance(criteria, _criteria.RemeshCriteria):
                 raise ValueError(f"set_remeshing(criteria): give a fxcontact.remesh.criteria."
                                  f"RemeshCriteria or None, got {criteria!r}")
+            every = getattr(criteria, "every", None)
+            if every is not None and not (isinstance(every, (int, np.integer)) and every >= 1):
+                raise ValueError(f"set_remeshing(criteria): RemeshCriteria.every must be an "
+                                 f"integer >= 1 (increments between remeshes) or None, got "
+                                 f"{every!r}")
             if size is not None:
                 _check_size(size)
             _check_zones(zones)
@@ -158,6 +171,9 @@ class Remeshing:
         res = _criteria.check(sim.comm, crit, cells, mh._vol0, sim.strain.x.array[:n],
                               self.strain_ref[:n],
                               _contact_zones(sim) if crit.min_elements_across else None)
+        since = sim.increment - (sim.remeshes[-1].increment if sim.remeshes else 0)
+        if crit.every and since >= crit.every:
+            res["reasons"].append(f"{since} increments since the last remesh")
         return res["reasons"]
 
     def after_increment(self, sim):
@@ -197,6 +213,21 @@ def _contact_zones(sim) -> dict:
     return out
 
 
+class _Clock:
+    """The wall times of consecutive phases (this rank's): ``lap(name)`` records the time
+    since the last lap under ``name`` (``lap()`` only restarts)."""
+
+    def __init__(self):
+        self.times = {}
+        self._t = time.perf_counter()
+
+    def lap(self, name: Optional[str] = None):
+        t = time.perf_counter()
+        if name is not None:
+            self.times[name] = t - self._t
+        self._t = t
+
+
 def _global_cells(msh) -> int:
     return int(msh.topology.index_map(msh.topology.dim).size_global)
 
@@ -212,7 +243,6 @@ def remesh_simulation(sim, size: Optional[float] = None,
     from fxcontact.remesh.boundary import gather_boundary
     from fxcontact.remesh.state import transfer_simulation_state
     from fxcontact.remesh.volume import volume_mesh
-    from fxcontact.simulation import _label
     from fxcontact.spaces import MixedSpace
     settings = sim._remeshing
     with together(sim.comm, "Simulation.remesh()", reason=reason):
@@ -222,11 +252,12 @@ def remesh_simulation(sim, size: Optional[float] = None,
         if sim.mesh.topology.dim != 3:
             raise ValueError(f"remesh: remeshing needs a tetrahedral mesh, got tdim = "
                              f"{sim.mesh.topology.dim}")
-        bad = [_label(c) for c in sim.contributors if not isinstance(c, Remeshable)]
-        if bad:
-            raise ValueError(f"remesh: contributor(s) {bad} cannot be rebound to a new mesh: "
-                             f"give them a method remesh(space, facet_tags) "
-                             f"(fxcontact.protocols.Remeshable)")
+        for kind, objs in (("contributor", sim.contributors), ("controller", sim.controllers)):
+            bad = [label(c) for c in objs if not isinstance(c, Remeshable)]
+            if bad:
+                raise ValueError(f"remesh: {kind}(s) {bad} cannot be rebound to a new mesh: "
+                                 f"give them a method remesh(space, facet_tags) "
+                                 f"(fxcontact.protocols.Remeshable)")
         ft = facet_tags_of(sim, [getattr(getattr(c, "boundary", None), "facet_tags", None)
                                  for c in sim.contributors])
         zones = zones if zones is not None else (settings.zones if settings else ())
@@ -243,16 +274,25 @@ def remesh_simulation(sim, size: Optional[float] = None,
     zone_list = list(zones(sim) if callable(zones) else zones)
     cells0, vol0 = _global_cells(sim.mesh), sim.volume()
     q0 = sim.mesh_health()["min_quality"]
+    clock = _Clock()
     surface = gather_boundary(sim.mesh, ft)
-    msh, _, nft = volume_mesh(sim.comm, surface, size, zone_list, feature_angle)
+    clock.lap("boundary")
+    msh, _, nft = volume_mesh(sim.comm, surface, size, zone_list, feature_angle,
+                              times=clock.times)
+    clock.lap()
     space = MixedSpace(msh, sim.space.element, sim.space.quadrature_degree)
+    clock.lap("spaces")
     state = transfer_simulation_state(sim, space)
-    rebind(sim, space, nft, state)
+    clock.lap("transfer")
+    rebind(sim, space, nft, state, build=False)
+    clock.lap("rebind")
+    build_keeping_volume(sim, state["volume_initial"])
+    clock.lap("setup")
     rec = RemeshRecord(number=len(sim.remeshes) + 1, increment=sim.increment, t=sim.t,
                        reason=reason, cells_before=cells0, cells_after=_global_cells(msh),
                        volume_change=sim.volume() / vol0 - 1.0, min_quality_before=q0,
                        min_quality_after=sim.mesh_health()["min_quality"],
-                       wall=time.perf_counter() - t0)
+                       wall=time.perf_counter() - t0, phases=clock.times)
     sim.remeshes.append(rec)
     if settings is not None:
         settings.after_remesh(sim, rec)
@@ -287,16 +327,23 @@ def rebind(sim, space, facet_tags, state=None, build: bool = True):
     for name, call in calls:
         getattr(sim, name)(**call)
     sim._labels = labels
-    for c in sim.contributors:
-        c.remesh(space, facet_tags)
+    for c in sim.contributors + sim.controllers + [sim.kinematics]:
+        if isinstance(c, Remeshable):
+            c.remesh(space, facet_tags)
     sim._remesh_facet_tags = facet_tags
     sim._outputs = Outputs(sim)
     sim._outputs.opened = opened
     if build:
-        v0 = sim._volume_initial
-        sim._build()
-        sim._volume_initial = state["volume_initial"] if state is not None else v0
-        sim._update_volume_correction()
+        build_keeping_volume(sim, state["volume_initial"] if state is not None else
+                             sim._volume_initial)
+
+
+def build_keeping_volume(sim, volume_initial: float):
+    """The forms and the solver of the rebound ``sim``, with the volume correction's
+    reference ``volume_initial`` (the body's volume at t = 0) kept (collective)."""
+    sim._build()
+    sim._volume_initial = volume_initial
+    sim._update_volume_correction()
 
 
 # ------------------------------------------------------------------------------ checkpoints

@@ -20,6 +20,7 @@ triangles carry (the old facet nearest to each new facet's centroid).
 from __future__ import annotations
 
 import logging
+import time
 from dataclasses import dataclass
 from typing import Optional, Sequence
 
@@ -300,7 +301,8 @@ def _restore_volume(gmsh, volume: float, on_planes):
 
 
 def volume_mesh(comm, surface: BoundarySurface, h: float, zones: Sequence[SizeZone] = (),
-                feature_angle: float = 40.0, optimize: bool = True, root: int = 0):
+                feature_angle: float = 40.0, optimize: bool = True, root: int = 0,
+                times: Optional[dict] = None):
     """A tetrahedral mesh of the body bounded by ``surface`` (given on ``root``), made there by
     gmsh and distributed over ``comm`` (collective; module docstring).
 
@@ -310,6 +312,8 @@ def volume_mesh(comm, surface: BoundarySurface, h: float, zones: Sequence[SizeZo
         zones: :class:`SizeZone` s where the mesh is finer (near the tools).
         feature_angle: edges whose dihedral angle exceeds it (degrees) are kept as sharp edges.
         optimize: gmsh's tetrahedron optimisation.
+        times: a dict that receives this rank's wall times of ``generate`` (gmsh, on
+            ``root``) and ``distribute`` (the mesh over ``comm``).
     Returns:
         ``(mesh, cell_tags, facet_tags)``; the facet tags are those of the old boundary.
     """
@@ -322,6 +326,8 @@ def volume_mesh(comm, surface: BoundarySurface, h: float, zones: Sequence[SizeZo
         if not 0.0 < feature_angle < 180.0:
             raise ValueError(f"volume_mesh: feature_angle must be in (0, 180) degrees, got "
                              f"{feature_angle!r}")
+    times = {} if times is None else times
+    t0 = time.perf_counter()
     with gmsh_session("remesh") as gmsh:
         err = None
         if comm.rank == root:
@@ -334,4 +340,7 @@ def volume_mesh(comm, surface: BoundarySurface, h: float, zones: Sequence[SizeZo
             raise RuntimeError(f"volume_mesh: gmsh failed to mesh the boundary ({err}): a "
                                f"boundary that is not closed or intersects itself, or a size too "
                                f"large for its thinnest part; try a smaller h or feature_angle")
-        return compat.model_to_mesh(gmsh.model, comm, root, gdim=3)
+        t1 = time.perf_counter()
+        out = compat.model_to_mesh(gmsh.model, comm, root, gdim=3)
+        times.update(generate=t1 - t0, distribute=time.perf_counter() - t1)
+        return out
