@@ -295,3 +295,32 @@ def test_simulation_state_transferred(deformed_billet):
     assert _max(st["w_prev"].x.array[space.Q_to_W]) == 0.0
     assert abs(cellwise_integral(st["strain"])[0] / cellwise_integral(sim.strain)[0] - 1) < 1e-10
     assert st["volume_initial"] == sim.initial_volume
+
+
+def test_gmsh_failure_retried_once_then_reported(deformed_billet, monkeypatch, caplog):
+    """A gmsh refusal (gmsh 4.8 refused a ring's boundary once and meshed it when asked again)
+    is retried once in a fresh session, with a warning; a second refusal raises a RuntimeError
+    on every rank that says what to change."""
+    from fxcontact.remesh import volume
+    _, _, surface, zone, _, _ = deformed_billet
+    build = volume._build_on_root
+    calls = []
+
+    def flaky(*args, fail=1, **kwargs):
+        calls.append(1)
+        if len(calls) <= fail:
+            raise Exception("Invalid boundary mesh (overlapping facets)")
+        return build(*args, **kwargs)
+
+    monkeypatch.setattr(volume, "_build_on_root", flaky)
+    with caplog.at_level("WARNING", logger="fxcontact.remesh.volume"):
+        new, _, _ = volume_mesh(COMM, surface, h=2.5, zones=[zone])
+    assert new.topology.index_map(3).size_global > 0
+    if COMM.rank == 0:
+        assert "trying once more" in caplog.text
+    calls.clear()
+    monkeypatch.setattr(volume, "_build_on_root",
+                        lambda *a, **k: flaky(*a, fail=2, **k))
+    with pytest.raises(RuntimeError, match="gmsh failed to mesh the boundary twice.*overlapping"
+                                           ".*smaller h or feature_angle"):
+        volume_mesh(COMM, surface, h=2.5, zones=[zone])

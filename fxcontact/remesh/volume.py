@@ -328,19 +328,24 @@ def volume_mesh(comm, surface: BoundarySurface, h: float, zones: Sequence[SizeZo
                              f"{feature_angle!r}")
     times = {} if times is None else times
     t0 = time.perf_counter()
-    with gmsh_session("remesh") as gmsh:
-        err = None
-        if comm.rank == root:
-            try:
-                _build_on_root(gmsh, surface, h, list(zones), feature_angle, optimize)
-            except Exception as e:   # gmsh's errors are plain Exceptions
-                err = f"{type(e).__name__}: {e}"
-        err = comm.bcast(err, root=root)
-        if err is not None:
-            raise RuntimeError(f"volume_mesh: gmsh failed to mesh the boundary ({err}): a "
-                               f"boundary that is not closed or intersects itself, or a size too "
-                               f"large for its thinnest part; try a smaller h or feature_angle")
-        t1 = time.perf_counter()
-        out = compat.model_to_mesh(gmsh.model, comm, root, gdim=3)
-        times.update(generate=t1 - t0, distribute=time.perf_counter() - t1)
-        return out
+    for attempt in (1, 2):
+        # gmsh 4.8 has refused a boundary once ("overlapping facets") and meshed it when asked
+        # again with the same input: one more attempt in a fresh session before giving up
+        with gmsh_session("remesh") as gmsh:
+            err = None
+            if comm.rank == root:
+                try:
+                    _build_on_root(gmsh, surface, h, list(zones), feature_angle, optimize)
+                except Exception as e:   # gmsh's errors are plain Exceptions
+                    err = f"{type(e).__name__}: {e}"
+            err = comm.bcast(err, root=root)
+            if err is None:
+                t1 = time.perf_counter()
+                out = compat.model_to_mesh(gmsh.model, comm, root, gdim=3)
+                times.update(generate=t1 - t0, distribute=time.perf_counter() - t1)
+                return out
+        if attempt == 1:
+            log.warning("volume_mesh: gmsh failed (%s); trying once more", err)
+    raise RuntimeError(f"volume_mesh: gmsh failed to mesh the boundary twice ({err}): a "
+                       f"boundary that is not closed or intersects itself, or a size too large "
+                       f"for its thinnest part; try a smaller h or feature_angle")
