@@ -50,7 +50,7 @@ from mpi4py import MPI
 
 
 from fxcontact.contact.boundary import ContactBoundary
-from fxcontact.contact.nodal_io import STICK_FACTOR, NodalContactIO
+from fxcontact.contact.nodal_io import STICK_FACTOR, NodalContactIO, flip_hint
 from fxcontact.contact.friction import (LAW_NONE, friction_kernel, friction_kernel_numpy,
                                         laws_per_tool, shear_flow_stress)
 from fxcontact.contact.penalty import (DEFAULT_BETA, Penalty, penalty_from_beta,  # noqa: F401
@@ -83,17 +83,6 @@ def _pad3(x: np.ndarray) -> np.ndarray:
     out = np.zeros((x.shape[0], 3))
     out[:, : x.shape[1]] = x
     return out
-
-
-def _flip_hint(tool) -> str:
-    """How to turn a tool's surface the other way (:meth:`NodalContact._check_placement`)."""
-    base = getattr(tool, "tool", tool)   # a MovedTool's tool
-    if hasattr(base, "normal") and not hasattr(base, "inside"):
-        return (f"flip the normal (normal={tuple(0.0 - float(v) for v in base.normal)}: it must "
-                f"point out of the tool, towards the body)")
-    if hasattr(base, "inside"):
-        return f"set inside={not base.inside} (inside=True: the body is inside the surface)"
-    return "flip the orientation of its surface (its normals must point towards the body)"
 
 
 class _DisplacementBody:
@@ -312,27 +301,6 @@ class NodalContact(NodalContactIO):
         self._branch = np.zeros(n, dtype=np.int8)
         self._point = np.zeros((n, 3))
 
-    def remesh(self, space, facet_tags):
-        """Rebind to a new mesh of the body (:meth:`Simulation.remesh
-        <fxcontact.simulation.Simulation.remesh>`; collective): the contact boundary is
-        selected again by the same tags in the new ``facet_tags``
-        (:meth:`ContactBoundary.remeshed`); tools, friction laws, the penalty (as resolved,
-        with the element size of the set-up) and the slip regularisation are kept; the
-        pressures of the last increment (explicit friction) go to the nearest new node."""
-        if self.formulation != "velocity":
-            raise ValueError(f"contact '{self.name}': only the velocity formulation "
-                             f"(Simulation) can be remeshed")
-        from scipy.spatial import cKDTree
-        old = self.boundary
-        comm = old.comm
-        x_old = np.concatenate(comm.allgather(old.mesh_positions()))
-        p_old = np.concatenate(comm.allgather(self._p_prev))
-        self.boundary = old.remeshed(space, facet_tags)
-        self._reset_nodes(len(self.boundary))
-        if len(x_old) and len(self.boundary):
-            self._p_prev = p_old[cKDTree(x_old).query(self.boundary.mesh_positions())[1]]
-        self._fields = None
-
     # ------------------------------------------------------------------ friction set-up
     def _begin_friction(self, sim, t: float, dt: float):
         """Material data at the nodes and the slip regularisation (collective)."""
@@ -507,7 +475,7 @@ class NodalContact(NodalContactIO):
                     f"{t:.6g}: every node of the body is on the tool's side of its surface (down "
                     f"to {-lo:.3g} deep), so the contact could never act (no contact node, zero "
                     f"force). The tool's surface is turned the wrong way: "
-                    f"{_flip_hint(tool)}")
+                    f"{flip_hint(tool)}")
         self._placement_checked = True
 
     def begin_step(self, t: float, dt: float, u):

@@ -1,6 +1,7 @@
 """What a :class:`~fxcontact.contact.NodalContact` gives out and takes back: history columns,
 tool forces and torques, VTK fields, its line of the run's summary, the message naming what
-changes over a Newton cycle, the checkpoint state and the set-up signature.
+changes over a Newton cycle or how to turn a misplaced tool, the checkpoint state and the
+set-up signature, and the state carried to a new mesh of the body (``remesh``).
 
 :class:`NodalContactIO` is a mixin of :class:`~fxcontact.contact.NodalContact`: its methods read
 the contact's state of the last evaluation (``_h``, ``_tool``, ``_r``, ``_rf``, ``_tau`` …).
@@ -23,6 +24,17 @@ __all__ = ["NodalContactIO", "STICK_FACTOR"]
 
 #: a node sticks if its slip speed |Δv_t| is below this many v₀ (diagnostics only)
 STICK_FACTOR = 3.0
+
+
+def flip_hint(tool) -> str:
+    """How to turn a tool's surface the other way (:meth:`NodalContact._check_placement`)."""
+    base = getattr(tool, "tool", tool)   # a MovedTool's tool
+    if hasattr(base, "normal") and not hasattr(base, "inside"):
+        return (f"flip the normal (normal={tuple(0.0 - float(v) for v in base.normal)}: it must "
+                f"point out of the tool, towards the body)")
+    if hasattr(base, "inside"):
+        return f"set inside={not base.inside} (inside=True: the body is inside the surface)"
+    return "flip the orientation of its surface (its normals must point towards the body)"
 
 
 class NodalContactIO:
@@ -248,3 +260,24 @@ class NodalContactIO:
                                       f"does not fit this tool's {type(t.motion).__name__}")
             if m is not None:
                 t.motion.restore_state(m)
+
+    def remesh(self, space, facet_tags):
+        """Rebind to a new mesh of the body (:meth:`Simulation.remesh
+        <fxcontact.simulation.Simulation.remesh>`; collective): the contact boundary is
+        selected again by the same tags in the new ``facet_tags``
+        (:meth:`ContactBoundary.remeshed`); tools, friction laws, the penalty (as resolved,
+        with the element size of the set-up) and the slip regularisation are kept; the
+        pressures of the last increment (explicit friction) go to the nearest new node."""
+        if self.formulation != "velocity":
+            raise ValueError(f"contact '{self.name}': only the velocity formulation "
+                             f"(Simulation) can be remeshed")
+        from scipy.spatial import cKDTree
+        old = self.boundary
+        comm = old.comm
+        x_old = np.concatenate(comm.allgather(old.mesh_positions()))
+        p_old = np.concatenate(comm.allgather(self._p_prev))
+        self.boundary = old.remeshed(space, facet_tags)
+        self._reset_nodes(len(self.boundary))
+        if len(x_old) and len(self.boundary):
+            self._p_prev = p_old[cKDTree(x_old).query(self.boundary.mesh_positions())[1]]
+        self._fields = None

@@ -186,6 +186,11 @@ class ProcessResult:
     csv: Optional[str] = None
     vtk: Optional[str] = None
 
+    def report_text(self, lines) -> str:
+        """The report's ``lines`` and the line of the pictures written (if any), joined."""
+        pictures = getattr(self, "pictures", None)
+        return "\n".join(list(lines) + (["pictures: " + ", ".join(pictures)] if pictures else []))
+
     def numerics_lines(self) -> list:
         """The report's lines on the power balance and the numerics."""
         from fxcontact.simulation import format_wall_split

@@ -282,9 +282,7 @@ class DrawingResult(ProcessResult):
                 f"die used {self.max_penetration_tool:.3g} mm (facet sag "
                 f"{self.facet_sag:.2g}); contact nodes at t = {self.time_01:.3g} s: "
                 f"{self.contact_nodes_01}"] + self.numerics_lines()
-        if self.pictures:
-            lines.append("pictures: " + ", ".join(self.pictures))
-        return "\n".join(lines)
+        return self.report_text(lines)
 
 
 def run(case: DrawingCase, comm=None, output_dir: Optional[str] = None, pictures: bool = True,

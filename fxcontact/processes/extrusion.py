@@ -335,9 +335,7 @@ class ExtrusionResult(ProcessResult):
         if self.history:
             lines.append(f"max penetration {self.max_penetration:.3g} mm")
             lines += self.numerics_lines()
-        if self.pictures:
-            lines.append("pictures: " + ", ".join(self.pictures))
-        return "\n".join(lines)
+        return self.report_text(lines)
 
 
 def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,

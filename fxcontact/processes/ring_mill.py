@@ -27,12 +27,45 @@ import numpy as np
 from mpi4py import MPI
 
 from fxcontact import forming
-from fxcontact.contact.friction import LAW_NONE
+from fxcontact.contact.friction import LAW_NONE, Coulomb, Frictionless, Norton
 from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.mill import _controlled, rolling_speed
+from fxcontact.processes.monitor import is_number
 from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
 
-__all__ = ["RingCentring", "AxialRolls", "cone_row", "BiteZones", "set_ring_remeshing"]
+__all__ = ["RingCentring", "AxialRolls", "cone_row", "BiteZones", "set_ring_remeshing",
+           "FRICTIONS", "friction_spec", "friction_law"]
+
+
+#: the friction laws of a tool: ``(law, a, b)``: ("coulomb", μ, m̄) or ("norton", α_f, q)
+FRICTIONS = ("coulomb", "norton")
+
+
+def friction_spec(name, spec):
+    """``None``/"none", a tuple ``(law, a, b)`` or the string "law,a,b" → a tuple or None."""
+    if spec is None or (isinstance(spec, str) and spec.strip().lower() in ("none", "")):
+        return None
+    if isinstance(spec, str):
+        parts = [p.strip() for p in spec.split(",")]
+        try:
+            spec = (parts[0].lower(), *map(float, parts[1:]))
+        except ValueError:
+            spec = tuple(parts)
+    ok = (isinstance(spec, tuple) and len(spec) == 3 and spec[0] in FRICTIONS
+          and all(is_number(x) and x >= 0 for x in spec[1:]))
+    if not ok:
+        raise ValueError(f"{name} must be None or (law, a, b) with law in {FRICTIONS} "
+                         f"(\"coulomb\": mu, mbar; \"norton\": alpha_f, q), e.g. "
+                         f"(\"coulomb\", 0.3, 0.6) or \"coulomb,0.3,0.6\"; got {spec!r}")
+    return (spec[0], float(spec[1]), float(spec[2]))
+
+
+def friction_law(spec):
+    """A tool's friction law from its :func:`friction_spec` tuple (None: frictionless)."""
+    if spec is None:
+        return Frictionless()
+    kind, a, b = spec
+    return Norton(alpha_f=a, q=b) if kind == "norton" else Coulomb(a, mbar=b)
 
 
 class RingCentring:

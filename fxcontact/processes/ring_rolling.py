@@ -52,7 +52,8 @@ from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.mill import IDLE_METHODS, ControlledMotion, IdleRotation
 from fxcontact.power import PowerBalance, delivered_power
 from fxcontact.processes.monitor import RunNumerics, SteadyRun, is_number
-from fxcontact.processes.ring_mill import AxialRolls, RingCentring, cone_row, set_ring_remeshing
+from fxcontact.processes.ring_mill import (AxialRolls, RingCentring, cone_row, friction_law,
+                                          friction_spec, set_ring_remeshing)
 
 __all__ = ["RingRollingCase", "RingRollingSetup", "RingRollingResult", "build", "run",
            "K_THESIS", "K_HOT", "QUICK", "TOOLS", "UPDATES"]
@@ -67,36 +68,8 @@ K_HOT = 50.0
 TOOLS = ("analytic", "faceted")
 #: the configuration updates
 UPDATES = ("cylindrical", "cartesian")
-#: the friction laws of a tool: ``(law, a, b)``: ("coulomb", μ, m̄) or ("norton", α_f, q)
-FRICTIONS = ("coulomb", "norton")
 #: the reduced size of the tests: a coarse ring, a fifth of a revolution
 QUICK = dict(n_theta=100, n_r=3, n_z=1, increments_per_rev=50, revolutions=0.2)
-
-
-def _friction_spec(name, spec):
-    """``None``/"none", a tuple ``(law, a, b)`` or the string "law,a,b" → a tuple or None."""
-    if spec is None or (isinstance(spec, str) and spec.strip().lower() in ("none", "")):
-        return None
-    if isinstance(spec, str):
-        parts = [p.strip() for p in spec.split(",")]
-        try:
-            spec = (parts[0].lower(), *map(float, parts[1:]))
-        except ValueError:
-            spec = tuple(parts)
-    ok = (isinstance(spec, tuple) and len(spec) == 3 and spec[0] in FRICTIONS
-          and all(is_number(x) and x >= 0 for x in spec[1:]))
-    if not ok:
-        raise ValueError(f"{name} must be None or (law, a, b) with law in {FRICTIONS} "
-                         f"(\"coulomb\": mu, mbar; \"norton\": alpha_f, q), e.g. "
-                         f"(\"coulomb\", 0.3, 0.6) or \"coulomb,0.3,0.6\"; got {spec!r}")
-    return (spec[0], float(spec[1]), float(spec[2]))
-
-
-def _friction(spec):
-    if spec is None:
-        return fx.Frictionless()
-    kind, a, b = spec
-    return fx.Norton(alpha_f=a, q=b) if kind == "norton" else fx.Coulomb(a, mbar=b)
 
 
 @dataclass(frozen=True)
@@ -186,7 +159,7 @@ class RingRollingCase(RunNumerics):
             raise ValueError(f"idle_method must be one of {IDLE_METHODS}, got "
                              f"{self.idle_method!r}")
         for key in ("main_friction", "mandrel_friction"):
-            object.__setattr__(self, key, _friction_spec(key, getattr(self, key)))
+            object.__setattr__(self, key, friction_spec(key, getattr(self, key)))
         if not (is_number(self.cone_half_angle) and 0.0 < self.cone_half_angle < 60.0):
             raise ValueError(f"cone_half_angle must be in (0, 60) degrees, got "
                              f"{self.cone_half_angle!r}")
@@ -386,11 +359,11 @@ def build(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
     # them, its flat facets cut inside by up to the sagitta s²/8R)
     exact = [_tool("analytic", t.name, rad, t.motion.axis_point, H, t.motion, fs)
              for t, rad in zip(tools, [R1, R2, Rg, Rg])] + tools[4:]
-    friction = {"main_roll": _friction(c.main_friction)}
+    friction = {"main_roll": friction_law(c.main_friction)}
     if c.mandrel_friction is not None:
-        friction["mandrel"] = _friction(c.mandrel_friction)
+        friction["mandrel"] = friction_law(c.mandrel_friction)
         if c.idle_guides:
-            friction.update({g.name: _friction(c.mandrel_friction) for g in guides})
+            friction.update({g.name: friction_law(c.mandrel_friction) for g in guides})
     tags = [fx.RING_TAGS["outer"], fx.RING_TAGS["inner"]]
     if c.cones:
         tags.append(fx.RING_TAGS["top"])

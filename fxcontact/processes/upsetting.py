@@ -344,9 +344,7 @@ class UpsettingResult(ProcessResult):
                                   else "never to the end") +
                 (f"; out of it: {self.out_of_band}" if self.out_of_band else "")]
             lines += self.numerics_lines()
-        if self.pictures:
-            lines.append("pictures: " + ", ".join(self.pictures))
-        return "\n".join(lines)
+        return self.report_text(lines)
 
 
 def run(case: UpsettingCase, comm=None, output_dir: Optional[str] = None,
