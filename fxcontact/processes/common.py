@@ -51,6 +51,14 @@ class CaseBase:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{key} must be a finite number > 0, got {v!r}")
 
+    def check_remesh_fields(self):
+        """``remesh_min_quality`` in (0, 1) and ``remesh_zone_h`` None or > 0."""
+        q = self.remesh_min_quality
+        if not (isinstance(q, (int, float)) and 0 < q < 1):
+            raise ValueError(f"remesh_min_quality must be in (0, 1), got {q!r}")
+        if self.remesh_zone_h is not None:
+            self.check_positive(("remesh_zone_h",))
+
     def check_bar_and_die(self, alpha_max: float):
         """R1 < R0, the die semi-angle alpha in (0, alpha_max) degrees, the nose ratio in
         (0, 1), the Norton–Hoff m in (0, 1]."""

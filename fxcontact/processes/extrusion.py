@@ -157,11 +157,7 @@ class ExtrusionCase(CaseBase):
             raise ValueError("container 'profile' is one tool with one friction law: give "
                              "mbar_die == mbar_container and no container_shear_limit, or "
                              "container='separate'")
-        if not 0 < self.remesh_min_quality < 1:
-            raise ValueError(f"remesh_min_quality must be in (0, 1), got "
-                             f"{self.remesh_min_quality}")
-        if self.remesh_zone_h is not None:
-            self.check_positive(("remesh_zone_h",))
+        self.check_remesh_fields()
         if self.scheme not in SCHEMES:
             raise ValueError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
         self.die_profile()      # the billet must hold the nose, the cone the fillets

@@ -148,11 +148,7 @@ class UpsettingCase(CaseBase):
             raise ValueError("mbar=None (no Tresca cap) needs a Coulomb mu: give mu or mbar")
         if self.mu is not None and not (math.isfinite(self.mu) and self.mu >= 0):
             raise ValueError(f"mu must be a finite number >= 0, got {self.mu}")
-        if not self.remesh_min_quality < 1:
-            raise ValueError(f"remesh_min_quality must be in (0, 1), got "
-                             f"{self.remesh_min_quality}")
-        if self.remesh_zone_h is not None:
-            self.check_positive(("remesh_zone_h",))
+        self.check_remesh_fields()
         if self.scheme not in SCHEMES:
             raise ValueError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
 
