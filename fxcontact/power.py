@@ -157,7 +157,10 @@ class PowerBalance:
     not called at every increment); under another update (the cylindrical one of rings) it
     must be called after every increment (ValueError otherwise). After a remesh its forms
     follow the new mesh; the row of the increment that ended with the remesh is then evaluated
-    on the new mesh moved back by ``dt v`` (an approximation: a few % off)."""
+    on the new mesh moved back by ``dt v`` under the Cartesian update (an approximation: a few
+    % off) and is NaN under another update (its start configuration on the new mesh is not
+    known). Keep one balance over the remeshes: a new one does not know where its first
+    increment started."""
 
     def __init__(self, sim, contacts):
         self.sim = sim
@@ -171,9 +174,12 @@ class PowerBalance:
         self._dissipation = PlasticDissipation(self.sim)
         self._pressure = PressurePower(self.sim)
 
-    def _start_configuration(self, X, v, dt):
-        """The increment's start configuration (see the class)."""
+    def _start_configuration(self, X, v, dt, remeshed=False):
+        """The increment's start configuration (see the class); None where it is not known
+        (an increment ended by a remesh, under another update than the Cartesian one)."""
         sim = self.sim
+        if remeshed:
+            return X - dt * v if isinstance(sim.kinematics, CartesianUpdate) else None
         x0 = self._x_start
         ok = x0.shape == X.shape
         if ok and len(X):
@@ -190,19 +196,25 @@ class PowerBalance:
 
     def __call__(self, row: dict, tool_power: float = None, absorbed: float = 0.0) -> dict:
         sim = self.sim
-        if sim.space is not self._space:   # remeshed: forms on the new mesh
+        remeshed = sim.space is not self._space
+        if remeshed:   # forms on the new mesh
             self._bind()
         X = sim.vertex_positions()
         v = sim.w.x.array[sim.space.vertex_dofs]
-        X0 = self._start_configuration(X, v, row["dt"])   # the increment's equations live there
+        # the configuration the increment's equations live on
+        X0 = self._start_configuration(X, v, row["dt"], remeshed)
         self._x_start = X
-        D = on_configuration(sim, X0, self._dissipation)
-        D -= on_configuration(sim, X0, self._pressure)
-        Pf = sum(row.get(f"{c.name}_friction_power", 0.0) for c in self.contacts)
-        V = end_velocities(sim.kinematics, X0, v, row["dt"])
-        P_pen = sum(penalty_power(c, V, sim.t) for c in self.contacts)
         if tool_power is None:
             tool_power = sum(delivered_power(c, sim.t) for c in self.contacts)
+        Pf = sum(row.get(f"{c.name}_friction_power", 0.0) for c in self.contacts)
+        if X0 is None:
+            nan = math.nan
+            return dict(dissipation=nan, friction_power=Pf, penalty_power=nan,
+                        power_in=tool_power, power_balance=nan, power_balance_penalty=nan)
+        D = on_configuration(sim, X0, self._dissipation)
+        D -= on_configuration(sim, X0, self._pressure)
+        V = end_velocities(sim.kinematics, X0, v, row["dt"])
+        P_pen = sum(penalty_power(c, V, sim.t) for c in self.contacts)
         out = D + Pf + absorbed
         ok = out > 0
         return dict(dissipation=D, friction_power=Pf, penalty_power=P_pen, power_in=tool_power,

@@ -408,7 +408,7 @@ class _Measure:
     """The per-increment row of the mill (diameters, height, forces and torques of the whole
     ring, ring and mandrel speeds, penetrations, contact nodes per tool, volume, cones)."""
 
-    def __init__(self, s: RingRollingSetup):
+    def __init__(self, s: RingRollingSetup, power: Optional[PowerBalance] = None):
         self.s = s
         self.comm = s.sim.comm
         self.V0 = s.sim.initial_volume   # kept by a remesh
@@ -417,7 +417,7 @@ class _Measure:
             s.outer, s.inner, s.top = (s.centring.outer, s.inner.remeshed(s.sim.space, ft),
                                        s.top.remeshed(s.sim.space, ft))
         self.nown = s.sim.mesh.topology.index_map(0).size_local
-        self.power = PowerBalance(s.sim, [s.contact])
+        self.power = power or PowerBalance(s.sim, [s.contact])   # one over the remeshes
         self.remeshes = len(s.sim.remeshes)
 
     def _sum(self, *values):
@@ -700,7 +700,7 @@ def _summarize(res: RingRollingResult, comm, msh) -> None:
                                         for q in est])) if est else math.nan),
             height_max=max(q["height_max"] for q in rows), gap_last=rows[-1]["cone_gap"])
     res.wall_per_rev = res.wall / max(last["revolutions"], 1e-300)
-    pw = {k: float(np.mean([q[k] for q in second]))
+    pw = {k: float(np.nanmean([q[k] for q in second]))   # NaN: an increment ended by a remesh
           for k in ("power_in", "main_power", "mandrel_power", "dissipation", "friction_power",
                     "penalty_power")}
     for k, v in pw.items():
@@ -753,7 +753,7 @@ def run(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
             status, message = "failed", str(e)
             break
         if len(sim.remeshes) != measure.remeshes:
-            measure = _Measure(s)
+            measure = _Measure(s, measure.power)
         row = measure(inc)
         rows.append(row)
         if comm.rank == 0:   # progress of a long run (one line per increment; --quiet hides it)
