@@ -117,6 +117,7 @@ def main(argv=None):
     ap.add_argument("--line_search", choices=fx.LINE_SEARCHES)
     ap.add_argument("--linear_solver")
     ap.add_argument("--active_set_prediction", type=auto_on_off)
+    ap.add_argument("--reuse_factorisation", type=auto_on_off)
     ap.add_argument("--material_tangent", choices=fx.MATERIAL_TANGENTS)
     ap.add_argument("--stop_at_steady", action="store_true", default=None)
     return script_main(ap, DrawingCase, run_drawing, argv=argv,

@@ -520,15 +520,18 @@ class IdleRotation:
             dofs, u, g, Dj = b
             for vec, val in ((self._U[j], u), (self._G[j], g)):
                 vec.set(0.0)
+                # taken for writing on every rank, also one without contact nodes: the
+                # vector's state must change everywhere, or a rank keeps the cached norm of
+                # ``set`` and skips the reduction of the next norm (the ranks hang)
+                arr = vec.getArray(readonly=False)
                 if dofs.size:
                     dd = dofs.ravel()
                     vv = val.ravel().copy()
                     keep = dd >= 0
                     dd, vv = dd[keep], vv[keep]
                     vv[prob.bc_marker[dd]] = 0.0     # Dirichlet rows and columns
-                    arr = vec.getArray(readonly=False)
                     np.add.at(arr, dd, vv)
-                    del arr
+                del arr
             U.append(self._U[j])
             G.append(self._G[j])
             D.append(Dj)

@@ -88,8 +88,12 @@ class ActiveSetPrediction:
         u.set(0.0)
         idx = np.zeros(0, dtype=np.int64)
         vals = np.zeros(0)
+        # every rank takes the array for writing, also where it stays zero: a write changes
+        # the vector's state on this rank only, and PETSc keeps a norm computed earlier (here
+        # the 0 of ``set``) while the state is unchanged, so a rank that did not write would
+        # skip the reduction of the next norm (a Krylov solve) and the ranks would hang
+        arr = u.getArray(readonly=False)
         if dofs is not None:
-            arr = u.getArray(readonly=False)
             keep = dofs >= 0
             ii = dofs[keep]
             ok = ~self.problem.bc_marker[ii]
@@ -98,7 +102,7 @@ class ActiveSetPrediction:
                 c.project_entries(arr)
             idx = np.flatnonzero(arr)
             vals = arr[idx].copy()
-            del arr
+        del arr
         return u, idx, vals
 
     def correct(self, ksp: PETSc.KSP, y: PETSc.Vec) -> bool:

@@ -163,3 +163,27 @@ def test_auto_prediction_is_built_for_the_chosen_direct_solver():
     off, _ = _sim(active_set_prediction=False)
     off.step(DT, max_cutbacks=0)
     assert off.solver.prediction is None
+
+
+def test_column_changes_the_vector_state_on_every_rank():
+    """A prediction column is filled by the rank that owns its node only; every rank must still
+    see its state change, or a rank that did not write keeps the cached norm of ``set(0)`` and
+    skips the reduction of the next norm: with a Krylov solver (``reuse_factorisation``) the
+    ranks hung in the first column solve on 2 ranks (the wire-drawing demo)."""
+    from fxcontact.prediction import ActiveSetPrediction
+    sim, contact = _sim(active_set_prediction=True)
+    sim.step(DT)
+    comm = MPI.COMM_WORLD
+    pred = ActiveSetPrediction(sim.problem, comm)
+    template = sim.problem.create_vector()
+    owned = np.flatnonzero(~sim.problem.bc_marker[:template.getLocalSize()])
+    for writer in range(comm.size):
+        mine = comm.rank == writer
+        u, idx, vals = pred._column(template, owned[:3] if mine else None,
+                                    np.ones(min(3, len(owned))) if mine else None)
+        states = comm.allgather(u.stateGet())
+        assert len(set(states)) == 1, states
+        # the norm is the reduction over the ranks (the writer's entries, projected)
+        assert np.isclose(u.norm(), comm.allreduce(float(vals @ vals)) ** 0.5)
+        u.destroy()
+    template.destroy()
