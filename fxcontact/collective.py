@@ -23,8 +23,10 @@ from contextlib import contextmanager
 from typing import Optional
 
 import numpy as np
+from mpi4py import MPI
 
-__all__ = ["check_together", "together", "digest", "describe", "digest_parameters"]
+__all__ = ["check_together", "together", "digest", "describe", "digest_parameters",
+           "check_decision", "RanksDisagree"]
 
 #: values longer than this are shown shortened (around their first difference) in messages
 _SHOWN = 120
@@ -109,6 +111,29 @@ def check_together(comm, where: str, error: Optional[BaseException] = None, shar
             raise ValueError(f"{where}: {key} differs between ranks ({shown}). The set-up must "
                              f"be the same on every rank")
     return [g[3] for g in got]
+
+
+class RanksDisagree(RuntimeError):
+    """The ranks took different decisions during a run (a bug: the run would hang in its next
+    collective operations); raised on every rank by :func:`check_decision`, never retried."""
+
+
+def check_decision(comm, where: str, **values):
+    """During a run: raise :class:`RanksDisagree` on every rank if the numbers ``values`` (the
+    inputs of a choice that every rank must make alike, global by construction) differ between
+    ranks, naming them with their extreme values; one allreduce of 2n numbers (every rank
+    calls it at the same point)."""
+    if comm.size == 1:
+        return
+    vals = np.array([float(v) for v in values.values()])
+    ext = comm.allreduce(np.concatenate([vals, -vals]), op=MPI.MIN)
+    lo, hi = ext[:len(vals)], -ext[len(vals):]
+    if np.array_equal(lo, hi):
+        return
+    diff = ", ".join(f"{k} from {a:g} to {b:g}" for k, a, b in zip(values, lo, hi) if a != b)
+    raise RanksDisagree(f"{where}: the ranks disagree ({diff} over the ranks): a rank-local "
+                        f"value reached a choice that every rank must make alike, and the run "
+                        f"would hang; please report it")
 
 
 @contextmanager

@@ -37,6 +37,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from fxcontact.bordered import BorderedPC, _BorderedOperator
+from fxcontact.collective import RanksDisagree, check_decision
 from fxcontact.petsc import NonlinearProblem, mumps_null_pivots
 from fxcontact.solver_options import (LINE_SEARCHES, LINEAR_SOLVERS, MATERIAL_TANGENTS,
                                       SolverOptions, _globalization_options)
@@ -139,6 +140,7 @@ class ContactNewtonSolver:
     _resolved_its = 0
     #: the next Jacobian may keep the factorisation (see :meth:`_converged`)
     _reuse_ok = False
+    _disagreement = None   #: a RanksDisagree raised inside the SNES (raised again after it)
 
     def __init__(self, problem: NonlinearProblem, options: Optional[SolverOptions] = None,
                  fieldsplit_is=None):
@@ -322,12 +324,6 @@ class ContactNewtonSolver:
         back to the plain system. Rebuilds the SNES (collective)."""
         if border is self.border:
             return
-        if border is not None and self.options.reuses_factorisation and self.comm.size > 1:
-            # a 2-rank bordered ring-rolling run with the kept factorisation hung (one rank in
-            # an FGMRES solve, the other past the end of the run): refused until understood
-            raise ValueError("reuse_factorisation is not supported with a bordered Newton "
-                             "system (an idle tool with idle_method='bordered') on more than "
-                             "one rank: set reuse_factorisation=False, or run on one rank")
         self.border = border
         self.reset()
 
@@ -383,11 +379,19 @@ class ContactNewtonSolver:
     def _krylov_check(self, ksp: PETSc.KSP) -> bool:
         """After the linear solve of a Newton step (``reuse_factorisation``): factorise at the
         next Jacobian if it took more than ``reuse_max_krylov`` Krylov iterations; returns
-        False if the Krylov solve did not converge."""
+        False if the Krylov solve did not converge. Collective (the ranks' inputs checked
+        to agree: :func:`~fxcontact.collective.check_decision`)."""
         if not self.options.reuses_factorisation:
             return True
         its, reason = ksp.getIterationNumber(), ksp.getConvergedReason()
         log.debug("Newton step: %d Krylov iterations (reason %d)", its, reason)
+        try:
+            check_decision(self.comm, "the Newton step with the kept factorisation",
+                           kept=bool(getattr(self._condensed_pc, "reuse", False)),
+                           krylov_iterations=its, krylov_reason=reason)
+        except RanksDisagree as e:   # (through PETSc: raised again after the SNES)
+            self._disagreement = e
+            raise
         if reason <= 0 or 2 * its > self.options.reuse_max_krylov:
             self._refactor_next = True
         return reason > 0
@@ -682,6 +686,10 @@ class ContactNewtonSolver:
         finally:
             if from_rest:
                 self._set_trust_radius(_PETSC_TR_DELTA0)
+        if self._disagreement is not None:   # not a failed solve: raised again, never retried
+            err, self._disagreement = self._disagreement, None
+            self.reset()
+            raise err
         wall = time.perf_counter() - t0
         if prob.error and not msg:
             msg = prob.error

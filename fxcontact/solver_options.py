@@ -180,9 +180,7 @@ class SolverOptions:
             solve and one product with the Newton matrix each). False (default: not yet
             measured faster at the thesis size), ``"auto"`` (on with ``"condensed-mumps"``),
             True (with another linear solver: ValueError). Figures in
-            ``benchmarks/README.md`` (``bench_element_newton.py``). Not with a bordered Newton
-            system (an idle tool, ``idle_method="bordered"``) on more than one rank: a 2-rank
-            run hung, so ``set_border`` refuses it (ValueError) until that is understood.
+            ``benchmarks/README.md`` (``bench_element_newton.py``).
         reuse_max_krylov: see ``reuse_factorisation``.
         prefix: PETSc options prefix.
         petsc_options: extra PETSc options (without prefix) that override the presets.
