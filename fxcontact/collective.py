@@ -126,7 +126,8 @@ def check_decision(comm, where: str, **values):
     if comm.size == 1:
         return
     vals = np.array([float(v) for v in values.values()])
-    ext = comm.allreduce(np.concatenate([vals, -vals]), op=MPI.MIN)
+    ext = np.empty(2 * len(vals))
+    comm.Allreduce(np.concatenate([vals, -vals]), ext, op=MPI.MIN)   # (buffers: elementwise)
     lo, hi = ext[:len(vals)], -ext[len(vals):]
     if np.array_equal(lo, hi):
         return
