@@ -10,6 +10,11 @@ with :func:`check_together`: one ``allgather`` of the call's name, of the error 
 its local checks, and of the values that must agree between ranks. Then every rank raises the
 same error, saying which rank failed, which value differs (and on which ranks), or that the ranks
 are in different calls.
+
+During a run, :func:`check_decision` checks the inputs of a choice that every rank must make
+alike (global values by construction, e.g. a Krylov solve's iteration count) with one small
+allreduce, and raises :class:`RanksDisagree` on every rank when they differ: a bug, which would
+otherwise hang the run in its next collective operations.
 """
 
 from __future__ import annotations
