@@ -27,6 +27,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from fxcontact.remesh.boundary import UNTAGGED, BoundarySurface
+from fxcontact.remesh.smooth import SmoothBoundary, place_surface_nodes
 
 __all__ = ["SizeZone", "size_field", "surface_patches", "volume_mesh", "CELL_TAG"]
 
@@ -38,6 +39,10 @@ CELL_TAG = 1
 #: a patch within this fraction of the body's diameter of a plane is planar (kept planar,
 #: its nodes moved within the plane only)
 PLANAR_TOLERANCE = 1e-4
+
+#: a new surface node within this fraction of the body's diameter of an old triangle lies on it
+#: (gmsh puts the nodes of a discrete surface on its old triangles, to rounding)
+ON_FACET_TOLERANCE = 1e-6
 
 
 @dataclass
@@ -135,14 +140,6 @@ def _patch_planes(surface: BoundarySurface, patches: np.ndarray, tol: float):
     return out
 
 
-def _project_on_planes(x: np.ndarray, planes) -> np.ndarray:
-    """The point nearest to x on the intersection of the planes [(n, d), …]."""
-    N = np.array([p[0] for p in planes])
-    d = np.array([p[1] for p in planes])
-    lam = np.linalg.lstsq(N @ N.T, N @ x - d, rcond=None)[0]
-    return x - N.T @ lam
-
-
 def _size_callback(h: float, zones):
     """gmsh's size callback (gmsh 4.8: ``f(dim, tag, x, y, z)``); an exception inside a ctypes
     callback would abort the process, so a failure gives ``h`` and is logged once."""
@@ -161,7 +158,7 @@ def _size_callback(h: float, zones):
 
 
 def _build_on_root(gmsh, surface: BoundarySurface, h: float, zones, feature_angle: float,
-                   optimize: bool):
+                   optimize: bool, smooth: bool = True):
     patches = surface_patches(surface, feature_angle)
     diam = np.linalg.norm(np.ptp(surface.points, axis=0))
     # planar to 1e-4 of the body's size: a face pressed by a flat tool is planar to its
@@ -192,7 +189,10 @@ def _build_on_root(gmsh, surface: BoundarySurface, h: float, zones, feature_angl
     gmsh.model.mesh.setSizeCallback(_size_callback(h, zones))
     gmsh.model.mesh.generate(3)
     origin = _entity_patches(gmsh, surface, patches)
-    on_planes = _flatten_planes(gmsh, origin, planes)
+    curved = [int(p) for p in ids if int(p) not in planes]
+    rebuilt = SmoothBoundary(surface.points, surface.triangles, patches, curved) \
+        if smooth and curved else None
+    on_planes = place_surface_nodes(gmsh, origin, planes, rebuilt, ON_FACET_TOLERANCE * diam)
     for _ in range(2):
         _restore_volume(gmsh, surface.enclosed_volume(), on_planes)
     groups = {}
@@ -221,21 +221,6 @@ def _entity_patches(gmsh, surface: BoundarySurface, patches: np.ndarray) -> dict
             vals, counts = np.unique(patches[tree.query(c)[1]], return_counts=True)
             out[s] = int(vals[np.argmax(counts)])
     return out
-
-
-def _flatten_planes(gmsh, origin: dict, planes: dict) -> dict:
-    """Project the nodes of the new surfaces made from planar patches onto their planes (nodes
-    on two planes or more onto their intersection); returns {node tag: [planes]}."""
-    on = {}
-    for s, p in origin.items():
-        if p not in planes:
-            continue
-        tags, xyz, _ = gmsh.model.mesh.getNodes(2, s, includeBoundary=True)
-        for t, x in zip(tags.tolist(), xyz.reshape(-1, 3)):
-            on.setdefault(t, (x, []))[1].append(planes[p])
-    for t, (x, pl) in on.items():
-        gmsh.model.mesh.setNode(int(t), _project_on_planes(x, pl).tolist(), [])
-    return {t: pl for t, (_, pl) in on.items()}
 
 
 def _tetrahedra(gmsh):
@@ -302,7 +287,7 @@ def _restore_volume(gmsh, volume: float, on_planes):
 
 def volume_mesh(comm, surface: BoundarySurface, h: float, zones: Sequence[SizeZone] = (),
                 feature_angle: float = 40.0, optimize: bool = True, root: int = 0,
-                times: Optional[dict] = None):
+                times: Optional[dict] = None, smooth: bool = True):
     """A tetrahedral mesh of the body bounded by ``surface`` (given on ``root``), made there by
     gmsh and distributed over ``comm`` (collective; module docstring).
 
@@ -312,6 +297,8 @@ def volume_mesh(comm, surface: BoundarySurface, h: float, zones: Sequence[SizeZo
         zones: :class:`SizeZone` s where the mesh is finer (near the tools).
         feature_angle: edges whose dihedral angle exceeds it (degrees) are kept as sharp edges.
         optimize: gmsh's tetrahedron optimisation.
+        smooth: put the new nodes of the curved patches on a Nagata reconstruction of the
+            old surface (:mod:`fxcontact.remesh.smooth`) instead of its facets.
         times: a dict that receives this rank's wall times of ``generate`` (gmsh, on
             ``root``) and ``distribute`` (the mesh over ``comm``).
     Returns:
@@ -335,7 +322,8 @@ def volume_mesh(comm, surface: BoundarySurface, h: float, zones: Sequence[SizeZo
             err = None
             if comm.rank == root:
                 try:
-                    _build_on_root(gmsh, surface, h, list(zones), feature_angle, optimize)
+                    _build_on_root(gmsh, surface, h, list(zones), feature_angle, optimize,
+                                   smooth)
                 except Exception as e:   # gmsh's errors are plain Exceptions
                     err = f"{type(e).__name__}: {e}"
             err = comm.bcast(err, root=root)
