@@ -221,6 +221,82 @@ def test_transfer_to_the_remeshed_billet(deformed_billet):
     assert abs(info["correction"][0]) < 0.05
 
 
+def _remeshed_n_times(msh, ft, h, n, smooth):
+    """The boundary (on rank 0) of the mesh after n remeshes at size h (no deformation)."""
+    for _ in range(n):
+        msh, _, ft = volume_mesh(COMM, gather_boundary(msh, ft), h, smooth=smooth)
+    return gather_boundary(msh, ft)
+
+
+def _radial_error_and_gap(surface, tag, R):
+    """max |r − R| of the vertices of the triangles tagged ``tag`` (a face of radius R about z)
+    and the mean gap between those triangles and the cylinder through their vertices,
+    (1/A) Σ_T |T| Σ_e e_θ²/(24R) (the mean of I_h f − f over a triangle is Σ_e eᵀHe/24 for a
+    quadratic f; H = t_θ t_θᵀ/R on a cylinder)."""
+    T = surface.triangles[surface.tags == tag]
+    X = surface.points
+    r = np.linalg.norm(X[np.unique(T)][:, :2], axis=1)
+    P = X[T]
+    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+    c = P.mean(axis=1)
+    t = np.stack([-c[:, 1], c[:, 0], 0 * c[:, 0]], axis=1) / np.linalg.norm(c[:, :2], axis=1)[:, None]
+    e2 = sum(np.einsum("ij,ij->i", P[:, i] - P[:, j], t) ** 2 for i, j in ((0, 1), (1, 2), (0, 2)))
+    return np.max(np.abs(r - R)), np.sum(area * e2) / (24.0 * R) / np.sum(area)
+
+
+def test_remeshing_keeps_a_cylinder_round():
+    """A quarter cylinder (R 10, h 1) remeshed 5 times at the same size without deformation.
+
+    The new nodes of its lateral face go on Nagata patches of the old one built on quadric-fit
+    normals (:mod:`fxcontact.remesh.smooth`). Theory: a Nagata edge of length d ≤ h on a circle
+    is off it by d⁴/(128R³) with exact normals and by about d ε/4 with a normal error ε; the
+    fitted normals of a surface of constant curvature are off by ε ≲ (2h/R)³/8·4 (the quartic
+    term of the circle over a neighbourhood of radius 2h, a factor 4 for the one-sided fits on
+    the face's edges), so each remesh adds at most h⁴/R³. The volume restoration then moves the
+    face by the change of the mean gap between the facets and the surface, which the volume of
+    the facets loses (``_radial_error_and_gap``): after N remeshes
+    max |r − R| ≤ N h⁴/R³ + |gap_N − gap_0|. On the chords (``smooth=False``) each remesh moves
+    nodes by up to the sagitta h²/(8R) = 0.0125."""
+    R, h, n = 10.0, 1.0, 5
+    msh, _, ft = fx.cylinder_billet(COMM, radius=R, height=2.0, h=h)
+    V0 = _volume(msh)
+    lateral = fx.BILLET_TAGS["lateral"]
+    first = gather_boundary(msh, ft)
+    out = {}
+    for smooth in (True, False):
+        out[smooth] = _remeshed_n_times(msh, ft, h, n, smooth)
+    if COMM.rank == 0:
+        assert abs(out[True].enclosed_volume() / V0 - 1.0) < 1e-12
+        _, gap0 = _radial_error_and_gap(first, lateral, R)
+        err, gap = _radial_error_and_gap(out[True], lateral, R)
+        bound = n * h ** 4 / R ** 3 + abs(gap - gap0)
+        chord, _ = _radial_error_and_gap(out[False], lateral, R)
+        print(f"max |r - R| after {n} remeshes: {err:.2e} (bound {bound:.2e}; gap {gap0:.3e} -> "
+              f"{gap:.3e}), on the chords {chord:.2e}")
+        assert err < bound
+        assert chord > bound        # the defect the test would catch
+        # the planes stay planes
+        for tag, k in ((fx.BILLET_TAGS["symmetry_x"], 0), (fx.BILLET_TAGS["symmetry_y"], 1)):
+            v = np.unique(out[True].triangles[out[True].tags == tag])
+            assert np.max(np.abs(out[True].points[v, k])) < 1e-12
+
+
+def test_remeshing_keeps_a_ring_round():
+    """An eighth of a ring (radii 30 and 20, concave inside), h 1.5, remeshed 5 times: both
+    lateral faces within the bound of ``test_remeshing_keeps_a_cylinder_round``."""
+    from fxcontact.meshing import RING_TAGS
+    Ro, Ri, h, n = 30.0, 20.0, 1.5, 5
+    msh, _, ft = fx.ring(COMM, Ro, Ri, 10.0, h, sector="eighth")
+    first = gather_boundary(msh, ft)
+    last = _remeshed_n_times(msh, ft, h, n, True)
+    if COMM.rank == 0:
+        for name, R in (("outer", Ro), ("inner", Ri)):
+            _, gap0 = _radial_error_and_gap(first, RING_TAGS[name], R)
+            err, gap = _radial_error_and_gap(last, RING_TAGS[name], R)
+            print(f"{name}: max |r - R| {err:.2e}, bound {n * h ** 4 / R ** 3 + abs(gap - gap0):.2e}")
+            assert err < n * h ** 4 / R ** 3 + abs(gap - gap0)
+
+
 def test_volume_mesh_bad_inputs():
     with pytest.raises(ValueError, match="h must be > 0"):
         SizeZone(h=0.0, points=[[0, 0, 0]])
