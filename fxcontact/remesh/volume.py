@@ -29,7 +29,7 @@ import numpy as np
 from fxcontact.remesh.boundary import UNTAGGED, BoundarySurface
 from fxcontact.remesh.smooth import SmoothBoundary, place_surface_nodes
 
-__all__ = ["SizeZone", "size_field", "surface_patches", "volume_mesh", "CELL_TAG"]
+__all__ = ["SizeZone", "size_field", "size_fields", "surface_patches", "volume_mesh", "CELL_TAG"]
 
 log = logging.getLogger(__name__)
 
@@ -39,6 +39,10 @@ CELL_TAG = 1
 #: a patch within this fraction of the body's diameter of a plane is planar (kept planar,
 #: its nodes moved within the plane only)
 PLANAR_TOLERANCE = 1e-4
+
+#: size the elements by :func:`_size_callback` instead of gmsh's fields (:func:`size_fields`):
+#: the same sizes, ~100 times slower; for comparisons
+SIZE_CALLBACK = False
 
 #: a new surface node within this fraction of the body's diameter of an old triangle lies on it
 #: (gmsh puts the nodes of a discrete surface on its old triangles, to rounding)
@@ -141,8 +145,10 @@ def _patch_planes(surface: BoundarySurface, patches: np.ndarray, tol: float):
 
 
 def _size_callback(h: float, zones):
-    """gmsh's size callback (gmsh 4.8: ``f(dim, tag, x, y, z)``); an exception inside a ctypes
-    callback would abort the process, so a failure gives ``h`` and is logged once."""
+    """gmsh's size callback (gmsh 4.8: ``f(dim, tag, x, y, z)``): :func:`size_field` called by
+    gmsh point by point, slow (a Python call per sample: ~10 s of a 100k-cell remesh); kept to
+    check :func:`size_fields` against. An exception inside a ctypes callback would abort the
+    process, so a failure gives ``h`` and is logged once."""
     failed = []
 
     def size(*args):
@@ -155,6 +161,72 @@ def _size_callback(h: float, zones):
                 log.warning("remesh size field failed at (%g, %g, %g): %s", x, y, z, e)
             return float(h)
     return size
+
+
+def size_fields(gmsh, h: float, zones: Sequence[SizeZone]) -> list:
+    """Make :func:`size_field` gmsh's background mesh size with gmsh's own fields (on rank 0,
+    in the current model, synchronised): a "MathEval" field ``h``; per box zone a "Box" field
+    (``VIn`` = h_k, ``VOut`` = h, a linear transition over ``Thickness`` = (h − h_k)/g_k:
+    h_k + g_k d up to h); per point zone a "Distance" field to its points, added as geometry
+    points, and a "Threshold" field (h_k at distance 0 to h at (h − h_k)/g_k); their "Min".
+    A zone with h_k ≥ h changes nothing; one with g_k = 0 is the constant h_k.
+
+    Returns the tags of the geometry points added: remove them (and their mesh node) after
+    meshing (:func:`_remove_points`)."""
+    F = gmsh.model.mesh.field
+
+    def constant(v):
+        f = F.add("MathEval")
+        F.setString(f, "F", repr(float(v)))
+        return f
+
+    fields, points = [constant(h)], []
+    next_tag = max([t for _, t in gmsh.model.getEntities(0)], default=0) + 1
+    for z in zones:
+        if z.h >= h:
+            continue
+        if z.grading == 0.0:
+            fields.append(constant(z.h))
+            continue
+        reach = (h - z.h) / z.grading
+        if z.box is not None:
+            f = F.add("Box")
+            for name, v in zip(("XMin", "YMin", "ZMin", "XMax", "YMax", "ZMax"),
+                               np.concatenate(z.box)):
+                F.setNumber(f, name, float(v))
+            F.setNumber(f, "VIn", float(z.h))
+            F.setNumber(f, "VOut", float(h))
+            F.setNumber(f, "Thickness", float(reach))
+        else:
+            tags = list(range(next_tag, next_tag + len(z.points)))
+            next_tag += len(z.points)
+            for t, x in zip(tags, z.points):
+                gmsh.model.geo.addPoint(float(x[0]), float(x[1]), float(x[2]), tag=t)
+            points += tags
+            d = F.add("Distance")
+            F.setNumbers(d, "PointsList", tags)
+            f = F.add("Threshold")
+            F.setNumber(f, "InField", d)
+            F.setNumber(f, "DistMin", 0.0)
+            F.setNumber(f, "DistMax", float(reach))
+            F.setNumber(f, "SizeMin", float(z.h))
+            F.setNumber(f, "SizeMax", float(h))
+        fields.append(f)
+    f = F.add("Min")
+    F.setNumbers(f, "FieldsList", fields)
+    F.setAsBackgroundMesh(f)
+    gmsh.model.geo.synchronize()
+    return points
+
+
+def _remove_points(gmsh, points: list):
+    """Remove the geometry points of :func:`size_fields` and their mesh nodes; node tags
+    made contiguous again."""
+    if points:
+        tags = [(0, t) for t in points]
+        gmsh.model.mesh.clear(tags)
+        gmsh.model.removeEntities(tags)
+        gmsh.model.mesh.renumberNodes()
 
 
 def _build_on_root(gmsh, surface: BoundarySurface, h: float, zones, feature_angle: float,
@@ -186,8 +258,13 @@ def _build_on_root(gmsh, surface: BoundarySurface, h: float, zones, feature_angl
     gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
     gmsh.option.setNumber("Mesh.Optimize", 1 if optimize else 0)
     gmsh.option.setNumber("General.NumThreads", 1)   # the same mesh every time
-    gmsh.model.mesh.setSizeCallback(_size_callback(h, zones))
+    if SIZE_CALLBACK:
+        gmsh.model.mesh.setSizeCallback(_size_callback(h, zones))
+        points = []
+    else:
+        points = size_fields(gmsh, h, zones)
     gmsh.model.mesh.generate(3)
+    _remove_points(gmsh, points)
     origin = _entity_patches(gmsh, surface, patches)
     curved = [int(p) for p in ids if int(p) not in planes]
     rebuilt = SmoothBoundary(surface.points, surface.triangles, patches, curved) \
