@@ -5,6 +5,7 @@ Usage::
     python benchmarks/bench_remesh.py                       # ~8k and ~140k MINI dofs
     mpirun -n 2 python benchmarks/bench_remesh.py --sizes 1.55
     python benchmarks/bench_remesh.py --sizes 1.55 --profile    # where the remesh goes
+    python benchmarks/bench_remesh.py --sizes 1.55 0.8 --generate   # gmsh's fields vs callback
 
 Problem: the quarter billet of ``fxcontact.meshing.cylinder_billet`` (R 10, H 15, element size
 h) upset by a flat die (5 mm/s, Tresca m̄ 0.3, dt 0.06 s) with its symmetry planes, a velocity
@@ -15,7 +16,11 @@ phases (``RemeshRecord.phases``: ``boundary`` gathered on rank 0, ``generate`` g
 ``distribute`` the new mesh, ``spaces``, ``transfer`` of the state, ``rebind`` conditions and
 contributors, ``setup`` forms and solver), the increments before and after it (wall, Newton
 iterations), and the remesh's cost in increments. ``--profile``: the remesh under cProfile
-(rank 0), the functions with the largest cumulative time. Timings are printed only.
+(rank 0), the functions with the largest cumulative time. ``--generate``: after the run, the
+new mesh's boundary remeshed by ``volume_mesh`` with two size zones at the top (h/2 at the die's
+edge, points on the circle r = R·1.05, z = H at that time, and h/2 in a box 1.5h thick under the
+die), alternately with gmsh's fields, with the Python size callback and without the surface
+smoothing, twice each: the ``generate`` times (median) and cells. Timings are printed only.
 """
 
 from __future__ import annotations
@@ -85,6 +90,37 @@ def run(comm, h, profile=False):
         out = io.StringIO()
         pstats.Stats(prof, stream=out).sort_stats("cumulative").print_stats(25)
         say(out.getvalue())
+    return sim
+
+
+def generate_variants(comm, sim, h, repeat=2):
+    """The ``generate`` time of ``volume_mesh`` on the current boundary with zones at the die:
+    fields, callback, fields without smoothing (the ``--generate`` option)."""
+    import numpy as np
+    from fxcontact.remesh import volume
+    from fxcontact.remesh.boundary import gather_boundary
+    say = print if comm.rank == 0 else (lambda *a, **k: None)
+    ft = sim.contributors[0].boundary.facet_tags
+    surface = gather_boundary(sim.mesh, ft)
+    top = comm.allreduce(float(sim.mesh.geometry.x[:, 2].max()), op=MPI.MAX)
+    th = np.linspace(0.0, np.pi / 2, 60)
+    rim = np.c_[10.5 * np.cos(th), 10.5 * np.sin(th), np.full_like(th, top)]
+    zones = [volume.SizeZone(h=h / 2, points=rim, grading=0.3),
+             volume.SizeZone(h=h / 2, box=([0, 0, top - 1.5 * h], [12, 12, top]), grading=0.3)]
+    variants = {"fields": (False, True), "callback": (True, True),
+                "fields, no smoothing": (False, False)}
+    times = {k: [] for k in variants}
+    cells = {}
+    for _ in range(repeat):
+        for name, (callback, smooth) in variants.items():
+            volume.SIZE_CALLBACK = callback
+            t = {}
+            msh, _, _ = volume.volume_mesh(comm, surface, h, zones, times=t, smooth=smooth)
+            times[name].append(comm.allreduce(t["generate"], op=MPI.MAX))
+            cells[name] = msh.topology.index_map(3).size_global
+    volume.SIZE_CALLBACK = False
+    say(f"  volume_mesh with 2 zones (h/2), generate: " + ", ".join(
+        f"{k} {np.median(v):.2f} s ({cells[k]} cells)" for k, v in times.items()))
 
 
 def main():
@@ -92,9 +128,13 @@ def main():
     ap.add_argument("--sizes", type=float, nargs="+", default=[1.55, 0.54],
                     help="element sizes (1.55: 7,851 dofs, 0.54: 138,736 dofs)")
     ap.add_argument("--profile", action="store_true", help="cProfile of the remesh (rank 0)")
+    ap.add_argument("--generate", action="store_true",
+                    help="then volume_mesh with zones: gmsh's fields vs the size callback")
     args = ap.parse_args()
     for h in args.sizes:
-        run(MPI.COMM_WORLD, h, args.profile)
+        sim = run(MPI.COMM_WORLD, h, args.profile)
+        if args.generate:
+            generate_variants(MPI.COMM_WORLD, sim, h)
 
 
 if __name__ == "__main__":

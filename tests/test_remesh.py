@@ -284,6 +284,39 @@ def test_remesh_sizes_with_fields_as_with_the_callback(deformed_billet, monkeypa
     assert abs(na / nb - 1.0) < 0.05
 
 
+def _sphere_surface(R, h):
+    from fxcontact.meshing import gmsh_session
+    with gmsh_session("sphere") as gmsh:
+        gmsh.model.occ.addSphere(0, 0, 0, R)
+        gmsh.model.occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+        gmsh.option.setNumber("Mesh.MeshSizeMin", h / 2)
+        gmsh.model.mesh.generate(2)
+        tags, xyz, _ = gmsh.model.mesh.getNodes()
+        lookup = np.zeros(int(tags.max()) + 1, dtype=np.int64)
+        lookup[tags.astype(np.int64)] = np.arange(len(tags))
+        _, _, en = gmsh.model.mesh.getElements(2)
+        return xyz.reshape(-1, 3), lookup[np.asarray(en[0], dtype=np.int64)].reshape(-1, 3)
+
+
+def test_quadric_normals_third_order_on_a_sphere():
+    """The remesh's nodal normals (least-squares quadrics) on gmsh's unstructured triangulations
+    of a sphere R = 10, h = 1 and 0.5: off the exact normals by less than (h/R)³ (the quartic
+    term of the sphere, ρ⁴/(8R³) over a neighbourhood of radius ρ ≈ 2h, tilts the fitted
+    slope by ~ρ³/(8R³)); the angle-weighted normals they start from are first-order only
+    (measured 1.4e-2 and 1.9e-2)."""
+    from fxcontact.remesh.smooth import quadric_normals
+    from fxcontact.tools.normals import vertex_normals
+    R = 10.0
+    for h in (1.0, 0.5):
+        X, T = _sphere_surface(R, h)
+        n0 = vertex_normals(X, T)
+        n0 *= np.sign(np.sum(np.einsum("ij,ij->i", n0, X)))
+        exact = X / np.linalg.norm(X, axis=1)[:, None]
+        err = np.arccos(np.clip(np.einsum("ij,ij->i", quadric_normals(X, n0), exact), -1, 1))
+        assert np.max(err) < (h / R) ** 3
+
+
 def _remeshed_n_times(msh, ft, h, n, smooth):
     """The boundary (on rank 0) of the mesh after n remeshes at size h (no deformation)."""
     for _ in range(n):
@@ -302,7 +335,8 @@ def _radial_error_and_gap(surface, tag, R):
     P = X[T]
     area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
     c = P.mean(axis=1)
-    t = np.stack([-c[:, 1], c[:, 0], 0 * c[:, 0]], axis=1) / np.linalg.norm(c[:, :2], axis=1)[:, None]
+    t = np.stack([-c[:, 1], c[:, 0], 0 * c[:, 0]], axis=1)
+    t /= np.linalg.norm(t, axis=1)[:, None]
     e2 = sum(np.einsum("ij,ij->i", P[:, i] - P[:, j], t) ** 2 for i, j in ((0, 1), (1, 2), (0, 2)))
     return np.max(np.abs(r - R)), np.sum(area * e2) / (24.0 * R) / np.sum(area)
 
@@ -356,8 +390,9 @@ def test_remeshing_keeps_a_ring_round():
         for name, R in (("outer", Ro), ("inner", Ri)):
             _, gap0 = _radial_error_and_gap(first, RING_TAGS[name], R)
             err, gap = _radial_error_and_gap(last, RING_TAGS[name], R)
-            print(f"{name}: max |r - R| {err:.2e}, bound {n * h ** 4 / R ** 3 + abs(gap - gap0):.2e}")
-            assert err < n * h ** 4 / R ** 3 + abs(gap - gap0)
+            bound = n * h ** 4 / R ** 3 + abs(gap - gap0)
+            print(f"{name}: max |r - R| {err:.2e}, bound {bound:.2e}")
+            assert err < bound
 
 
 def test_volume_mesh_bad_inputs():

@@ -45,6 +45,10 @@ log = logging.getLogger(__name__)
 #: vertices (besides the vertex itself) of the least-squares quadric of a nodal normal
 NEIGHBOURS = 14
 
+#: a fitted normal more than this angle (degrees) from the first estimate is not trusted (the
+#: estimate is kept): a fit across a fold of the surface
+MAX_TILT = 30.0
+
 #: curved patches whose normals at a shared node are within this angle (degrees) are one
 #: smooth surface (a tag boundary): their target points are averaged
 MERGE_ANGLE = 20.0
@@ -67,7 +71,8 @@ def quadric_normals(points: np.ndarray, normals: np.ndarray, neighbours: int = N
     ``normals`` (k, 3) are first estimates (e.g. angle-weighted): they orient the result, give
     the first frame, and exclude neighbours whose estimate is more than 60° away (the other side
     of a thin part). A point with too few neighbours or an ill-conditioned fit keeps its
-    estimate. ``sweeps`` fits, each in the frame of the previous normal.
+    estimate, and so does one whose fit turns it by more than :data:`MAX_TILT`. ``sweeps``
+    fits, each in the frame of the previous normal.
     """
     X = np.asarray(points, dtype=float)
     n = np.asarray(normals, dtype=float)
@@ -96,6 +101,7 @@ def quadric_normals(points: np.ndarray, normals: np.ndarray, neighbours: int = N
             coef[good] = np.linalg.solve(G[good], r[good][:, :, None])[:, :, 0]
         m = out - coef[:, :1] * t1 - coef[:, 1:2] * t2
         m /= np.linalg.norm(m, axis=1)[:, None]
+        good &= np.einsum("ij,ij->i", m, n) > np.cos(np.radians(MAX_TILT))
         out = np.where(good[:, None], m, out)
     return out
 

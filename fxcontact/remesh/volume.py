@@ -8,10 +8,18 @@ boundary curves and corners (the sharp edges and the tag boundaries are kept as 
 ``createGeometry`` a parametrisation of each patch on its old triangles, so that the new surface
 nodes lie on the old surface and the patches are remeshed at the new sizes. Nodes of planar
 patches (symmetry planes, flat die faces) are then projected onto the patch's plane, or the
-intersection of the planes they lie on, so those faces stay exactly planar.
+intersection of the planes they lie on, so those faces stay exactly planar. The nodes of the
+curved patches would lie on the old chords (a face of radius R remeshed at size h loses up to
+h²/(8R) of its radius each time): they are moved onto Nagata patches of the old boundary built
+on nodal normals fitted within each patch (:mod:`fxcontact.remesh.smooth`; ``smooth=False``
+leaves them on the facets). Last, all the surface nodes but those on two planes move along their
+normals by one common offset so that the new mesh has the old volume: with the smoothing that
+offset is the change of the facets' mean gap to the smooth surface (~1e-5 of the radius at
+h = R/10), on the chords it is the whole loss of volume.
 
 The element size is ``h`` away from the tools and ``zone.h + zone.grading × distance`` near a
 :class:`SizeZone` (the distance to its points or its box): graded, finer where the tools bite.
+gmsh evaluates it with its own fields (:func:`size_fields`), not by calling Python.
 
 Each new boundary surface takes the facet tag that most of its triangles' nearest old
 triangles carry (the old facet nearest to each new facet's centroid).
