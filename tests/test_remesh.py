@@ -471,6 +471,27 @@ def test_simulation_state_transferred(deformed_billet):
     assert st["volume_initial"] == sim.initial_volume
 
 
+def _sorted_cells(msh):
+    """(cells, 4, 3) vertex coordinates of all the cells, each sorted, in lexicographic order
+    (gathered on every rank: independent of the partition)."""
+    n = msh.topology.index_map(3).size_local
+    P = cell_vertex_coordinates(msh, np.arange(n, dtype=np.int32))
+    P = np.take_along_axis(P, np.lexsort(P.transpose(2, 0, 1)[::-1])[..., None], axis=1)
+    P = np.concatenate(COMM.allgather(P.reshape(-1, 12)))
+    return P[np.lexsort(P.T[::-1])]
+
+
+def test_remesh_is_reproducible(deformed_billet):
+    """The same boundary remeshed twice (and the fixture's mesh, made earlier in the session)
+    gives the same mesh to the last bit: the boundary's curves and corners are numbered from its
+    vertex numbers (gmsh's createTopology gave 6 different meshes in 8 sessions)."""
+    _, _, surface, zone, first, _ = deformed_billet
+    meshes = [first] + [volume_mesh(COMM, surface, h=2.5, zones=[zone])[0] for _ in range(2)]
+    cells = [_sorted_cells(m) for m in meshes]
+    assert all(c.shape == cells[0].shape for c in cells)
+    assert all(np.array_equal(c, cells[0]) for c in cells[1:])
+
+
 def test_gmsh_failure_retried_once_then_reported(deformed_billet, monkeypatch, caplog):
     """A gmsh refusal (gmsh 4.8 refused a ring's boundary once and meshed it when asked again)
     is retried once in a fresh session, with a warning; a second refusal raises a RuntimeError

@@ -3,10 +3,12 @@ distributed (as the workpiece builders of :mod:`fxcontact.meshing` do).
 
 The boundary (:class:`~fxcontact.remesh.boundary.BoundarySurface`) is cut into patches: the
 triangles of one facet tag connected across edges whose dihedral angle is below
-``feature_angle``. Each patch becomes a gmsh discrete surface; ``createTopology`` builds their
-boundary curves and corners (the sharp edges and the tag boundaries are kept as curves) and
-``createGeometry`` a parametrisation of each patch on its old triangles, so that the new surface
-nodes lie on the old surface and the patches are remeshed at the new sizes. Nodes of planar
+``feature_angle``. Each patch becomes a gmsh discrete surface, with its boundary curves and
+corners (the sharp edges and the tag boundaries are kept as curves) made in a reproducible order
+(:mod:`fxcontact.remesh.topology`: gmsh's ``createTopology`` numbers them differently in each
+session, and its meshes differ), and ``createGeometry`` a parametrisation of each patch on its
+old triangles, so that the new surface nodes lie on the old surface and the patches are remeshed
+at the new sizes. Nodes of planar
 patches (symmetry planes, flat die faces) are then projected onto the patch's plane, or the
 intersection of the planes they lie on, so those faces stay exactly planar. The nodes of the
 curved patches would lie on the old chords (a face of radius R remeshed at size h loses up to
@@ -36,6 +38,7 @@ import numpy as np
 
 from fxcontact.remesh.boundary import UNTAGGED, BoundarySurface
 from fxcontact.remesh.smooth import SmoothBoundary, place_surface_nodes
+from fxcontact.remesh.topology import discrete_model
 
 __all__ = ["SizeZone", "size_field", "size_fields", "surface_patches", "volume_mesh", "CELL_TAG"]
 
@@ -244,18 +247,22 @@ def _build_on_root(gmsh, surface: BoundarySurface, h: float, zones, feature_angl
     # planar to 1e-4 of the body's size: a face pressed by a flat tool is planar to its
     # penetration only, and must not be pushed into the tool by the volume restoration
     planes = _patch_planes(surface, patches, PLANAR_TOLERANCE * diam)
-    node_tags = np.arange(1, len(surface.points) + 1)
     ids = np.unique(patches)
-    for p in ids:
-        gmsh.model.addDiscreteEntity(2, int(p) + 1)
-    gmsh.model.mesh.addNodes(2, int(ids[0]) + 1, node_tags, surface.points.ravel())
-    etag = 1
-    for p in ids:
-        tri = surface.triangles[patches == p]
-        gmsh.model.mesh.addElementsByType(int(p) + 1, 2, np.arange(etag, etag + len(tri)),
-                                          (tri + 1).ravel())
-        etag += len(tri)
-    gmsh.model.mesh.createTopology()
+    if not discrete_model(gmsh, surface.points, surface.triangles, patches):
+        # not a closed manifold, or patches touching at a vertex only: gmsh's own topology
+        # (its meshes are then not reproducible)
+        log.info("volume_mesh: the boundary's curves and corners are left to gmsh")
+        node_tags = np.arange(1, len(surface.points) + 1)
+        for p in ids:
+            gmsh.model.addDiscreteEntity(2, int(p) + 1)
+        gmsh.model.mesh.addNodes(2, int(ids[0]) + 1, node_tags, surface.points.ravel())
+        etag = 1
+        for p in ids:
+            tri = surface.triangles[patches == p]
+            gmsh.model.mesh.addElementsByType(int(p) + 1, 2, np.arange(etag, etag + len(tri)),
+                                              (tri + 1).ravel())
+            etag += len(tri)
+        gmsh.model.mesh.createTopology()
     gmsh.model.mesh.createGeometry()
     surfs = [t for _, t in gmsh.model.getEntities(2)]
     loop = gmsh.model.geo.addSurfaceLoop(surfs)
@@ -265,7 +272,8 @@ def _build_on_root(gmsh, surface: BoundarySurface, h: float, zones, feature_angl
     gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
     gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
     gmsh.option.setNumber("Mesh.Optimize", 1 if optimize else 0)
-    gmsh.option.setNumber("General.NumThreads", 1)   # the same mesh every time
+    gmsh.option.setNumber("General.NumThreads", 1)   # the same mesh every time (with the
+    # reproducible topology of discrete_model)
     if SIZE_CALLBACK:
         gmsh.model.mesh.setSizeCallback(_size_callback(h, zones))
         points = []
