@@ -175,10 +175,18 @@ class SmoothBoundary:
         i = np.arange(len(x))
         return cand[i, best], lam[i, best], dist[i, best]
 
-    def evaluate(self, x: np.ndarray, p: int):
+    def evaluate(self, x: np.ndarray, p: int, tolerance: float = 0.0):
         """The Nagata points and unit normals (k, 3) of patch p at the points x (k, 3) lying on
-        its old triangles, and the distance (k,) of x to those triangles."""
+        its old triangles, and the distance (k,) of x to those triangles. Points farther than
+        ``tolerance`` from the triangles found are looked for again among 8 times more
+        candidates (a large triangle among small ones)."""
         f, lam, dist = self.locate(x, p)
+        again = np.flatnonzero(dist > tolerance)
+        if len(again):
+            f2, lam2, dist2 = self.locate(x[again], p, candidates=96)
+            better = dist2 < dist[again]
+            f[again[better]], lam[again[better]] = f2[better], lam2[better]
+            dist[again[better]] = dist2[better]
         eta, zeta = lam[:, 1] + lam[:, 2], lam[:, 2]
         A = self.A[f]
         return patch_points(A, eta, zeta), patch_normals(A, eta, zeta), dist
@@ -221,8 +229,7 @@ def place_surface_nodes(gmsh, origin: dict, planes: dict, smooth: Optional[Smoot
     curved ones (:func:`place_nodes`). A node farther than ``tolerance`` from the old triangles
     of a curved patch (gmsh did not put it on them) ignores that patch.
 
-    Returns ``{node tag: [planes]}`` of the nodes on planar patches and the number of nodes
-    the smoothing moved."""
+    Returns ``{node tag: [planes]}`` of the nodes on planar patches."""
     on: Dict[int, tuple] = {}
     for s, p in origin.items():
         tags, xyz, _ = gmsh.model.mesh.getNodes(2, s, includeBoundary=True)
@@ -233,12 +240,12 @@ def place_surface_nodes(gmsh, origin: dict, planes: dict, smooth: Optional[Smoot
     if smooth is not None:
         by_patch: Dict[int, list] = {}
         for t, (x, ps) in on.items():
-            for p in set(ps):
+            for p in dict.fromkeys(ps):
                 if p not in planes:
                     by_patch.setdefault(p, []).append(t)
         for p, ts in by_patch.items():
             X = np.array([on[t][0] for t in ts])
-            pts, nrm, dist = smooth.evaluate(X, p)
+            pts, nrm, dist = smooth.evaluate(X, p, tolerance)
             for t, q, n, dd in zip(ts, pts, nrm, dist):
                 if dd <= tolerance and np.any(n):
                     targets.setdefault(t, []).append((q, n))
