@@ -10,14 +10,19 @@ patch only, so that a sharp edge or a tag boundary is never averaged across:
   fitted by least squares, in the frame of its angle-weighted normal within p, to the vertex and
   its :data:`NEIGHBOURS` nearest vertices of p (those whose normals are within 60° of it). On a
   smooth surface of principal radii ≥ R the fitted normal is second-order accurate,
-  ε = O((h/R)²), where the averaged normals are only first-order on an irregular mesh;
+  ε = O((h/R)²) (the cubic terms of the surface), third-order on a sphere or a cylinder (no
+  cubic term: the quartic one tilts the fit by ~ρ³/(8R³) over a neighbourhood of radius ρ ≈ 2h;
+  measured below 0.14 (h/R)³ on gmsh's triangulations of a sphere), where the angle-weighted
+  normals are only first-order on an irregular mesh;
 * a new node lying on the old triangle f of patch p (its barycentric coordinates from the closest
   point on the candidate triangles of p) goes to the Nagata patch of f at those coordinates.
 
 Error: a Nagata edge through two points of a circle of radius R with exact normals is the
 quadratic Bézier arc, off the circle by at most d⁴/(128 R³) (d the edge length); a normal error
-ε moves its midpoint by about d ε/4. A new node therefore lands within ``C h³/R²`` of the smooth
-surface (against h²/(8R) on the chord), and N remeshes drift by at most N times that.
+ε moves its midpoint by about d ε/4. A new node therefore lands within O(h³/R²) of the smooth
+surface, O(h⁴/R³) on a sphere or a cylinder (against h²/(8R) on the chord), and N remeshes
+drift by at most N times that (``tests/test_remesh.py``: N h⁴/R³ bounds the drift of a cylinder
+and of a ring's convex and concave faces).
 
 A node on several patches (a crease between a curved face and a plane, a tag boundary) is put on
 the intersection of the tangent planes there: each curved patch gives the plane through its
