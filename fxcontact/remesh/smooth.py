@@ -234,7 +234,8 @@ def place_surface_nodes(gmsh, origin: dict, planes: dict, smooth: Optional[Smoot
     curved ones (:func:`place_nodes`). A node farther than ``tolerance`` from the old triangles
     of a curved patch (gmsh did not put it on them) ignores that patch.
 
-    Returns ``{node tag: [planes]}`` of the nodes on planar patches."""
+    Returns ``{node tag: [planes]}`` of the nodes on planar patches and ``{node tag: position
+    without the smoothing}`` of the nodes the smoothing moved."""
     on: Dict[int, tuple] = {}
     for s, p in origin.items():
         tags, xyz, _ = gmsh.model.mesh.getNodes(2, s, includeBoundary=True)
@@ -259,12 +260,14 @@ def place_surface_nodes(gmsh, origin: dict, planes: dict, smooth: Optional[Smoot
     if far:
         log.info("remesh smoothing: %d node-patch pairs farther than %.3g from the old "
                  "triangles were left on the facets", far, tolerance)
-    out = {}
+    out, flat = {}, {}
     for t, (x, ps) in on.items():
         pl = [planes[p] for p in dict.fromkeys(ps) if p in planes]
         tg = targets.get(t, [])
         if pl:
             out[t] = pl
+        if tg:
+            flat[t] = place_nodes(x, pl, []) if pl else x
         if pl or tg:
             gmsh.model.mesh.setNode(int(t), place_nodes(x, pl, tg).tolist(), [])
-    return out
+    return out, flat

@@ -36,6 +36,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from fxcontact.mesh_health import simplex_measures
 from fxcontact.remesh.boundary import UNTAGGED, BoundarySurface
 from fxcontact.remesh.smooth import SmoothBoundary, place_surface_nodes
 from fxcontact.remesh.topology import discrete_model
@@ -50,6 +51,10 @@ CELL_TAG = 1
 #: a patch within this fraction of the body's diameter of a plane is planar (kept planar,
 #: its nodes moved within the plane only)
 PLANAR_TOLERANCE = 1e-4
+
+#: a cell that the smoothing leaves with less than this fraction of its volume (or inverted)
+#: gets its nodes back on the old facets
+MIN_VOLUME_KEPT = 0.1
 
 #: size the elements by :func:`_size_callback` instead of gmsh's fields (:func:`size_fields`):
 #: the same sizes, ~100 times slower; for comparisons
@@ -285,7 +290,11 @@ def _build_on_root(gmsh, surface: BoundarySurface, h: float, zones, feature_angl
     curved = [int(p) for p in ids if int(p) not in planes]
     rebuilt = SmoothBoundary(surface.points, surface.triangles, patches, curved) \
         if smooth and curved else None
-    on_planes = place_surface_nodes(gmsh, origin, planes, rebuilt, ON_FACET_TOLERANCE * diam)
+    _, X, tets = _tetrahedra(gmsh)
+    generated = simplex_measures(X[tets])[0]
+    on_planes, flat = place_surface_nodes(gmsh, origin, planes, rebuilt,
+                                          ON_FACET_TOLERANCE * diam)
+    _unflatten(gmsh, flat, generated)
     for _ in range(2):
         _restore_volume(gmsh, surface.enclosed_volume(), on_planes)
     groups = {}
@@ -340,6 +349,26 @@ def boundary_faces(X: np.ndarray, tets: np.ndarray) -> np.ndarray:
     return F
 
 
+def _unflatten(gmsh, flat: dict, generated: np.ndarray, rounds: int = 5) -> int:
+    """Put back on the old facets (``flat``: {node tag: position}) the smoothed nodes of the
+    cells the smoothing flattened or turned inside out (volume below :data:`MIN_VOLUME_KEPT`
+    of gmsh's, ``generated``): a sliver lying along a curved face can flip when its nodes move
+    onto the smooth surface. Returns the number of nodes put back."""
+    back = 0
+    for _ in range(rounds):
+        tags, X, tets = _tetrahedra(gmsh)
+        bad = simplex_measures(X[tets])[0] < MIN_VOLUME_KEPT * generated
+        nodes = [t for t in np.unique(tags[tets[bad]]).tolist() if t in flat]
+        if not nodes:
+            break
+        for t in nodes:
+            gmsh.model.mesh.setNode(int(t), list(flat.pop(t)), [])
+        back += len(nodes)
+    if back:
+        log.info("remesh smoothing: %d nodes of flattened cells left on the old facets", back)
+    return back
+
+
 def _restore_volume(gmsh, volume: float, on_planes):
     """Move the surface nodes along their normals (within their planes for nodes on planar
     patches) by the one offset that gives the new surface the old enclosed ``volume``: the new
@@ -347,7 +376,6 @@ def _restore_volume(gmsh, volume: float, on_planes):
     (≈ h²/(8R) × area); the offset puts them back between the old facets and the smooth surface
     they approximate. Nodes on two planes or more (a sector's axis) stay."""
     tags, X, tets = _tetrahedra(gmsh)
-    from fxcontact.mesh_health import simplex_measures
     dV = volume - np.sum(np.abs(simplex_measures(X[tets])[0]))
     T = boundary_faces(X, tets)
     P = X[T]
