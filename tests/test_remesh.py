@@ -317,6 +317,29 @@ def test_quadric_normals_third_order_on_a_sphere():
         assert np.max(err) < (h / R) ** 3
 
 
+def test_smoothing_that_flattens_a_cell_is_undone():
+    """A surface node moved through its cell (as the smoothing might move a sliver's node along
+    a curved face) goes back to its position on the facets; the others keep theirs."""
+    from fxcontact.meshing import gmsh_session
+    from fxcontact.remesh import volume
+    with gmsh_session("box") as gmsh:
+        gmsh.model.occ.addBox(0, 0, 0, 1, 1, 1)
+        gmsh.model.occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.4)
+        gmsh.model.mesh.generate(3)
+        tags, X, tets = volume._tetrahedra(gmsh)
+        generated = simplex_measures(X[tets])[0]
+        top = np.flatnonzero(np.isclose(X[:, 2], 1.0))
+        i, j = top[0], top[1]                       # i goes through its cells, j moves a little
+        flat = {int(tags[i]): X[i].copy(), int(tags[j]): X[j].copy()}
+        gmsh.model.mesh.setNode(int(tags[i]), (X[i] - [0, 0, 2.0]).tolist(), [])
+        gmsh.model.mesh.setNode(int(tags[j]), (X[j] + [0, 0, 1e-3]).tolist(), [])
+        assert volume._unflatten(gmsh, flat, generated) == 1
+        _, Y, _ = volume._tetrahedra(gmsh)
+        assert np.array_equal(Y[i], X[i]) and Y[j][2] == X[j][2] + 1e-3
+        assert np.all(simplex_measures(Y[tets])[0] > 0)
+
+
 def _remeshed_n_times(msh, ft, h, n, smooth):
     """The boundary (on rank 0) of the mesh after n remeshes at size h (no deformation)."""
     for _ in range(n):
