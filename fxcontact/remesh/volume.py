@@ -8,16 +8,16 @@ corners (the sharp edges and the tag boundaries are kept as curves) made in a re
 (:mod:`fxcontact.remesh.topology`: gmsh's ``createTopology`` numbers them differently in each
 session, and its meshes differ), and ``createGeometry`` a parametrisation of each patch on its
 old triangles, so that the new surface nodes lie on the old surface and the patches are remeshed
-at the new sizes. Nodes of planar
-patches (symmetry planes, flat die faces) are then projected onto the patch's plane, or the
-intersection of the planes they lie on, so those faces stay exactly planar. The nodes of the
+at the new sizes. Nodes of planar patches (symmetry planes, flat die faces) are then projected
+onto the patch's plane, or the intersection of the planes they lie on, so those faces stay
+exactly planar. The nodes of the
 curved patches would lie on the old chords (a face of radius R remeshed at size h loses up to
 h²/(8R) of its radius each time): they are moved onto Nagata patches of the old boundary built
 on nodal normals fitted within each patch (:mod:`fxcontact.remesh.smooth`; ``smooth=False``
 leaves them on the facets). Last, all the surface nodes but those on two planes move along their
 normals by one common offset so that the new mesh has the old volume: with the smoothing that
-offset is the change of the facets' mean gap to the smooth surface (~1e-5 of the radius at
-h = R/10), on the chords it is the whole loss of volume.
+offset is the change of the facets' mean gap to the smooth surface (2.6e-5 of the radius of a
+cylinder remeshed 5 times at h = R/10), on the chords it is the whole loss of volume.
 
 The element size is ``h`` away from the tools and ``zone.h + zone.grading × distance`` near a
 :class:`SizeZone` (the distance to its points or its box): graded, finer where the tools bite.
@@ -57,11 +57,14 @@ CELL_TAG = 1
 PLANAR_TOLERANCE = 1e-4
 
 #: gmsh's options of the meshes tried in turn until one has no cell of quality below
-#: MIN_QUALITY: its default algorithms, HXT in 3-D, Delaunay in 2-D. gmsh optimises the cells
+#: MIN_QUALITY: its defaults (Frontal-Delaunay 2-D, Delaunay 3-D), HXT in 3-D, Delaunay in 2-D
+#: (set in full: gmsh's options are global). gmsh optimises the cells
 #: that have an inner node but cannot fix a sliver whose four nodes are on the boundary (two
 #: symmetry planes meeting at the axis of a 45° sector gave one of quality 0.014 in the upsetting
 #: test; HXT gave 0.35 there)
-GMSH_VARIANTS = ({}, {"Mesh.Algorithm3D": 10}, {"Mesh.Algorithm": 5})
+GMSH_VARIANTS = ({"Mesh.Algorithm": 6, "Mesh.Algorithm3D": 1},
+                 {"Mesh.Algorithm": 6, "Mesh.Algorithm3D": 10},
+                 {"Mesh.Algorithm": 5, "Mesh.Algorithm3D": 1})
 
 #: the smallest cell quality (:func:`~fxcontact.mesh_health.simplex_measures`) accepted without
 #: trying gmsh's other options
@@ -177,8 +180,9 @@ def _patch_planes(surface: BoundarySurface, patches: np.ndarray, tol: float):
 
 def _size_callback(h: float, zones):
     """gmsh's size callback (gmsh 4.8: ``f(dim, tag, x, y, z)``): :func:`size_field` called by
-    gmsh point by point, slow (a Python call per sample: ~10 s of a 100k-cell remesh); kept to
-    check :func:`size_fields` against. An exception inside a ctypes callback would abort the
+    gmsh point by point, slow (a Python call per sample: 5.0 s against 0.74 s with the fields
+    for the ring of ``benchmarks/bench_remesh.py --generate``); kept to check
+    :func:`size_fields` against. An exception inside a ctypes callback would abort the
     process, so a failure gives ``h`` and is logged once."""
     failed = []
 
@@ -446,8 +450,7 @@ def _best_variant(gmsh, surface, h, zones, feature_angle, optimize, smooth):
             gmsh.model.remove()
         if q >= MIN_QUALITY:
             break
-        log.info("volume_mesh: gmsh's mesh with %s has a cell of quality %.3f", options or
-                 "the default options", q)
+        log.info("volume_mesh: gmsh's mesh with %s has a cell of quality %.3f", options, q)
     gmsh.model.setCurrent(best[1])
 
 
