@@ -518,6 +518,26 @@ def test_remesh_is_reproducible(deformed_billet):
     assert all(np.array_equal(c, cells[0]) for c in cells[1:])
 
 
+def test_remesh_of_closed_curves_is_reproducible(monkeypatch):
+    """A whole cylinder: its two circular edges are closed curves without a corner (one point
+    each, at their lowest vertex); the model is built without gmsh's createTopology and the
+    same boundary gives the same mesh twice."""
+    from fxcontact.remesh import volume
+    built = []
+
+    def model(*args):
+        built.append(volume_discrete_model(*args))
+        return built[-1]
+
+    volume_discrete_model = volume.discrete_model
+    monkeypatch.setattr(volume, "discrete_model", model)
+    msh, _, ft = fx.cylinder_billet(COMM, radius=5.0, height=4.0, h=1.5, quarter=False)
+    surface = gather_boundary(msh, ft)
+    cells = [_sorted_cells(volume_mesh(COMM, surface, h=1.5)[0]) for _ in range(2)]
+    assert COMM.rank != 0 or built == [True, True]
+    assert cells[0].shape == cells[1].shape and np.array_equal(cells[0], cells[1])
+
+
 def test_gmsh_failure_retried_once_then_reported(deformed_billet, monkeypatch, caplog):
     """A gmsh refusal (gmsh 4.8 refused a ring's boundary once and meshed it when asked again)
     is retried once in a fresh session, with a warning; a second refusal raises a RuntimeError
