@@ -5,6 +5,7 @@ Usage::
     python benchmarks/bench_remesh.py                       # ~8k and ~140k MINI dofs
     mpirun -n 2 python benchmarks/bench_remesh.py --sizes 1.55
     python benchmarks/bench_remesh.py --sizes 1.55 --profile    # where the remesh goes
+    python benchmarks/bench_remesh.py --sizes 1.55 0.8 --generate   # gmsh's fields vs callback
 
 Problem: the quarter billet of ``fxcontact.meshing.cylinder_billet`` (R 10, H 15, element size
 h) upset by a flat die (5 mm/s, Tresca m̄ 0.3, dt 0.06 s) with its symmetry planes, a velocity
@@ -15,7 +16,13 @@ phases (``RemeshRecord.phases``: ``boundary`` gathered on rank 0, ``generate`` g
 ``distribute`` the new mesh, ``spaces``, ``transfer`` of the state, ``rebind`` conditions and
 contributors, ``setup`` forms and solver), the increments before and after it (wall, Newton
 iterations), and the remesh's cost in increments. ``--profile``: the remesh under cProfile
-(rank 0), the functions with the largest cumulative time. Timings are printed only.
+(rank 0), the functions with the largest cumulative time. ``--generate``: after the run, the
+new mesh's boundary remeshed by ``volume_mesh`` with two size zones at the top (h/2 at the die's
+edge, points on the circle r = R·1.05, z = H at that time, and h/2 in a box 1.5h thick under the
+die), alternately with gmsh's fields, with the Python size callback and without the surface
+smoothing, twice each: the ``generate`` times (median) and cells; then the same for a ring
+rolling remesh (the whole ring 100/70 × 40, upper half, h 8, the points of a bite zone of size
+3.9 over 90° in front of the gap, as ``ring_mill.BiteZones`` makes). Timings are printed only.
 """
 
 from __future__ import annotations
@@ -85,6 +92,59 @@ def run(comm, h, profile=False):
         out = io.StringIO()
         pstats.Stats(prof, stream=out).sort_stats("cumulative").print_stats(25)
         say(out.getvalue())
+    return sim
+
+
+def generate_variants(comm, surface, h, zones, label, repeat=2):
+    """The ``generate`` time of ``volume_mesh`` on ``surface`` with ``zones``: gmsh's fields,
+    the Python size callback, the fields without the surface smoothing (``--generate``)."""
+    import numpy as np
+    from fxcontact.remesh import volume
+    say = print if comm.rank == 0 else (lambda *a, **k: None)
+    variants = {"fields": (False, True), "callback": (True, True),
+                "fields, no smoothing": (False, False)}
+    times = {k: [] for k in variants}
+    cells = {}
+    for _ in range(repeat):
+        for name, (callback, smooth) in variants.items():
+            volume.SIZE_CALLBACK = callback
+            t = {}
+            msh, _, _ = volume.volume_mesh(comm, surface, h, zones, times=t, smooth=smooth)
+            times[name].append(comm.allreduce(t["generate"], op=MPI.MAX))
+            cells[name] = msh.topology.index_map(3).size_global
+    volume.SIZE_CALLBACK = False
+    say(f"  {label}, generate: " + ", ".join(
+        f"{k} {np.median(v):.2f} s ({cells[k]} cells)" for k, v in times.items()))
+
+
+def billet_zones(comm, sim, h):
+    """The boundary of the simulation's mesh and two zones at the die: h/2 at its edge (points
+    on r = 10.5 at the top) and h/2 in a box 1.5 h thick under it."""
+    import numpy as np
+    from fxcontact.remesh.boundary import gather_boundary
+    from fxcontact.remesh.volume import SizeZone
+    surface = gather_boundary(sim.mesh, sim.contributors[0].boundary.facet_tags)
+    top = comm.allreduce(float(sim.mesh.geometry.x[:, 2].max()), op=MPI.MAX)
+    th = np.linspace(0.0, np.pi / 2, 60)
+    rim = np.c_[10.5 * np.cos(th), 10.5 * np.sin(th), np.full_like(th, top)]
+    return surface, [SizeZone(h=h / 2, points=rim, grading=0.3),
+                     SizeZone(h=h / 2, box=([0, 0, top - 1.5 * h], [12, 12, top]), grading=0.3)]
+
+
+def ring_zones(comm, h=8.0, h_zone=3.9):
+    """A ring rolling remesh's set-up: the whole ring (radii 100 and 70, height 40, the upper
+    half), size h, and the points of a ring_mill.BiteZones over the 90° arc in front of the gap
+    (a grid of spacing h_zone through the wall)."""
+    import numpy as np
+    from fxcontact.remesh.boundary import gather_boundary
+    from fxcontact.remesh.volume import SizeZone
+    msh, _, ft = fx.ring(comm, 100.0, 70.0, 40.0, h, sector="upper")
+    th = np.linspace(-0.5 * np.pi, 0.1, int(np.ceil((0.5 * np.pi + 0.1) * 100 / h_zone)) + 1)
+    r = np.linspace(70.0, 100.0, int(np.ceil(30 / h_zone)) + 1)
+    z = np.linspace(0.0, 20.0, int(np.ceil(20 / h_zone)) + 1)
+    T, P, Z = np.meshgrid(th, r, z, indexing="ij")
+    pts = np.c_[(P * np.cos(T)).ravel(), (P * np.sin(T)).ravel(), Z.ravel()]
+    return gather_boundary(msh, ft), [SizeZone(h=h_zone, points=pts)]
 
 
 def main():
@@ -92,9 +152,20 @@ def main():
     ap.add_argument("--sizes", type=float, nargs="+", default=[1.55, 0.54],
                     help="element sizes (1.55: 7,851 dofs, 0.54: 138,736 dofs)")
     ap.add_argument("--profile", action="store_true", help="cProfile of the remesh (rank 0)")
+    ap.add_argument("--generate", action="store_true",
+                    help="then volume_mesh with zones: gmsh's fields vs the size callback")
     args = ap.parse_args()
+    comm = MPI.COMM_WORLD
     for h in args.sizes:
-        run(MPI.COMM_WORLD, h, args.profile)
+        sim = run(comm, h, args.profile)
+        if args.generate:
+            surface, zones = billet_zones(comm, sim, h)
+            generate_variants(comm, surface, h, zones, "volume_mesh with 2 zones (h/2)")
+    if args.generate:
+        surface, zones = ring_zones(comm)
+        generate_variants(comm, surface, 8.0, zones,
+                          f"ring 100/70 x 40 (upper half), h 8, bite zone h 3.9 "
+                          f"({len(zones[0].points)} points)")
 
 
 if __name__ == "__main__":

@@ -287,11 +287,11 @@ def test_ring_rolling_with_remeshing():
     """RingRollingCase(remesh=True) over 0.3 revolution, remeshed every 4 increments (3/4 of
     a 40° arc): the run goes on across the remeshes (centring, idle mandrel, measures on
     each new mesh), the volume is kept, and the main roll's force and the mandrel's speed stay
-    bounded at a remesh. gmsh does not give the same new mesh twice for the same boundary (even
-    serially), and this coarse ring (1.4 elements across the bite) changes its force by up to
-    about 25 % from one new mesh to another (five runs: the forces after the first remesh were
-    37.5k, 43.2k, 44.2k, 37.5k N after 42.0k): a remesh may move the force by up to half of
-    it, never more (a lost contact or a blow-up would)."""
+    bounded at a remesh. This coarse ring (1.4 elements across the bite) changes its force by
+    up to about 25 % from one new mesh to another (five runs when gmsh gave a different new mesh
+    each time for the same boundary, before ``fxcontact.remesh.topology``: the forces after the
+    first remesh were 37.5k, 43.2k, 44.2k, 37.5k N after 42.0k): a remesh may move the force by
+    up to half of it, never more (a lost contact or a blow-up would)."""
     from fxcontact.processes import ring_rolling as rr
     res = rr.run(_ring_case(revolutions=0.3, remesh_arc=40.0), COMM, pictures=False)
     rows = res.history
