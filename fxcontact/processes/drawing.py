@@ -103,7 +103,7 @@ class DrawingCase(CaseBase):
     material_tangent: str = "auto"
     linear_solver: str = "auto"
     element_condensation: object = "auto"   #: SolverOptions.element_condensation
-    reuse_factorisation: object = False     #: SolverOptions.reuse_factorisation
+    reuse_factorisation: object = "auto"    #: SolverOptions.reuse_factorisation
     max_cutbacks: int = 4
     # steady state: two windows of `window` mm of pull agree within steady_tol, after `settle`
     # mm (default one element)
