@@ -177,11 +177,14 @@ class SolverOptions:
             (the step solved again) when the Krylov solve does not converge within them. The
             condensed direct linear solver only (``"condensed-mumps"``). Same residual, same
             converged solution; fewer factorisations, some Krylov iterations (one triangular
-            solve and one product with the Newton matrix each). ``"auto"`` (default: on with
-            ``"condensed-mumps"``; 1.8x faster per Newton iteration at the thesis size of the
-            wire drawing on 2 ranks, equal at 22k dofs), True (with another linear solver:
-            ValueError), False. Figures in ``benchmarks/README.md``
-            (``bench_element_newton.py``).
+            solve and one product with the Newton matrix each). False (default), ``"auto"``
+            (on with ``"condensed-mumps"``; the wire-drawing case's default: 1.8x faster per
+            Newton iteration at the thesis size on 2 ranks, equal at 22k dofs), True (with
+            another linear solver: ValueError). Not the default: where the Newton matrix is
+            singular (the quick ring rolling's increment 1, 2 null pivots) the Krylov solve
+            with a kept factorisation picked a huge motion along the null space and the next
+            increment inverted an element (cut back), where MUMPS picks a moderate one. Figures
+            in ``benchmarks/README.md`` (``bench_element_newton.py``).
         reuse_max_krylov: see ``reuse_factorisation``.
         prefix: PETSc options prefix.
         petsc_options: extra PETSc options (without prefix) that override the presets.
@@ -200,7 +203,7 @@ class SolverOptions:
     prediction_max_nodes: int = 200
     material_tangent: str = "auto"
     element_condensation: object = "auto"
-    reuse_factorisation: object = "auto"
+    reuse_factorisation: object = False
     reuse_max_krylov: int = 10
     prefix: str = "fxc_"
     petsc_options: Dict[str, object] = field(default_factory=dict)

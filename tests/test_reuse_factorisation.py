@@ -67,10 +67,10 @@ def test_same_increments_fewer_factorisations(without_reuse, options):
 
 
 def test_auto_is_on_with_condensed_mumps_only():
-    assert SolverOptions().reuse_factorisation == "auto"   # the default
-    assert SolverOptions(linear_solver="condensed-mumps").reuses_factorisation
-    assert not SolverOptions(linear_solver="condensed-mumps",
-                             reuse_factorisation=False).reuses_factorisation
+    assert SolverOptions().reuse_factorisation is False   # the default
+    assert not SolverOptions(linear_solver="condensed-mumps").reuses_factorisation
+    assert SolverOptions(linear_solver="condensed-mumps",
+                         reuse_factorisation="auto").reuses_factorisation
     for solver in ("mumps", "condensed-amg", "auto"):
         assert not SolverOptions(linear_solver=solver,
                                  reuse_factorisation="auto").reuses_factorisation
