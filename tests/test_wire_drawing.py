@@ -224,8 +224,9 @@ def test_bad_parameters():
 def test_newton_rtol_looser_same_drawing_stress():
     """Newton's relative tolerance 1e-6 instead of 1e-9: the same drawing stress at every
     increment within 1e-5, 500x below the 0.5 % accepted for the drawing stress (measured:
-    5.4e-6 at this size, 5e-8 at size 0.4), in no more Newton iterations (the same iterates,
-    stopped earlier)."""
+    5.4e-6 at this size, 5e-8 at size 0.4). The first increment starts from the same state,
+    so its iterates are the same and the looser test stops no later (the later increments
+    start from states that differ by the tolerance: their counts are not compared)."""
     n = 3 * DrawingCase.QUICK["dt"]
     a = _run(t_end=n, stop_at_steady=False)
     b = _run(t_end=n, stop_at_steady=False, newton_rtol=1e-6)
@@ -234,6 +235,5 @@ def test_newton_rtol_looser_same_drawing_stress():
         print("drawing stress", qa["drawing_stress"], qb["drawing_stress"],
               "Newton", qa["newton_iterations"], qb["newton_iterations"])
         assert abs(qb["drawing_stress"] - qa["drawing_stress"]) <= 1e-5 * abs(qa["drawing_stress"])
-    assert sum(q["newton_iterations"] for q in b.history) \
-        <= sum(q["newton_iterations"] for q in a.history)
+    assert b.history[0]["newton_iterations"] <= a.history[0]["newton_iterations"]
 
