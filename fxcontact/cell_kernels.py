@@ -6,11 +6,60 @@ results are checked against numpy in ``tests/test_element_condense.py``,
 import numba
 import numpy as np
 
+#: a 3 × 3 bubble block whose |det| is below this times its largest entry cubed is singular
+#: (round-off of a determinant of O(1) entries: a few 1e-16)
+SINGULAR_DET = 1e-13
+
 
 @numba.njit(cache=True)
 def _bubble_inverse(A, bpos, Binv):
-    """Binv = A_bb⁻¹ of one element matrix (Gauss–Jordan with partial pivoting). Returns False
-    when A_bb is singular or the inverse is not finite."""
+    """Binv = A_bb⁻¹ of one element matrix (three bubble unknowns, the 3D MINI element: by
+    cofactors; otherwise Gauss–Jordan with partial pivoting). Returns False when A_bb is
+    singular or the inverse is not finite."""
+    if bpos.size == 3:
+        return _inverse3(A, bpos, Binv)
+    return _inverse_gauss_jordan(A, bpos, Binv)
+
+
+@numba.njit(cache=True)
+def _inverse3(A, bpos, Binv):
+    """Binv = A_bb⁻¹ of a 3 × 3 bubble block by cofactors (no allocation: 5× faster than the
+    Gauss–Jordan loop in the condensation of a Jacobian). Returns False when |det A_bb| is
+    below :data:`SINGULAR_DET` times its largest entry cubed (singular to round-off) or the
+    inverse is not finite."""
+    b0, b1, b2 = bpos[0], bpos[1], bpos[2]
+    a00, a01, a02 = A[b0, b0], A[b0, b1], A[b0, b2]
+    a10, a11, a12 = A[b1, b0], A[b1, b1], A[b1, b2]
+    a20, a21, a22 = A[b2, b0], A[b2, b1], A[b2, b2]
+    c00 = a11 * a22 - a12 * a21
+    c10 = a12 * a20 - a10 * a22
+    c20 = a10 * a21 - a11 * a20
+    det = a00 * c00 + a01 * c10 + a02 * c20
+    amax = max(abs(a00), abs(a01), abs(a02), abs(a10), abs(a11), abs(a12), abs(a20),
+               abs(a21), abs(a22))
+    if not abs(det) > SINGULAR_DET * amax * amax * amax:   # (NaN: not finite)
+        return False
+    d = 1.0 / det
+    Binv[0, 0] = c00 * d
+    Binv[0, 1] = (a02 * a21 - a01 * a22) * d
+    Binv[0, 2] = (a01 * a12 - a02 * a11) * d
+    Binv[1, 0] = c10 * d
+    Binv[1, 1] = (a00 * a22 - a02 * a20) * d
+    Binv[1, 2] = (a02 * a10 - a00 * a12) * d
+    Binv[2, 0] = c20 * d
+    Binv[2, 1] = (a01 * a20 - a00 * a21) * d
+    Binv[2, 2] = (a00 * a11 - a01 * a10) * d
+    for i in range(3):
+        for j in range(3):
+            if not abs(Binv[i, j]) < np.inf:
+                return False
+    return True
+
+
+@numba.njit(cache=True)
+def _inverse_gauss_jordan(A, bpos, Binv):
+    """Binv = A_bb⁻¹ (Gauss–Jordan with partial pivoting). Returns False when A_bb is
+    singular or the inverse is not finite."""
     k = bpos.size
     M = np.empty((k, k))
     for i in range(k):
@@ -45,6 +94,9 @@ def _bubble_inverse(A, bpos, Binv):
 @numba.njit(cache=True)
 def _schur(A, lpos, bpos, Binv, X, S):
     """X = A_bb⁻¹ A_bl and S = A_ll − A_lb X of one element matrix, given Binv = A_bb⁻¹."""
+    if bpos.size == 3:
+        _schur3(A, lpos, bpos, Binv, X, S)
+        return
     nl = lpos.size
     k = bpos.size
     for i in range(k):
@@ -59,6 +111,23 @@ def _schur(A, lpos, bpos, Binv, X, S):
             for q in range(k):
                 acc -= A[lpos[i], bpos[q]] * X[q, j]
             S[i, j] = acc
+
+
+@numba.njit(cache=True)
+def _schur3(A, lpos, bpos, Binv, X, S):
+    """:func:`_schur` for three bubble unknowns, unrolled (the same sums in the same order)."""
+    b0, b1, b2 = bpos[0], bpos[1], bpos[2]
+    nl = lpos.size
+    for j in range(nl):
+        lj = lpos[j]
+        u0, u1, u2 = A[b0, lj], A[b1, lj], A[b2, lj]
+        for i in range(3):
+            X[i, j] = Binv[i, 0] * u0 + Binv[i, 1] * u1 + Binv[i, 2] * u2
+    for i in range(nl):
+        li = lpos[i]
+        v0, v1, v2 = A[li, b0], A[li, b1], A[li, b2]
+        for j in range(nl):
+            S[i, j] = A[li, lpos[j]] - v0 * X[0, j] - v1 * X[1, j] - v2 * X[2, j]
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -67,10 +67,11 @@ def _condense_cell(A, lpos, bpos, S, X, Y, Binv, Abb):
         return False
     _schur(A, lpos, bpos, Binv, X, S)
     for i in range(nl):
+        li = lpos[i]
         for j in range(k):
             acc = 0.0
             for q in range(k):
-                acc += A[lpos[i], bpos[q]] * Binv[q, j]
+                acc += A[li, bpos[q]] * Binv[q, j]
             Y[i, j] = acc
     return True
 

@@ -479,8 +479,13 @@ class ContactNewtonSolver:
             # the Jacobian of this iterate may keep the factorisation (reuse_factorisation)
             # where Newton contracts fast with an unchanged contact state: the iterates, and
             # so the Newton matrices, then change little
+            # and the factorisation is regular: on a singular Newton matrix (MUMPS's null
+            # pivots) the Krylov solve preconditioned by it may move far along the null space
+            # where a direct solve picks a moderate step (the quick ring's first increment
+            # inverted an element that way)
             self._reuse_ok = (it > 0 and stable
-                              and fnorm <= REUSE_CONTRACTION * self._norms[-2])
+                              and fnorm <= REUSE_CONTRACTION * self._norms[-2]
+                              and not (self._pivots and self._pivots[-1]))
         self._last_it, self._last_stable = it, stable
         log.debug("Newton it %d: |R| = %.3e  |dx| = %.3e  stable=%s", it, fnorm, snorm, stable)
         if stable and it > 0 and fnorm <= self._residual_floor(contributors):

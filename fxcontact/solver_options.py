@@ -180,11 +180,13 @@ class SolverOptions:
             solve and one product with the Newton matrix each). False (default), ``"auto"``
             (on with ``"condensed-mumps"``; the wire-drawing case's default: 1.8x faster per
             Newton iteration at the thesis size on 2 ranks, equal at 22k dofs), True (with
-            another linear solver: ValueError). Not the default: where the Newton matrix is
-            singular (the quick ring rolling's increment 1, 2 null pivots) the Krylov solve
-            with a kept factorisation picked a huge motion along the null space and the next
-            increment inverted an element (cut back), where MUMPS picks a moderate one. Figures
-            in ``benchmarks/README.md`` (``bench_element_newton.py``).
+            another linear solver: ValueError). A factorisation in which MUMPS found null
+            pivots is never kept (a Krylov solve preconditioned by it may move far along the
+            null space). Not the default: the inexact steps can take Newton to another
+            solution where the contact state is fragile. The quick ring rolling's increment 2
+            took 26 Newton iterations instead of 16 and converged where contact was lost (2 null
+            pivots, a rigid motion left free), and the next check found an inverted element
+            (cut back). Figures in ``benchmarks/README.md`` (``bench_element_newton.py``).
         reuse_max_krylov: see ``reuse_factorisation``.
         prefix: PETSc options prefix.
         petsc_options: extra PETSc options (without prefix) that override the presets.

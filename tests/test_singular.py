@@ -72,3 +72,49 @@ def test_no_count_without_mumps():
     sim = _pressed_block([0.0, 0.0, -0.01], "condensed-amg")
     info = sim.step(1.0, max_cutbacks=0).info
     assert info.null_pivots and all(n is None for n in info.null_pivots)
+
+
+def _viscoplastic_block(top, reuse):
+    """The pressed block of a nearly rigid-plastic Norton–Hoff material (several Newton
+    iterations per increment, where ``reuse_factorisation`` keeps factorisations)."""
+    from fxcontact.materials import NortonHoff
+    msh, _, ft = block(MPI.COMM_WORLD, (0, 0, 0), (1, 1, 1), 0.34)
+    sp = MixedSpace(msh)
+    sim = Simulation(sp, NortonHoff(K=1.0, m=0.1, regularization=1e-3), progress=False,
+                     solver_options=SolverOptions(linear_solver="condensed-mumps",
+                                                  reuse_factorisation=reuse,
+                                                  prefix=f"sgr_{np.ndim(top)}{reuse}_"))
+    f = sim.facets(ft, BLOCK_TAGS["zmax"])
+    if np.ndim(top) == 0:
+        sim.add_velocity_bc(f, top, 2)
+    else:
+        sim.add_velocity_bc(f, np.asarray(top, dtype=float))
+    sim.add_contributor(NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["zmin"]),
+                                     Plane((0, 0, 0), (0, 0, 1), name="anvil")))
+    return sim
+
+
+def _factorised_jacobians(sim, n_increments):
+    """Run increments; returns the factorisations and Jacobians of the solver (built at the
+    first step) and the vertical vertex velocities (the free motions, x, y translations and
+    the rotation about z, have none: arbitrary, as MUMPS picks one solution)."""
+    from helpers import vertex_velocities_by_position
+    for _ in range(n_increments):
+        assert sim.step(0.05, max_cutbacks=0).info.converged
+    return (sim.solver.factorisations, sim.solver.callback_calls["jacobian"],
+            vertex_velocities_by_position(sim)[:, 2])
+
+
+def test_kept_factorisation_never_singular():
+    """``reuse_factorisation`` keeps no factorisation that has null pivots: on a free body
+    every Jacobian is factorised (a Krylov solve preconditioned by a singular factorisation
+    may move far along the null space), and the increments are those without reuse (the
+    vertical velocities, which the free motions leave alone, to the Newton tolerance). The
+    held body, with the same material, does keep factorisations (the check can fail)."""
+    fact, jac, w = _factorised_jacobians(_viscoplastic_block(-0.01, True), 2)
+    _, _, w_ref = _factorised_jacobians(_viscoplastic_block(-0.01, False), 2)
+    assert fact == jac
+    assert np.isfinite(w).all()
+    assert np.linalg.norm(w - w_ref) <= 1e-6 * np.linalg.norm(w_ref)
+    fact, jac, _ = _factorised_jacobians(_viscoplastic_block([0.0, 0.0, -0.01], True), 2)
+    assert fact < jac
