@@ -28,25 +28,30 @@ __all__ = ["DualUpdateKernel", "dual_update_numpy", "kernel_applies"]
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _deviator_at(wv, G, Ki, gbq, share, e, gB, L):
-    """e = dev sym ∇v at one quadrature point (bubble gradient ``gbq`` in reference
-    coordinates); ``wv`` the cell's W values (velocity node n component c at 3 n + c);
-    ``gB`` (3,) and ``L`` (3, 3) scratch."""
-    for j in range(3):
-        gB[j] = Ki[0, j] * gbq[0] + Ki[1, j] * gbq[1] + Ki[2, j] * gbq[2]
+def _vertex_part(wv, G, share, Lc, vb):
+    """The parts of ∇v constant in a cell: Lc = Σ_n v_n ⊗ ∇λ_n (hat functions) and the
+    bubble's coefficient vb = v_B + Σ_n c_n v_n (``wv``: the cell's W values, velocity node n
+    component c at 3 n + c)."""
     for i in range(3):
-        vb = wv[12 + i]
+        acc = wv[12 + i]
         for n in range(4):
-            vb += share[n] * wv[3 * n + i]
+            acc += share[n] * wv[3 * n + i]
+        vb[i] = acc
         for j in range(3):
-            acc = vb * gB[j]
+            acc = 0.0
             for n in range(4):
                 acc += wv[3 * n + i] * G[n, j]
-            L[i, j] = acc
-    tr = (L[0, 0] + L[1, 1] + L[2, 2]) / 3.0
+            Lc[i, j] = acc
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _deviator_at(Lc, vb, gB, e):
+    """e = dev sym ∇v at one quadrature point, ∇v = Lc + vb ⊗ ∇B (``gB``: the bubble's
+    physical gradient there)."""
+    tr = (Lc[0, 0] + vb[0] * gB[0] + Lc[1, 1] + vb[1] * gB[1] + Lc[2, 2] + vb[2] * gB[2]) / 3.0
     for i in range(3):
         for j in range(3):
-            e[i, j] = 0.5 * (L[i, j] + L[j, i])
+            e[i, j] = 0.5 * (Lc[i, j] + Lc[j, i] + vb[i] * gB[j] + vb[j] * gB[i])
         e[i, i] -= tr
 
 
@@ -62,7 +67,10 @@ def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, shar
     eo = np.empty((3, 3))
     en = np.empty((3, 3))
     gB = np.empty(3)
-    L = np.empty((3, 3))
+    Lo = np.empty((3, 3))
+    Ln = np.empty((3, 3))
+    vo = np.empty(3)
+    vn = np.empty(3)
     for c in range(xdofs.shape[0]):
         for i in range(4):
             for j in range(3):
@@ -71,9 +79,14 @@ def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, shar
         for k in range(wdofs.shape[1]):
             wn[k] = w_new[wdofs[c, k]]
             wo[k] = w_old[wdofs[c, k]]
+        _vertex_part(wn, G, share, Ln, vn)
+        if mode != 0:
+            _vertex_part(wo, G, share, Lo, vo)
         for q in range(gb.shape[0]):
             row = sdofs[c, q] * 9
-            _deviator_at(wn, G, Ki, gb[q], share, en, gB, L)
+            for j in range(3):
+                gB[j] = Ki[0, j] * gb[q, 0] + Ki[1, j] * gb[q, 1] + Ki[2, j] * gb[q, 2]
+            _deviator_at(Ln, vn, gB, en)
             zn2 = 3.0 * eps0 * eps0
             for i in range(3):
                 for j in range(3):
@@ -84,7 +97,7 @@ def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, shar
                     for j in range(3):
                         s[row + 3 * i + j] = an * en[i, j]
                 continue
-            _deviator_at(wo, G, Ki, gb[q], share, eo, gB, L)
+            _deviator_at(Lo, vo, gB, eo)
             zo2 = 3.0 * eps0 * eps0
             ed = 0.0
             for i in range(3):
