@@ -262,6 +262,7 @@ class FFCxElementTensors:
         self.L = L if hasattr(L, "ufcx_form") else compat.form(L)
         ka = compat.cell_kernel(self.a, "a")
         kL = compat.cell_kernel(self.L, "L")
+        self._kernel_a, self._kernel_L = ka, kL
         self.tab, self.tab_jacobian = _ffcx_tabulators(ka, kL)
         msh = layout.W.mesh
         self._x = msh.geometry.x
@@ -277,8 +278,28 @@ class FFCxElementTensors:
 
     def tensors(self, cells: np.ndarray):
         """(A, b): the (n, ndofs, ndofs) element matrices and (n, ndofs) vectors of ``cells``
-        in the element order of W."""
-        return _element_tensors(self, cells)
+        in the element order of W. The FFCx kernels are called from Python (cffi), one cell
+        at a time: no numba compilation for a few cells (the sample check of the hand kernel,
+        the tests); the assembly loops call them from numba."""
+        ndofs = self.layout.W.element.space_dimension
+        cells = np.asarray(cells, dtype=np.int32)
+        A = np.zeros((cells.size, ndofs, ndofs))
+        b = np.zeros((cells.size, ndofs))
+        (x, xdofs, ca, ka, cL, kL, coords, ent, perm) = self.data()
+        ptr = _ffi.cast
+        ka_p, kL_p = ptr("double *", ka.ctypes.data), ptr("double *", kL.ctypes.data)
+        ent_p, perm_p = ptr("int *", ent.ctypes.data), ptr("uint8_t *", perm.ctypes.data)
+        for n, c in enumerate(cells):
+            crd = np.ascontiguousarray(x[xdofs[c]])
+            crd_p = ptr("double *", crd.ctypes.data)
+            An, bn = np.zeros((ndofs, ndofs)), np.zeros(ndofs)
+            wa, wL = np.ascontiguousarray(ca[c]), np.ascontiguousarray(cL[c])
+            self._kernel_a(ptr("double *", An.ctypes.data), ptr("double *", wa.ctypes.data),
+                           ka_p, crd_p, ent_p, perm_p)
+            self._kernel_L(ptr("double *", bn.ctypes.data), ptr("double *", wL.ctypes.data),
+                           kL_p, crd_p, ent_p, perm_p)
+            A[n], b[n] = An, bn
+        return A, b
 
 
 def _element_tensors(src, cells):
@@ -286,7 +307,10 @@ def _element_tensors(src, cells):
     cells = np.asarray(cells, dtype=np.int32)
     A = np.zeros((cells.size, ndofs, ndofs))
     b = np.zeros((cells.size, ndofs))
-    _tensors_loop(src.tab, src.data(), cells, A, b)
+    if src.tab is _nh_tab:   # (a loop numba caches on disk: no compilation per process)
+        _nh_tensors_loop(src.data(), cells, A, b)
+    else:
+        _tensors_loop(src.tab, src.data(), cells, A, b)
     return A, b
 
 
@@ -535,7 +559,7 @@ def _nh_cell(coords, wv, s, has_dual, K, m, eps0, g, g1, gb, share, wq, psi_w, p
                 A[i, 3 * n + c] += share[n] * A[i, 12 + c]
 
 
-@numba.njit
+@numba.njit(cache=True)
 def _nh_tab(data, c, A, b):
     (x, xdofs, warr, wdofs, sarr, sdofs, prm, g1, gb, share, wq, psi_w, psi_gb, coords, wv,
      s) = data
@@ -551,6 +575,13 @@ def _nh_tab(data, c, A, b):
                 s[q, k // 3, k % 3] = sarr[sdofs[c, q] * 9 + k]
     _nh_cell(coords, wv, s, has_dual, prm[0], prm[1], prm[2], prm[3], g1, gb, share, wq, psi_w,
              psi_gb, A, b)
+
+
+@numba.njit(cache=True)
+def _nh_tensors_loop(data, cells, A_out, b_out):
+    """:func:`_tensors_loop` of the hand kernel (called directly: cached on disk)."""
+    for n in range(cells.size):
+        _nh_tab(data, cells[n], A_out[n], b_out[n])
 
 
 def norton_hoff_tensors_numpy(coords, wv, s, K, m, eps0, g, tables):

@@ -42,6 +42,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from fxcontact.cell_kernels import _bubble_inverse, _schur
+from fxcontact.element_condense import _nh_tab
 
 __all__ = ["CondensedJacobian", "ElementCondensedPC", "condense_cell_numpy",
            "element_condensation_supported"]
@@ -94,6 +95,19 @@ def _jacobian_loop(tab, data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
     for n in range(cells.size):
         c = cells[n]
         tab(data, c, A, b)
+        if not _condense_cell(A, lpos, bpos, S[n], X[c], Y[c], Binv[c], Abb[c]):
+            bad += 1
+    return bad
+
+
+@numba.njit(cache=True)
+def _jacobian_loop_nh(data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
+    """:func:`_jacobian_loop` of the hand-written Norton–Hoff kernel, called directly (cached
+    on disk: a loop taking the kernel as an argument is compiled again in every process)."""
+    bad = 0
+    for n in range(cells.size):
+        c = cells[n]
+        _nh_tab(data, c, A, b)
         if not _condense_cell(A, lpos, bpos, S[n], X[c], Y[c], Binv[c], Abb[c]):
             bad += 1
     return bad
@@ -438,8 +452,12 @@ class CondensedJacobian:
         for c0 in range(0, lay.num_cells, self.chunk):
             cells = np.arange(c0, min(c0 + self.chunk, lay.num_cells), dtype=np.int32)
             S = np.empty((cells.size, nl, nl))
-            bad += _jacobian_loop(self._tab, data, cells, lay.lpos, lay.bpos, self._A, self._b,
-                                  S, self.X, self.Y, self.Binv, self.Abb)
+            if self._tab is _nh_tab:
+                bad += _jacobian_loop_nh(data, cells, lay.lpos, lay.bpos, self._A, self._b,
+                                         S, self.X, self.Y, self.Binv, self.Abb)
+            else:
+                bad += _jacobian_loop(self._tab, data, cells, lay.lpos, lay.bpos, self._A,
+                                      self._b, S, self.X, self.Y, self.Binv, self.Abb)
             bc = bc_marker[lay.w_l[cells]]
             if bc.any():   # Dirichlet rows and columns zeroed (kept in the pattern)
                 keep = ~bc

@@ -31,6 +31,9 @@ class OutputError(OSError):
 
 #: parts of an increment's wall time measured by the solver (``wall_<part>`` in the history)
 WALL_PARTS = ("assembly", "linear_solve", "contact")
+#: a part of ``linear_solve`` reported beside it: the condensed solver's set-up (with a direct
+#: solver, the factorisations; 0 without the condensed solvers)
+WALL_SUBPARTS = ("factorisation",)
 
 
 def wall_split(rows) -> dict:
@@ -45,14 +48,25 @@ def wall_split(rows) -> dict:
     out = {k: float(sum(q.get(f"wall_{k}", 0.0) for q in rows)) for k in WALL_PARTS}
     out["total"] = float(sum(q.get("wall_increment_all", q.get("wall", 0.0)) for q in rows))
     out["other"] = max(out["total"] - sum(out[k] for k in WALL_PARTS), 0.0)
+    for k in WALL_SUBPARTS:
+        out[k] = float(sum(q.get(f"wall_{k}", 0.0) for q in rows))
     return out
 
 
 def format_wall_split(split: dict) -> str:
-    """``"assembly 120 s (41 %), linear solve ..., contact ..., other ..."`` of :func:`wall_split`."""
+    """``"assembly 120 s (41 %), linear solve ... (factorisation ...), contact ..., other ..."``
+    of :func:`wall_split` (the factorisation when there was one)."""
     tot = split["total"] or float("nan")
-    return ", ".join(f"{k.replace('_', ' ')} {split[k]:.0f} s ({100 * split[k] / tot:.1f} %)"
-                     for k in WALL_PARTS + ("other",))
+
+    def sec(v):   # whole seconds, tenths below 10 s
+        return f"{v:.0f}" if v >= 10.0 else f"{v:.1f}"
+
+    def part(k):
+        text = f"{k.replace('_', ' ')} {sec(split[k])} s ({100 * split[k] / tot:.1f} %)"
+        if k == "linear_solve" and split.get("factorisation", 0.0) > 0.0:
+            text = text[:-1] + f"; factorisation {sec(split['factorisation'])} s)"
+        return text
+    return ", ".join(part(k) for k in WALL_PARTS + ("other",))
 
 
 def output_dir_problem(path) -> Optional[str]:

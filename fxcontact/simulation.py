@@ -598,7 +598,7 @@ class Simulation:
                "newton_iterations": info.iterations,
                "linear_iterations": info.linear_iterations,
                "residual": info.residual_norms[-1] if info.residual_norms else float("nan")}
-        for k in ("assembly", "linear_solve", "contact", "other", "total"):
+        for k in ("assembly", "linear_solve", "contact", "other", "total", "factorisation"):
             row[f"wall_{k}"] = info.times.get(k, 0.0)
         row["volume"] = self.volume()
         row["volume_change"] = row["volume"] / self._volume_initial - 1.0

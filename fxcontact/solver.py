@@ -672,6 +672,7 @@ class ContactNewtonSolver:
         cpc = self._condensed_pc
         inner0 = cpc.inner_iterations if cpc is not None else 0
         cond0 = cpc.times["condense"] if cpc is not None else 0.0
+        fac0 = cpc.times["inner_setup"] if cpc is not None else 0.0
         if cpc is not None:
             cpc.error = None
         from_rest = self._trust_region_from_rest(x)
@@ -728,8 +729,10 @@ class ContactNewtonSolver:
                  "linear_solve": lin}
         times["other"] = max(wall - sum(times.values()), 0.0)
         times["total"] = wall
-        if cpc is not None:  # part of linear_solve: forming the condensed system
+        if cpc is not None:  # parts of linear_solve: forming the condensed system, and the
+            # set-up of its solver (the factorisation with a direct one)
             times["condensation"] = cond
+            times["factorisation"] = cpc.times["inner_setup"] - fac0
         # sub-parts of "assembly"
         times["assembly_residual"] = prob.timers.get("assembly_residual")
         times["assembly_jacobian"] = prob.timers.get("assembly_jacobian")

@@ -193,6 +193,9 @@ def test_time_split_adds_up(solver):
         # the assembly sub-parts add up
         assert abs(t["assembly_residual"] + t["assembly_jacobian"] - t["assembly"]) \
             <= 1e-9 + 1e-9 * t["assembly"]
+        # the condensed solver's set-up (factorisation) is a part of the linear solve
+        if "factorisation" in t:
+            assert 0.0 <= t["factorisation"] <= t["linear_solve"] * (1.0 + 1e-9) + 1e-6, t
         assert info.evaluations["jacobian"] == info.iterations
         assert info.evaluations["residual"] >= info.iterations + 1
     # the run's split (demo reports): the history's parts sum up, "other" is the rest
@@ -205,6 +208,10 @@ def test_time_split_adds_up(solver):
     assert ws["assembly"] + ws["linear_solve"] + ws["contact"] + ws["other"] \
         == pytest.approx(ws["total"], rel=1e-9)
     assert "linear solve" in format_wall_split(ws) and "%" in format_wall_split(ws)
+    assert ws["factorisation"] == pytest.approx(
+        sum(q["wall_factorisation"] for q in sim.history), rel=1e-12)
+    assert 0.0 <= ws["factorisation"] <= ws["linear_solve"] * (1.0 + 1e-9)
+    assert ("factorisation" in format_wall_split(ws)) == (ws["factorisation"] > 0.0)
 
 
 def test_iterative_step_keeps_dirichlet_values_exact():

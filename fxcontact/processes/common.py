@@ -113,6 +113,7 @@ def numerics_columns(r: dict) -> Dict[str, float]:
                 newton_iterations_converged=r["newton_iterations"],
                 wall=r["wall_increment_all"], wall_assembly=r["wall_assembly"],
                 wall_linear_solve=r["wall_linear_solve"], wall_contact=r["wall_contact"],
+                wall_factorisation=r.get("wall_factorisation", 0.0),
                 volume_change=r["volume_change"], min_quality=r["min_quality"],
                 symmetry_violation=r.get("symmetry_violation", 0.0))
 
