@@ -19,14 +19,14 @@ from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Plane
 
 
-def _pressed_block(top, linear_solver):
-    """Elastic unit cube on a frictionless plane (z = 0), its top face moved by ``top`` (a
-    scalar: the z component only, so x, y and the rotation about z are free; a 3-vector:
-    all components held)."""
+def _pressed_block(top, linear_solver, material=None, **options):
+    """Elastic unit cube (or ``material``) on a frictionless plane (z = 0), its top face moved
+    by ``top`` (a scalar: the z component only, so x, y and the rotation about z are free; a
+    3-vector: all components held); ``options``: more :class:`SolverOptions`."""
     msh, _, ft = block(MPI.COMM_WORLD, (0, 0, 0), (1, 1, 1), 0.34)
     sp = MixedSpace(msh)
-    sim = Simulation(sp, LinearElastic(1000.0, 0.3), progress=False,
-                     solver_options=SolverOptions(linear_solver=linear_solver))
+    sim = Simulation(sp, material or LinearElastic(1000.0, 0.3), progress=False,
+                     solver_options=SolverOptions(linear_solver=linear_solver, **options))
     f = sim.facets(ft, BLOCK_TAGS["zmax"])
     if np.ndim(top) == 0:
         sim.add_velocity_bc(f, top, 2)
@@ -78,20 +78,8 @@ def _viscoplastic_block(top, reuse):
     """The pressed block of a nearly rigid-plastic Norton–Hoff material (several Newton
     iterations per increment, where ``reuse_factorisation`` keeps factorisations)."""
     from fxcontact.materials import NortonHoff
-    msh, _, ft = block(MPI.COMM_WORLD, (0, 0, 0), (1, 1, 1), 0.34)
-    sp = MixedSpace(msh)
-    sim = Simulation(sp, NortonHoff(K=1.0, m=0.1, regularization=1e-3), progress=False,
-                     solver_options=SolverOptions(linear_solver="condensed-mumps",
-                                                  reuse_factorisation=reuse,
-                                                  prefix=f"sgr_{np.ndim(top)}{reuse}_"))
-    f = sim.facets(ft, BLOCK_TAGS["zmax"])
-    if np.ndim(top) == 0:
-        sim.add_velocity_bc(f, top, 2)
-    else:
-        sim.add_velocity_bc(f, np.asarray(top, dtype=float))
-    sim.add_contributor(NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["zmin"]),
-                                     Plane((0, 0, 0), (0, 0, 1), name="anvil")))
-    return sim
+    return _pressed_block(top, "condensed-mumps", NortonHoff(K=1.0, m=0.1, regularization=1e-3),
+                          reuse_factorisation=reuse, prefix=f"sgr_{np.ndim(top)}{reuse}_")
 
 
 def _factorised_jacobians(sim, n_increments):
