@@ -111,7 +111,9 @@ class NodalContact(NodalContactIO):
 
     Args:
         boundary: the contact nodes.
-        tools: one tool or a sequence of tools.
+        tools: one tool or a sequence of tools; a node keeps the tool of smallest signed gap
+            (the first on a tie; its friction law applies): the distance to the union of the
+            bodies (docs/architecture.md, "Several tools of one contact").
         scheme: one of :data:`SCHEMES`. Default: ``"implicit"`` in velocity form,
             ``"implicit-exact"`` in displacement form (``"implicit"`` if a tool has no gap
             Hessian): a dolfinx problem has no other fxcontact solver settings to tune, and the
