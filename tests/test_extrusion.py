@@ -125,7 +125,22 @@ def test_bad_case():
         ExtrusionCase.quick(length=6.0)
 
 
-def test_punch_reaction_takes_the_rim_contact():
+def test_quick_on_the_class_and_on_a_case():
+    """``quick`` on the class starts from the default case; on a case (as the rolling cases'
+    ``case.quick()``) it keeps the case's other fields instead of dropping them."""
+    from fxcontact.processes import DrawingCase, UpsettingCase
+
+    for cls, field, value in ((ExtrusionCase, "alpha", 30.0), (DrawingCase, "alpha", 15.0),
+                              (UpsettingCase, "mbar", 0.3)):
+        case = cls(**{field: value})
+        q = case.quick()
+        assert getattr(q, field) == value
+        assert q == cls.quick(**{field: value}) == cls(**{**cls.QUICK, field: value})
+        assert all(getattr(q, k) == v for k, v in cls.QUICK.items())
+        assert case.quick(h=2.0).h == 2.0
+    with pytest.raises(ValueError, match="R1"):        # checked: R1 6 > QUICK's R0 5
+        ExtrusionCase(alpha=30.0).quick(R1=6.0)
+
     """The punched face's rim nodes are under the punch's velocity condition and slide on the
     container (contact with friction): the punch's reaction (``Simulation.add_reaction``)
     takes their contact forces, so it balances the contact's forces on the container and the

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import math
 import os
 from dataclasses import dataclass, field
@@ -27,6 +28,18 @@ __all__ = ["CaseBase", "script_main", "gather", "numerics_columns", "run_summary
            "plot_curves", "write_rows"]
 
 
+class _ClassOrCase:
+    """A method called on the class or on a case: its first argument is then the class's
+    default case or the case itself."""
+
+    def __init__(self, func):
+        self.func = func
+        functools.update_wrapper(self, func)
+
+    def __get__(self, case, cls):
+        return functools.partial(self.func, cls() if case is None else case)
+
+
 class CaseBase:
     """What the process cases (frozen dataclasses) share: :meth:`quick` (the reduced size of
     the tests, the class's ``QUICK`` fields), :meth:`replace` and the checks of their common
@@ -34,10 +47,12 @@ class CaseBase:
 
     QUICK: Dict[str, object] = {}
 
-    @classmethod
-    def quick(cls, **changes):
-        """The reduced case of the tests (``QUICK``), with ``changes``."""
-        return cls(**{**cls.QUICK, **changes})
+    @_ClassOrCase
+    def quick(self, **changes):
+        """The reduced case of the tests: the ``QUICK`` fields replaced, then ``changes``.
+        On the class (``ExtrusionCase.quick(alpha=30.0)``) from the default case; on a case
+        (``case.quick()``, as the rolling cases) from that case: its other fields are kept."""
+        return self.replace(**{**self.QUICK, **changes})
 
     def replace(self, **changes):
         """A copy with ``changes`` (checked)."""
