@@ -141,6 +141,8 @@ def test_quick_on_the_class_and_on_a_case():
     with pytest.raises(ValueError, match="R1"):        # checked: R1 6 > QUICK's R0 5
         ExtrusionCase(alpha=30.0).quick(R1=6.0)
 
+
+def test_punch_reaction_takes_the_rim_contact():
     """The punched face's rim nodes are under the punch's velocity condition and slide on the
     container (contact with friction): the punch's reaction (``Simulation.add_reaction``)
     takes their contact forces, so it balances the contact's forces on the container and the
