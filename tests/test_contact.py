@@ -150,8 +150,11 @@ def test_penalty_given_as_one_object():
     runs = [_strip_under_arc(MPI.COMM_WORLD, "implicit", 0.4, t_end=0.8, penalty=pen)[0]
             for pen in (p, None)]
     assert len(runs[0].history) == 2 and runs[0].history[-1]["contact_nodes"] > 0
+    # bitwise on one rank; on several, parallel MUMPS is not bitwise reproducible run to run
+    rel = 0.0 if MPI.COMM_WORLD.size == 1 else 1e-9
     for key in ("arc_force_x", "arc_force_y", "contact_penetration_true"):
-        assert [q[key] for q in runs[0].history] == [q[key] for q in runs[1].history], key
+        a, b = ([q[key] for q in r.history] for r in runs)
+        assert a == pytest.approx(b, rel=rel, abs=0.0), key
     assert p.fixed_rho is None and p.stiffness == 2e6           # the object given: unchanged
 
 
