@@ -53,6 +53,7 @@ import os
 import time
 
 import numpy as np
+from dolfinx.io import gmshio
 from mpi4py import MPI
 
 from fxcontact.console import add_verbosity_arguments, configure_logging
@@ -60,7 +61,6 @@ from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact, penalty_from_beta
 from fxcontact.io import figure, plot_pressure_profile
 from fxcontact.materials import LinearElastic
-from fxcontact import compat
 from fxcontact.meshing import BLOCK_TAGS, gmsh_session
 from fxcontact.simulation import Simulation
 from fxcontact.solver import SolverOptions
@@ -118,7 +118,7 @@ def graded_block(comm, width: float, height: float, h_fine: float, refine: float
                       "Mesh.MeshSizeFromCurvature"):
                 gmsh.option.setNumber(k, 0)
             gmsh.model.mesh.generate(3)
-        msh, ct, ft = compat.model_to_mesh(gmsh.model, comm, 0, gdim=3)
+        msh, ct, ft = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=3)
     return msh, ct, ft
 
 
