@@ -186,6 +186,7 @@ def test_steady_state(tmp_path):
     assert geo["A_inscribed"] / geo["A_pass"] < res.fill < upper, (res.fill, upper)
     assert abs(res.power_balance) < 0.03
     assert math.isfinite(res.radius_gap) and res.radius_gap < geo["r_c"]
+    assert "Norton(alpha_f=0.3, q=0.15), K of the material" in res.report()   # the law's K
 
 
 @pytest.mark.parametrize("fields,words", [

@@ -71,6 +71,10 @@ def test_container_force_with_given_k(given_k):
     """The billet slides rigidly in the container: with k fixed, its axial force is the
     Tresca stress m̄ k over the wall still in the container."""
     assert given_k.container_ratio == pytest.approx(1.0, abs=0.03)
+    # the report says which k each friction law uses (the contact's line of the summary)
+    text = given_k.report()
+    assert "'container' Tresca(mbar=0.3), k = 46.07 given" in text, text
+    assert "'die' Tresca(mbar=0.1), k of the material at each node's local strain rate" in text, text
 
 
 def _histories_agree(a, b, keys, rtol=1e-8):

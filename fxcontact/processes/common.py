@@ -20,6 +20,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fxcontact import compat
+from fxcontact.processes.monitor import contact_lines
 from fxcontact.simulation import IncrementError, wall_split
 from fxcontact.steady import steady_window
 
@@ -208,6 +209,8 @@ class ProcessResult:
     pictures: list = field(default_factory=list)
     csv: Optional[str] = None
     vtk: Optional[str] = None
+    #: each contact's line of the run's summary (friction laws and their k, the penalty)
+    contacts: list = field(default_factory=list)
 
     def report_text(self, lines) -> str:
         """The report's ``lines`` and the line of the pictures written (if any), joined."""
@@ -224,7 +227,7 @@ class ProcessResult:
                 f"{self.cutbacks}; wall {self.wall:.0f} s: "
                 f"{format_wall_split(self.wall_split)}",
                 f"max |dV/V| {self.max_volume_change:.2e}; min element quality "
-                f"{self.min_quality:.3f}"]
+                f"{self.min_quality:.3f}", *self.contacts]
 
 
 def finish_run(comm, sim, res, output_dir, name, pictures, vtk_every, draw):
@@ -238,6 +241,7 @@ def finish_run(comm, sim, res, output_dir, name, pictures, vtk_every, draw):
             res.pictures = draw()
         if vtk_every:
             res.vtk = os.path.join(output_dir, f"{name}.pvd")
+    res.contacts = contact_lines(sim)
     sim.close()
     return res
 
