@@ -12,6 +12,7 @@ import csv
 import dataclasses
 import functools
 import math
+import types
 import os
 from dataclasses import dataclass, field
 from typing import Callable, Dict, Optional, Sequence
@@ -38,7 +39,7 @@ class _ClassOrCase:
         functools.update_wrapper(self, func)
 
     def __get__(self, case, cls):
-        return functools.partial(self.func, cls() if case is None else case)
+        return types.MethodType(self.func, cls() if case is None else case)
 
 
 class CaseBase:
