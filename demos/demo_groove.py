@@ -61,7 +61,6 @@ from mpi4py import MPI
 import dolfinx
 import dolfinx.mesh
 
-from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact
 from fxcontact.materials import LinearElastic
@@ -221,12 +220,7 @@ def run(bar_radius=5.0, groove_radius=6.0, E=2e5, nu=0.3, height=4.0, half_width
             and rotation_step != 0):
         raise ValueError("need clearance >= 0, indentation > 0, n_indent >= 1, a non-zero "
                          "rotation_step and n_rotation >= settle + 3")
-    for tk, f, s in variants:
-        if tk not in ("analytic", "flat", "nagata") or (tk == "analytic") != (f is None) \
-                or f not in (None, "coarse", "fine"):
-            raise ValueError(f"bad variant {(tk, f, s)!r}")
-    if output_dir is not None and comm.rank == 0:
-        os.makedirs(output_dir, exist_ok=True)
+    ironing.check_variants(variants, output_dir, comm)
     facet_counts = {"coarse": int(coarse_facets), "fine": int(fine_facets)}
     common = dict(bar_radius=bar_radius, groove_radius=groove_radius, E=E, nu=nu,
                   height=height, half_width=half_width, h=h, h_coarse=h_coarse,
@@ -236,15 +230,8 @@ def run(bar_radius=5.0, groove_radius=6.0, E=2e5, nu=0.3, height=4.0, half_width
                   max_cutbacks=max_cutbacks, progress=progress, comm=comm,
                   newton_rtol=newton_rtol)
     results = [run_variant(tk, f, s, output_dir=output_dir, **common) for tk, f, s in variants]
-    summary = [ironing.summarize(r, n_indent + settle) for r in results]
-    out = {"summary": summary, "by_name": {row["variant"]: row for row in summary},
-           "results": {r["name"]: r for r in results},
-           "parameters": {**{k: v for k, v in common.items() if k != "comm"},
-                          "settle": settle, "variants": list(variants)},
-           "png": {}, "summary_csv": None}
+    out = ironing.collect(results, n_indent + settle, common, settle, variants, output_dir)
     if output_dir is not None and comm.rank == 0:
-        out["summary_csv"] = ironing.write_summary(summary, os.path.join(output_dir,
-                                                                         "summary.csv"))
         for label, n in facet_counts.items():
             if any(f == label for _, f, _ in variants):
                 V, T = groove_surface(groove_radius, n, h + 4.0,
@@ -305,20 +292,11 @@ def run(bar_radius=5.0, groove_radius=6.0, E=2e5, nu=0.3, height=4.0, half_width
 # %%
 def main(argv=None):
     ap = argparse.ArgumentParser(description="Round bar in a turning faceted groove")
-    ap.add_argument("--quick", action="store_true",
-                    help="reduced configuration of the tests (coarse groove, implicit scheme)")
-    ap.add_argument("--output", default="results/groove")
-    add_verbosity_arguments(ap)
-    args = ap.parse_args(argv)
-    configure_logging(args.verbose, args.quiet)
-    kw = dict(QUICK) if args.quick else {}
-    res = run(**kw, output_dir=args.output)
-    if MPI.COMM_WORLD.rank == 0:
-        r0 = next(iter(res["results"].values()))
-        print(f"bar section: {r0['cells']} tetrahedra, {r0['dofs']} dofs, "
-              f"{r0['surface_nodes']} surface nodes; Newton statistics over the rotation")
-        print(ironing.format_table(res["summary"]))
-        print(f"outputs: {res['summary_csv']}, {', '.join(res['png'].values())}")
+    args, quick = ironing.parse_arguments(ap, argv, "results/groove", "reduced configuration "
+                                          "of the tests (coarse groove, implicit scheme)")
+    res = run(**(dict(QUICK) if quick else {}), output_dir=args.output)
+    ironing.print_report(res, "bar section", "surface nodes; Newton statistics over the "
+                         "rotation")
     return res
 
 

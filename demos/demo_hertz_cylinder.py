@@ -57,6 +57,7 @@ from mpi4py import MPI
 from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact, penalty_from_beta
+from fxcontact.io import figure, plot_pressure_profile
 from fxcontact.materials import LinearElastic
 from fxcontact.meshing import BLOCK_TAGS, block
 from fxcontact.simulation import Simulation
@@ -180,28 +181,14 @@ def run(radius=5.0, E=2e5, nu=0.3, indentation=0.0145, h_fine=0.008, h=1.0, widt
 
 # %%
 def plot_profile(res: dict, path: str) -> str:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     a, p0 = res["hertz_half_width"], res["hertz_p_max"]
-    xx = np.linspace(0.0, a, 400)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    ax.plot(xx / a, np.sqrt(1.0 - (xx / a) ** 2), "k-", label="Hertz, $p_0\\sqrt{1-x^2/a^2}$")
-    sel = res["x"] < 2.0 * a
-    ax.plot(res["x"][sel] / a, res["p"][sel] / p0, "o", ms=4, label="FEM nodal $p_n$")
-    ax.axvline(res["contact_half_width"] / a, color="C1", ls="--", lw=1,
-               label="FEM half-width ($p^2$ extrapolated)")
-    ax.set_xlabel("$x/a$")
-    ax.set_ylabel("$p/p_0$")
-    ax.set_xlim(0, 1.5)
-    ax.set_title(f"Hertz line contact: P = {res['force']:.1f} N/mm, a = {a:.4f} mm, "
-                 f"$p_0$ = {p0:.0f} MPa")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    with figure(path) as (fig, ax):
+        nodes = [(res["x"], res["p"], dict(ms=4, label="FEM nodal $p_n$"))]
+        plot_pressure_profile(ax, a, p0, nodes, variable="x", extent=(
+            res["contact_half_width"], "FEM half-width ($p^2$ extrapolated)"))
+        ax.set_title(f"Hertz line contact: P = {res['force']:.1f} N/mm, a = {a:.4f} mm, "
+                     f"$p_0$ = {p0:.0f} MPa")
+        ax.legend()
     return path
 
 

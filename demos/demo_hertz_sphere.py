@@ -53,13 +53,14 @@ import os
 import time
 
 import numpy as np
+from dolfinx.io import gmshio
 from mpi4py import MPI
 
 from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact, penalty_from_beta
+from fxcontact.io import figure, plot_pressure_profile
 from fxcontact.materials import LinearElastic
-from fxcontact import compat
 from fxcontact.meshing import BLOCK_TAGS, gmsh_session
 from fxcontact.simulation import Simulation
 from fxcontact.solver import SolverOptions
@@ -117,7 +118,7 @@ def graded_block(comm, width: float, height: float, h_fine: float, refine: float
                       "Mesh.MeshSizeFromCurvature"):
                 gmsh.option.setNumber(k, 0)
             gmsh.model.mesh.generate(3)
-        msh, ct, ft = compat.model_to_mesh(gmsh.model, comm, 0, gdim=3)
+        msh, ct, ft = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=3)
     return msh, ct, ft
 
 
@@ -575,40 +576,28 @@ def format_table(results: dict, tools=TOOLS) -> str:
 
 def plot_tools(results: dict, tools, path: str) -> str:
     """p/p0 against r/a for each tool, with the Hertz ellipse."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     first = results[tools[0]]
     a, p0 = first["hertz_contact_radius"], first["hertz_p_max"]
-    rr = np.linspace(0.0, a, 400)
-    fig, ax = plt.subplots(figsize=(7.5, 4.8))
-    ax.plot(rr / a, np.sqrt(1.0 - (rr / a) ** 2), "k-", label="Hertz, $p_0\\sqrt{1-r^2/a^2}$")
     style = {"analytic": ("o", "C0"), "nagata": ("s", "C2"), "flat": ("^", "C3")}
+    label = {"analytic": "analytic sphere", "nagata": "faceted, Nagata patches",
+             "flat": "faceted, flat facets"}
+    nodes = []
     for kind in tools:
         r = results[kind]
-        sel = r["r"] < 2.0 * a
         mk, col = style.get(kind, ("x", None))
-        lab = {"analytic": "analytic sphere", "nagata": "faceted, Nagata patches",
-               "flat": "faceted, flat facets"}.get(kind, kind)
-        ax.plot(r["r"][sel] / a, r["p"][sel] / p0, mk, color=col, ms=3.5, alpha=0.7,
-                mfc="none" if kind == "nagata" else col,
-                label=f"{lab}: $p_{{max}}/p_0$ = {r['p_max'] / p0:.3f}, "
-                      f"P = {r['force']:.0f} N")
-    ax.set_xlabel("$r/a$")
-    ax.set_ylabel("$p/p_0$")
-    ax.set_xlim(0, 1.5)
-    ax.set_ylim(0, None)
+        nodes.append((r["r"], r["p"], dict(
+            marker=mk, color=col, ms=3.5, alpha=0.7, mfc="none" if kind == "nagata" else col,
+            label=f"{label.get(kind, kind)}: $p_{{max}}/p_0$ = {r['p_max'] / p0:.3f}, "
+                  f"P = {r['force']:.0f} N")))
     edge = next((results[k]["tool_facet_size"] for k in tools
                  if "tool_facet_size" in results[k]), None)
     extra = f", tool edge {edge:.2f} mm = {edge / a:.1f} a" if edge else ""
-    ax.set_title(f"Hertz sphere, δ = {1e3 * first['indentation']:.1f} µm (Hertz P = "
-                 f"{first['hertz_force']:.0f} N){extra}", fontsize=10)
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    with figure(path, figsize=(7.5, 4.8)) as (fig, ax):
+        plot_pressure_profile(ax, a, p0, nodes)
+        ax.set_ylim(0, None)
+        ax.set_title(f"Hertz sphere, δ = {1e3 * first['indentation']:.1f} µm (Hertz P = "
+                     f"{first['hertz_force']:.0f} N){extra}", fontsize=10)
+        ax.legend(fontsize=8)
     return path
 
 
@@ -617,29 +606,14 @@ def plot_tools(results: dict, tools, path: str) -> str:
 
 # %%
 def plot_profile(res: dict, path: str) -> str:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     a, p0 = res["hertz_contact_radius"], res["hertz_p_max"]
-    rr = np.linspace(0.0, a, 400)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    ax.plot(rr / a, np.sqrt(1.0 - (rr / a) ** 2), "k-", label="Hertz, $p_0\\sqrt{1-r^2/a^2}$")
-    sel = res["r"] < 2.0 * a
-    ax.plot(res["r"][sel] / a, res["p"][sel] / p0, "o", ms=3, alpha=0.7,
-            label="FEM nodal $p_n$")
-    ax.axvline(res["contact_radius"] / a, color="C1", ls="--", lw=1,
-               label="FEM radius $\\sqrt{4\\sum S_n/\\pi}$")
-    ax.set_xlabel("$r/a$")
-    ax.set_ylabel("$p/p_0$")
-    ax.set_xlim(0, 1.5)
-    ax.set_title(f"Hertz sphere: δ = {1e3 * res['indentation']:.1f} µm, "
-                 f"P = {res['force']:.0f} N (Hertz {res['hertz_force']:.0f} N)")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    with figure(path) as (fig, ax):
+        nodes = [(res["r"], res["p"], dict(ms=3, alpha=0.7, label="FEM nodal $p_n$"))]
+        plot_pressure_profile(ax, a, p0, nodes, extent=(
+            res["contact_radius"], "FEM radius $\\sqrt{4\\sum S_n/\\pi}$"))
+        ax.set_title(f"Hertz sphere: δ = {1e3 * res['indentation']:.1f} µm, "
+                     f"P = {res['force']:.0f} N (Hertz {res['hertz_force']:.0f} N)")
+        ax.legend()
     return path
 
 

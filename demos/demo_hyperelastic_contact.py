@@ -260,23 +260,17 @@ def render(res: dict, path: str, depth: float):
 
 
 def plot_force(results, path: str):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(6.5, 4.2))
-    for res, mk in zip(results, ("o-", "s--", "^:")):
-        r = res["rows"]
-        ax.plot([0] + [x["indentation"] for x in r], [0] + [x["force"] for x in r], mk,
-                mfc="none", label=f"{res['driver']}: {res['newton']} Newton its, "
-                                  f"{res['wall_time']:.1f} s")
-    ax.set_xlabel("indentation [mm]")
-    ax.set_ylabel("ball force [N]")
-    ax.set_title("Rubber block pressed by a rigid ball: three solvers, one answer")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    with fx.figure(path, figsize=(6.5, 4.2)) as (fig, ax):
+        for res, mk in zip(results, ("o-", "s--", "^:")):
+            r = res["rows"]
+            ax.plot([0] + [x["indentation"] for x in r], [0] + [x["force"] for x in r], mk,
+                    mfc="none", label=f"{res['driver']}: {res['newton']} Newton its, "
+                                      f"{res['wall_time']:.1f} s")
+        ax.set_xlabel("indentation [mm]")
+        ax.set_ylabel("ball force [N]")
+        ax.set_title("Rubber block pressed by a rigid ball: three solvers, one answer")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
     return path
 
 

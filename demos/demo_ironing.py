@@ -426,12 +426,7 @@ def run(radius=5.0, E=2e5, nu=0.3, height=5.0, indentation=0.04, n_indent=3, tra
         raise ValueError("tool_mesh must be 'extruded' or 'gmsh', phase 'vertex' or 'facet'")
     if not travel > settle + 2 * step:
         raise ValueError("travel too short for the steady-phase statistics")
-    for tk, f, s in variants:
-        if tk not in ("analytic", "flat", "nagata") or (tk == "analytic") != (f is None) \
-                or f not in (None, "coarse", "fine"):
-            raise ValueError(f"bad variant {(tk, f, s)!r}")
-    if output_dir is not None and comm.rank == 0:
-        os.makedirs(output_dir, exist_ok=True)
+    check_variants(variants, output_dir, comm)
     facet_sizes = {"coarse": coarse_facet, "fine": fine_facet}
     common = dict(radius=radius, E=E, nu=nu, height=height, indentation=indentation,
                   n_indent=n_indent, travel=travel, step=step, h_fine=h_fine,
@@ -441,18 +436,9 @@ def run(radius=5.0, E=2e5, nu=0.3, height=5.0, indentation=0.04, n_indent=3, tra
                   start_offset=start_offset, beta=beta,
                   line_search=line_search, progress=progress, comm=comm)
     first = n_indent + int(math.ceil(settle / step - 1e-9))
-    results, summary = [], []
-    for tk, f, s in variants:
-        res = run_variant(tk, f, s, output_dir=output_dir, **common)
-        results.append(res)
-        summary.append(summarize(res, first))
-    out = {"summary": summary, "by_name": {row["variant"]: row for row in summary},
-           "results": {r["name"]: r for r in results},
-           "parameters": {**{k: v for k, v in common.items() if k != "comm"},
-                          "settle": settle, "variants": list(variants)},
-           "png": {}, "summary_csv": None}
+    results = [run_variant(tk, f, s, output_dir=output_dir, **common) for tk, f, s in variants]
+    out = collect(results, first, common, settle, variants, output_dir)
     if output_dir is not None and comm.rank == 0:
-        out["summary_csv"] = write_summary(summary, os.path.join(output_dir, "summary.csv"))
         for label, fs in facet_sizes.items():
             if any(f == label for _, f, _ in variants):
                 V, T = faceted_surface(radius, fs, h_fine + 2.0 * tool_overhang,
@@ -460,6 +446,32 @@ def run(radius=5.0, E=2e5, nu=0.3, height=5.0, indentation=0.04, n_indent=3, tra
                 tool_meshes.write_surface(os.path.join(output_dir, f"tool_{label}.stl"), V, T)
         if picture:
             out["png"] = plot_all(results, output_dir, n_indent)
+    return out
+
+
+def check_variants(variants, output_dir, comm):
+    """ValueError naming a bad (tool, facets, scheme) of ``variants``; the output directory
+    made (rank 0)."""
+    for tk, f, s in variants:
+        if tk not in ("analytic", "flat", "nagata") or (tk == "analytic") != (f is None) \
+                or f not in (None, "coarse", "fine"):
+            raise ValueError(f"bad variant {(tk, f, s)!r}")
+    if output_dir is not None and comm.rank == 0:
+        os.makedirs(output_dir, exist_ok=True)
+
+
+def collect(results: list, first: int, common: dict, settle, variants, output_dir) -> dict:
+    """The dict :func:`run` returns, from the variants' results: the rows of
+    :func:`summarize` from increment ``first``, by name, the parameters (``common`` without
+    the communicator); ``summary.csv`` written by rank 0 (``png`` left to the caller)."""
+    summary = [summarize(r, first) for r in results]
+    out = {"summary": summary, "by_name": {row["variant"]: row for row in summary},
+           "results": {r["name"]: r for r in results},
+           "parameters": {**{k: v for k, v in common.items() if k != "comm"},
+                          "settle": settle, "variants": list(variants)},
+           "png": {}, "summary_csv": None}
+    if output_dir is not None and common["comm"].rank == 0:
+        out["summary_csv"] = write_summary(summary, os.path.join(output_dir, "summary.csv"))
     return out
 
 
@@ -618,27 +630,42 @@ def format_table(summary: list) -> str:
                                for row in summary])
 
 
+def parse_arguments(ap, argv, output: str, quick_help: str):
+    """The command line of the ironing and groove demos: ``ap`` with ``--quick`` (the
+    tests' configuration ``QUICK`` of the caller), ``--output`` and the verbosity options,
+    parsed, logging configured. Returns ``(args, quick)``."""
+    ap.add_argument("--quick", action="store_true", help=quick_help)
+    ap.add_argument("--output", default=output)
+    add_verbosity_arguments(ap)
+    args = ap.parse_args(argv)
+    configure_logging(args.verbose, args.quiet)
+    return args, args.quick
+
+
+def print_report(res: dict, body: str, what: str):
+    """Rank 0 prints the mesh of the first variant, the table of :func:`format_table` and the
+    outputs (``body``: the workpiece, ``what``: the nodes and the phase of the statistics)."""
+    if MPI.COMM_WORLD.rank == 0:
+        r0 = next(iter(res["results"].values()))
+        print(f"{body}: {r0['cells']} tetrahedra, {r0['dofs']} dofs, {r0['surface_nodes']} "
+              f"{what}")
+        print(format_table(res["summary"]))
+        print(f"outputs: {res['summary_csv']}, {', '.join(res['png'].values())}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description="Cylinder ironing: analytic, flat and Nagata tools")
     ap.add_argument("--size", type=float, default=0.25, help="fine element size h_fine [mm]")
     ap.add_argument("--travel", type=float, default=None, help="translation [mm]")
-    ap.add_argument("--quick", action="store_true",
-                    help="reduced configuration of the test (coarse tool, implicit scheme)")
-    ap.add_argument("--output", default="results/ironing")
-    add_verbosity_arguments(ap)
-    args = ap.parse_args(argv)
-    configure_logging(args.verbose, args.quiet)
-    kw = dict(QUICK) if args.quick else {}
+    args, quick = parse_arguments(ap, argv, "results/ironing",
+                                  "reduced configuration of the test (coarse tool, implicit "
+                                  "scheme)")
+    kw = dict(QUICK) if quick else {}
     kw.update(h_fine=args.size, output_dir=args.output)
     if args.travel is not None:
         kw["travel"] = args.travel
     res = run(**kw)
-    if MPI.COMM_WORLD.rank == 0:
-        r0 = next(iter(res["results"].values()))
-        print(f"slab: {r0['cells']} tetrahedra, {r0['dofs']} dofs, {r0['surface_nodes']} top-face "
-              f"nodes; Newton statistics over the steady translation")
-        print(format_table(res["summary"]))
-        print(f"outputs: {res['summary_csv']}, {', '.join(res['png'].values())}")
+    print_report(res, "slab", "top-face nodes; Newton statistics over the steady translation")
     return res
 
 

@@ -53,7 +53,7 @@ from fxcontact.solver import (LINE_SEARCHES, MATERIAL_TANGENTS, ContactNewtonSol
 from fxcontact.dual import DualStress
 from fxcontact.petsc import (ContactProblem, ContributorError, NodalNonlinearProblem, NodalTerms,
                              NonlinearProblem)
-from fxcontact.io import render_png
+from fxcontact.io import figure, plot_pressure_profile, render_png
 from fxcontact.console import add_verbosity_arguments, configure_logging
 
 __version__ = "0.1.0"
@@ -185,6 +185,8 @@ _API = {
     "ContributorError": ("petsc", "error raised by a nodal contributor on any rank"),
     # outputs and console
     "render_png": ("io", "offscreen picture of the mesh coloured by a cell field"),
+    "figure": ("io", "a matplotlib figure saved to a PNG when its with-block ends"),
+    "plot_pressure_profile": ("io", "nodal contact pressures against Hertz's elliptic profile"),
     "configure_logging": ("console", "console of a script: rank 0, --verbose/--quiet"),
     "add_verbosity_arguments": ("console", "add --verbose/--quiet to an argparse parser"),
 }

@@ -25,6 +25,10 @@ biases: the FE answer is not expected to equal them but to fall in the band they
   (Tresca friction on the container wall, 2 m̄ k L_c/R₀) and :func:`extrusion_theory` (ideal
   work, Avitzur's die terms — the die part of :func:`drawing_upper_bound` — plus the container
   friction, for a Norton–Hoff material).
+* Flat rolling (§14.3): :func:`flat_rolling_theory` (bite, the slab with Coulomb–Tresca friction,
+  Sims, Ford–Alexander, Hill's spread: :func:`fxcontact.rolling.theory_band`, whose module holds
+  the pieces). Every process's classical theory is thus importable from here (bar rolling is
+  compared with its pass's geometry: :func:`fxcontact.processes.bar_rolling.pass_geometry`).
 
 Units are free (consistent); pressures are returned over σ₀ and powers per unit σ₀ and closing
 speed unless stated.
@@ -38,13 +42,15 @@ from typing import Dict, Sequence
 import numpy as np
 from scipy import integrate, optimize
 
+from fxcontact.rolling import theory_band as flat_rolling_theory
+
 __all__ = ["flow_stress", "upsetting_upper_bound", "upsetting_slab_coulomb", "ring_power",
            "ring_power_quadrature", "ring_neutral_radius", "ring_compression_upper_bound",
            "ring_rolling_curvature", "ring_rolling_contact_length", "ring_rolling_feed_window",
            "ring_rolling_feed_speed", "ring_rolling_mean_diameter", "ring_rolling_force",
            "drawing_ideal_stress", "drawing_sachs_stress", "avitzur_f", "drawing_upper_bound",
            "drawing_mean_strain_rate", "drawing_optimal_angle", "drawing_theory",
-           "extrusion_container_friction", "extrusion_theory"]
+           "extrusion_container_friction", "extrusion_theory", "flat_rolling_theory"]
 
 SQRT3 = math.sqrt(3.0)
 

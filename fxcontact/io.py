@@ -1,4 +1,5 @@
-"""Outputs: a VTK time series that follows the moving mesh, a CSV history, PNG pictures.
+"""Outputs: a VTK time series that follows the moving mesh, a CSV history, PNG pictures (a
+mesh by VTK, :func:`render_png`; curves by matplotlib, :func:`figure`).
 
 ``XDMFFile`` in dolfinx 0.5.2 keeps pointing at the first mesh written, so a moving mesh does not
 show; ``VTKFile`` (``.pvd``) stores the current geometry at every step and ParaView opens it
@@ -8,6 +9,7 @@ stops early keeps everything computed so far.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import logging
 import os
@@ -19,7 +21,7 @@ from mpi4py import MPI
 from fxcontact import compat
 
 __all__ = ["SeriesWriter", "HistoryWriter", "render_png", "gather_mesh_data", "read_pvd",
-           "write_pvd"]
+           "write_pvd", "figure", "plot_pressure_profile"]
 
 log = logging.getLogger(__name__)
 
@@ -262,3 +264,49 @@ def _vtk_to_meshio(topo: np.ndarray, ctypes: np.ndarray):
         blocks.setdefault(_VTK_TO_MESHIO[int(ct)], []).append(topo[pos + 1: pos + 1 + n])
         pos += n + 1
     return [(k, np.array(v)) for k, v in blocks.items()]
+
+
+@contextlib.contextmanager
+def figure(path: str, figsize=(7.0, 4.5), dpi: int = 120, **subplots):
+    """A matplotlib figure (Agg backend) saved to ``path`` when the block ends, then closed::
+
+        with fx.figure("out.png") as (fig, ax):
+            ax.plot(x, y)
+
+    ``subplots`` go to ``plt.subplots`` (``ncols=2``: ``ax`` is then the array of axes). Not
+    collective: draw on the rank that writes (rank 0). The figure is closed on an error too,
+    and nothing is saved then."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=figsize, **subplots)
+    try:
+        yield fig, ax
+        fig.tight_layout()
+        fig.savefig(path, dpi=dpi)
+    finally:
+        plt.close(fig)
+
+
+def plot_pressure_profile(ax, a: float, p0: float, profiles: Sequence[tuple],
+                          variable: str = "r", extent: Optional[tuple] = None):
+    """Nodal contact pressures against Hertz's elliptic profile p₀ √(1 − s²/a²) (line or point
+    contact), over p₀ against s/a on ``ax``, with a grid: ``profiles`` are
+    ``(s, p, plot_kwargs)`` (the nodes' distance from the centre and pressure; the nodes within
+    2a are drawn as markers, ``"o"`` by default); ``variable`` names s in the labels (``"x"``,
+    ``"r"``); ``extent`` ``(s, label)``: the computed contact's extent, a dashed line."""
+    ss = np.linspace(0.0, a, 400)
+    ax.plot(ss / a, np.sqrt(1.0 - (ss / a) ** 2), "k-",
+            label=f"Hertz, $p_0\\sqrt{{1-{variable}^2/a^2}}$")
+    for s, p, kw in profiles:
+        s, p = np.asarray(s), np.asarray(p)
+        sel = s < 2.0 * a
+        kw = dict(kw)
+        ax.plot(s[sel] / a, p[sel] / p0, kw.pop("marker", "o"), **kw)
+    if extent is not None:
+        ax.axvline(extent[0] / a, color="C1", ls="--", lw=1, label=extent[1])
+    ax.grid(alpha=0.3)
+    ax.set_xlabel(f"${variable}/a$")
+    ax.set_ylabel("$p/p_0$")
+    ax.set_xlim(0, 1.5)

@@ -213,3 +213,5 @@ def test_readme_example():
         "case.quick()": "replace(case.quick(), length_factor=1.6, max_increments=1)",
         '"results/bar_rolling"': repr(shared_tmpdir("fxc-bar-readme-"))})
     assert ns["result"].increments == 1 and ns["result"].history[0]["roll_force"] > 0
+    # the report names the friction law and the K it uses (the contact's summary line)
+    assert "Norton(alpha_f=0.3, q=0.15), K of the material" in ns["result"].report()

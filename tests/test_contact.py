@@ -7,7 +7,7 @@ from mpi4py import MPI
 
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact, penalty_from_beta
-from fxcontact.contact.penalty import penalty_kernel, penalty_kernel_numpy
+from fxcontact.contact.penalty import Penalty, penalty_kernel, penalty_kernel_numpy
 from fxcontact.kinematics import CartesianUpdate, CylindricalUpdate
 from fxcontact.materials import LinearElastic, NortonHoff
 from fxcontact.meshing import BILLET_TAGS, BLOCK_TAGS, block, cylinder_billet
@@ -131,6 +131,33 @@ def test_bad_contact_input():
         c.begin_increment(_FakeSim(CartesianUpdate(), np.zeros(9)), 0.0, 0.1, x)
 
 
+def test_penalty_given_as_one_object():
+    """``NodalContact(penalty=Penalty(...))``: the contact resolves its own copy (the object
+    given is not changed), with the values given; a Penalty with beta/gap_stiffness/strain_rate
+    beside it is refused; the run is that of the same values given as numbers."""
+    b, tool = _FakeBoundary(3), Plane((0, 0, 0), (0, 0, 1))
+    for kw in (dict(penalty=2.0), dict(beta=50.0, strain_rate=2.0), dict(gap_stiffness=3.0),
+               {}):
+        p = Penalty(**kw)
+        c, ref = NodalContact(b, tool, penalty=p), NodalContact(b, tool, **kw)
+        assert c.penalty is not p
+        assert c.penalty.signature() == ref.penalty.signature() == p.signature()
+        assert c.penalty.strain_rate == ref.penalty.strain_rate
+    for kw in (dict(beta=1.0), dict(gap_stiffness=1.0), dict(strain_rate=1.0)):
+        with pytest.raises(ValueError, match=f"penalty is a Penalty: give .*{next(iter(kw))}"):
+            NodalContact(b, tool, penalty=Penalty(beta=10.0), **kw)
+    p = Penalty(gap_stiffness=2e6)
+    runs = [_strip_under_arc(MPI.COMM_WORLD, "implicit", 0.4, t_end=0.8, penalty=pen)[0]
+            for pen in (p, None)]
+    assert len(runs[0].history) == 2 and runs[0].history[-1]["contact_nodes"] > 0
+    # bitwise on one rank; on several, parallel MUMPS is not bitwise reproducible run to run
+    rel = 0.0 if MPI.COMM_WORLD.size == 1 else 1e-9
+    for key in ("arc_force_x", "arc_force_y", "contact_penetration_true"):
+        a, b = ([q[key] for q in r.history] for r in runs)
+        assert a == pytest.approx(b, rel=rel, abs=0.0), key
+    assert p.fixed_rho is None and p.stiffness == 2e6           # the object given: unchanged
+
+
 def test_node_on_tool_axis_is_a_clear_error():
     """A contact node on a roll's axis is deep inside the roll: error, never NaN."""
     from fxcontact.petsc import ContributorError
@@ -203,7 +230,7 @@ def test_plane_dies_reproduce_sliding_bc_and_penalty_consistency():
     assert s.history[-1]["contact_nodes"] > 0
 
 
-def _strip_under_arc(comm, scheme, dt, t_end=3.2, R=200.0, k=2e6):
+def _strip_under_arc(comm, scheme, dt, t_end=3.2, R=200.0, k=2e6, penalty=None):
     """A Norton–Hoff strip dragged (bottom velocity 1) under a concave arc: the inside of a
     large bore whose highest point is above the strip's rear end and which passes through the
     strip's top front corner, so the strip is progressively thinned as it advances."""
@@ -213,7 +240,8 @@ def _strip_under_arc(comm, scheme, dt, t_end=3.2, R=200.0, k=2e6):
     sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["ymin"]), np.array([1.0, 0.0]))
     arc = Cylinder((-8.0, -np.sqrt(R**2 - 64.0), 0.0), (0, 0, 1), R, inside=True, name="arc")
     sim.add_contributor(NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["ymax"]), arc,
-                                     scheme=scheme, gap_stiffness=k))
+                                     scheme=scheme, **(dict(penalty=penalty) if penalty
+                                                        else dict(gap_stiffness=k))))
     sim.run(t_end, dt)
     pen = max(r["contact_penetration_true"] for r in sim.history)
     return sim, pen

@@ -3,10 +3,11 @@
 friction on the die and the container.
 
 Checked: the steady punch pressure lies between the ideal work and 1.1 × (Avitzur's die bound
-+ the container friction 2 m̄ k L_c/R₀); with k given in the container's law, the container's
++ the container friction 2 m̄ k L_c/R₀), for this die and another angle and reduction (30°,
+R₁ = 4 mm: 36 % instead of 51 %); with k given in the container's law, the container's
 force equals 2 m̄ k L_c/R₀ × A₀ within 3 %; volume, element quality and the power balance; the
 container and the die as two tools of one contact give the answer of one profile; 1 vs 2 ranks.
-Other angles and reductions: ``benchmarks/bench_extrusion.py``."""
+Both angles with both reductions: ``benchmarks/bench_extrusion.py``."""
 
 import numpy as np
 import pytest
@@ -28,9 +29,16 @@ def given_k():
     return res
 
 
-@pytest.mark.serial   # a run to steady state; the MPI path: test_one_and_two_ranks_agree
-def test_punch_pressure_in_band(given_k):
-    res = given_k
+@pytest.fixture(scope="module")
+def other_die():
+    """Another die angle and reduction to steady state (k from the local strain rate)."""
+    res = run_extrusion(ExtrusionCase.quick(alpha=30.0, R1=4.0), pictures=False)
+    if MPI.COMM_WORLD.rank == 0:
+        print("\n" + res.report())
+    return res
+
+
+def _band(res):
     assert res.status == "completed", res.message
     assert res.punch_pressure is not None, "no steady state"
     th = res.theory
@@ -45,11 +53,28 @@ def test_punch_pressure_in_band(given_k):
     assert abs(res.power_balance_penalty) < 1e-6, res.power_balance_penalty
 
 
+@pytest.mark.serial   # a run to steady state; the MPI path: test_one_and_two_ranks_agree
+def test_punch_pressure_in_band(given_k):
+    _band(given_k)
+
+
+@pytest.mark.serial
+def test_other_angle_and_reduction_in_band(other_die):
+    _band(other_die)
+    th = other_die.theory
+    assert th["reduction"] == pytest.approx(1 - 0.8 ** 2)
+    assert th["container"] > 0      # the container's share is part of the band
+
+
 @pytest.mark.serial
 def test_container_force_with_given_k(given_k):
     """The billet slides rigidly in the container: with k fixed, its axial force is the
     Tresca stress m̄ k over the wall still in the container."""
     assert given_k.container_ratio == pytest.approx(1.0, abs=0.03)
+    # the report says which k each friction law uses (the contact's line of the summary)
+    text = given_k.report()
+    assert "'container' Tresca(mbar=0.3), k = 46.07 given" in text, text
+    assert "'die' Tresca(mbar=0.1), k of the material at each node's local strain rate" in text, text
 
 
 def _histories_agree(a, b, keys, rtol=1e-8):
@@ -102,6 +127,23 @@ def test_bad_case():
         ExtrusionCase.quick(container_shear_limit=-1.0)
     with pytest.raises(ValueError, match="too short"):
         ExtrusionCase.quick(length=6.0)
+
+
+def test_quick_on_the_class_and_on_a_case():
+    """``quick`` on the class starts from the default case; on a case (as the rolling cases'
+    ``case.quick()``) it keeps the case's other fields instead of dropping them."""
+    from fxcontact.processes import DrawingCase, UpsettingCase
+
+    for cls, field, value in ((ExtrusionCase, "alpha", 30.0), (DrawingCase, "alpha", 15.0),
+                              (UpsettingCase, "mbar", 0.3)):
+        case = cls(**{field: value})
+        q = case.quick()
+        assert getattr(q, field) == value
+        assert q == cls.quick(**{field: value}) == cls(**{**cls.QUICK, field: value})
+        assert all(getattr(q, k) == v for k, v in cls.QUICK.items())
+        assert case.quick(h=2.0).h == 2.0
+    with pytest.raises(ValueError, match="R1"):        # checked: R1 6 > QUICK's R0 5
+        ExtrusionCase(alpha=30.0).quick(R1=6.0)
 
 
 def test_punch_reaction_takes_the_rim_contact():

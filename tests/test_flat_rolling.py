@@ -79,6 +79,7 @@ def _slip_within_factor(res, factor=1.5):
 def test_default_pass(default_pass):
     _acceptance(default_pass)
     _slip_within_factor(default_pass)
+    assert "k of the material at each node's local strain rate" in default_pass.report()     # which k the Tresca cap uses
 
 
 @pytest.mark.serial   # a whole pass to steady state; the MPI path: test_one_and_two_ranks_agree

@@ -290,3 +290,12 @@ def test_extrusion_theory():
         extrusion_container_friction(20.0, -1.0, 10.0, 0.3)
     with pytest.raises(ValueError, match="final_radius"):
         extrusion_theory(40.0, 0.1, 6.0, 10.0, a, 10.0)
+
+
+def test_every_process_theory_importable_from_forming():
+    """The flat-rolling band is reachable from ``fxcontact.forming`` too (one place for the
+    processes' theory), the same function as ``fxcontact.rolling``'s."""
+    from fxcontact import forming, rolling
+
+    assert forming.flat_rolling_theory is rolling.theory_band
+    assert "flat_rolling_theory" in forming.__all__

@@ -54,7 +54,8 @@ def test_report_rows_and_pictures(short):
     contact length, 2kHLQ), the thesis's K flagged, the CSV and the two PNGs."""
     text = short.report()
     for line in ("feed per revolution 1.000 mm", "-> inside", "sigma0 = 4070 MPa",
-                 "taken literally", "x 2kHLQ", "mandrel surface / bore speed"):
+                 "taken literally", "x 2kHLQ", "mandrel surface / bore speed",
+                 "'main_roll' Coulomb(mu=0.3, mbar=0.6), k of the material at each node's local strain rate"):
         assert line in text, text
     assert short.increments == 2 and short.revolutions == pytest.approx(2.0 / NI)
     assert short.main_force_mean > 0 and short.mandrel_force_mean > 0

@@ -40,6 +40,14 @@ def test_reaches_70_percent_with_remeshing(sticking):
     assert res.min_quality >= MIN_QUALITY
 
 
+def test_report_names_the_friction_k(sticking):
+    """The report has the contact's line of the run's summary: which k the dies' Tresca
+    friction uses, the penalty as resolved."""
+    text = sticking.report()
+    assert "Tresca(mbar=1), k of the material at each node's local strain rate" in text, text
+    assert "contact '" in text and "rho" in text        # the penalty, however given
+
+
 def test_free_surface_folds_onto_the_die(sticking):
     c, rd, last = sticking.case, sticking.radii, sticking.history[-1]
     assert rd["contact"] - rd["face"] > c.h          # the fold: more than an element

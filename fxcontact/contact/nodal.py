@@ -111,13 +111,15 @@ class NodalContact(NodalContactIO):
 
     Args:
         boundary: the contact nodes.
-        tools: one tool or a sequence of tools.
+        tools: one tool or a sequence of tools; a node keeps the tool of smallest signed gap
+            (the first on a tie; its friction law applies): the distance to the union of the
+            bodies (docs/architecture.md, "Several tools of one contact").
         scheme: one of :data:`SCHEMES`. Default: ``"implicit"`` in velocity form,
             ``"implicit-exact"`` in displacement form (``"implicit"`` if a tool has no gap
             Hessian): a dolfinx problem has no other fxcontact solver settings to tune, and the
             exact tangent takes the neo-Hookean block of ``demos/demo_hyperelastic_contact.py``
             from 114 to 35 Newton iterations (``benchmarks/README.md``).
-        penalty: ρ [stress/velocity]; or give ``beta`` (THEORY §2.5) with ``strain_rate``
+        penalty: ρ [stress/velocity] or a :class:`Penalty`; or give ``beta`` (§2.5), ``strain_rate``
             (Norton–Hoff) — elastic materials take dt from the increment.
         beta: dimensionless penalty, used when ``penalty`` is None.
         element_size: h_e for ``beta`` and the burial limit (default: from the nodal areas).
@@ -172,7 +174,7 @@ class NodalContact(NodalContactIO):
     """
 
     def __init__(self, boundary: ContactBoundary, tools, scheme: Optional[str] = None,
-                 penalty: Optional[float] = None, beta: Optional[float] = None,
+                 penalty: Optional[float | Penalty] = None, beta: Optional[float] = None,
                  element_size: Optional[float] = None, strain_rate: Optional[float] = None,
                  sticky_gap: float = 0.0, max_initial_penetration: Optional[float] = None,
                  gap_stiffness: Optional[float] = None, friction=None,
@@ -209,7 +211,7 @@ class NodalContact(NodalContactIO):
             if scheme == "implicit-exact" and not all(t.has_hessian for t in tools):
                 raise ValueError("implicit-exact needs tools that provide the gap Hessian")
             #: the penalty (ρ, β or a gap stiffness), resolved per increment by Penalty.rho
-            self.penalty = Penalty(penalty, beta, gap_stiffness, strain_rate)
+            self.penalty = Penalty.of(penalty, beta, gap_stiffness, strain_rate)
             if not (math.isfinite(sticky_gap) and sticky_gap >= 0):
                 raise ValueError("sticky_gap must be >= 0")
             if backend not in ("numba", "numpy"):

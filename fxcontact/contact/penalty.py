@@ -97,6 +97,20 @@ class Penalty:
         self.stiffness = None if gap_stiffness is None else gap_stiffness
         self.formulation, self.element_size = "velocity", None
 
+    @classmethod
+    def of(cls, penalty=None, beta: Optional[float] = None,
+           gap_stiffness: Optional[float] = None, strain_rate: Optional[float] = None):
+        """The penalty of a contact's arguments: ``penalty`` a :class:`Penalty` (a fresh copy:
+        a contact resolves its own; then none of the others may be given) or a number ρ
+        (:class:`Penalty` of the four)."""
+        if not isinstance(penalty, Penalty):
+            return cls(penalty, beta, gap_stiffness, strain_rate)
+        extra = [k for k, v in (("beta", beta), ("gap_stiffness", gap_stiffness),
+                                ("strain_rate", strain_rate)) if v is not None]
+        if extra:
+            raise ValueError(f"penalty is a Penalty: give {extra} to the Penalty, not beside it")
+        return cls(penalty.given, penalty.beta, penalty.gap_stiffness, penalty.strain_rate)
+
     def bind(self, formulation: str, element_size: float, modulus: Optional[float] = None):
         """Fix the formulation and the element size h_e (known once the contact nodes are):
         in displacement form the penalty is a gap stiffness k, ``penalty``, ``gap_stiffness``

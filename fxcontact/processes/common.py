@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import math
+import types
 import os
 from dataclasses import dataclass, field
 from typing import Callable, Dict, Optional, Sequence
@@ -19,12 +21,25 @@ import numpy as np
 from mpi4py import MPI
 
 from fxcontact import compat
+from fxcontact.processes.monitor import contact_lines
 from fxcontact.simulation import IncrementError, wall_split
 from fxcontact.steady import steady_window
 
 __all__ = ["CaseBase", "script_main", "gather", "numerics_columns", "run_summary", "steady_values", "run_increments",
            "ProcessResult", "meridian_section", "vertex_field", "plot_sections",
            "plot_curves", "write_rows"]
+
+
+class _ClassOrCase:
+    """A method called on the class or on a case: its first argument is then the class's
+    default case or the case itself."""
+
+    def __init__(self, func):
+        self.func = func
+        functools.update_wrapper(self, func)
+
+    def __get__(self, case, cls):
+        return types.MethodType(self.func, cls() if case is None else case)
 
 
 class CaseBase:
@@ -34,10 +49,12 @@ class CaseBase:
 
     QUICK: Dict[str, object] = {}
 
-    @classmethod
-    def quick(cls, **changes):
-        """The reduced case of the tests (``QUICK``), with ``changes``."""
-        return cls(**{**cls.QUICK, **changes})
+    @_ClassOrCase
+    def quick(self, **changes):
+        """The reduced case of the tests: the ``QUICK`` fields replaced, then ``changes``.
+        On the class (``ExtrusionCase.quick(alpha=30.0)``) from the default case; on a case
+        (``case.quick()``, as the rolling cases) from that case: its other fields are kept."""
+        return self.replace(**{**self.QUICK, **changes})
 
     def replace(self, **changes):
         """A copy with ``changes`` (checked)."""
@@ -194,6 +211,8 @@ class ProcessResult:
     pictures: list = field(default_factory=list)
     csv: Optional[str] = None
     vtk: Optional[str] = None
+    #: each contact's line of the run's summary (friction laws and their k, the penalty)
+    contacts: list = field(default_factory=list)
 
     def report_text(self, lines) -> str:
         """The report's ``lines`` and the line of the pictures written (if any), joined."""
@@ -210,7 +229,7 @@ class ProcessResult:
                 f"{self.cutbacks}; wall {self.wall:.0f} s: "
                 f"{format_wall_split(self.wall_split)}",
                 f"max |dV/V| {self.max_volume_change:.2e}; min element quality "
-                f"{self.min_quality:.3f}"]
+                f"{self.min_quality:.3f}", *self.contacts]
 
 
 def finish_run(comm, sim, res, output_dir, name, pictures, vtk_every, draw):
@@ -224,6 +243,7 @@ def finish_run(comm, sim, res, output_dir, name, pictures, vtk_every, draw):
             res.pictures = draw()
         if vtk_every:
             res.vtk = os.path.join(output_dir, f"{name}.pvd")
+    res.contacts = contact_lines(sim)
     sim.close()
     return res
 

@@ -36,7 +36,7 @@ import numpy as np
 from fxcontact.simulation import IncrementError, format_wall_split, wall_split
 from fxcontact.steady import steady_window
 
-__all__ = ["StopRules", "SteadyMonitor", "SteadyRun", "RunNumerics", "STATUSES",
+__all__ = ["StopRules", "SteadyMonitor", "SteadyRun", "RunNumerics", "STATUSES", "contact_lines",
            "window_increments", "is_number"]
 
 log = logging.getLogger("fxcontact.processes")
@@ -136,6 +136,16 @@ class StopRules:
                              f"{STATUSES}")
 
 
+def contact_lines(sim) -> List[str]:
+    """Each contributor's line of the run's summary (a contact: its scheme, the penalty as
+    resolved, each friction law and which shear flow stress k it uses), for a process's
+    report: the processes step their simulation themselves, so ``Simulation.run``'s summary is
+    not printed."""
+    from fxcontact.protocols import HasSummary
+    return [c.summary() for c in getattr(sim, "contributors", ())   # (a scripted stand-in: none)
+            if isinstance(c, HasSummary)]
+
+
 @dataclass
 class SteadyRun:
     """What a :class:`SteadyMonitor` run gives: the stop reason and the history; the base of the
@@ -153,6 +163,8 @@ class SteadyRun:
     penalty_power: float = math.nan
     power_balance: float = math.nan
     power_balance_penalty: float = math.nan
+    #: each contact's line of the run's summary (:func:`contact_lines`)
+    contacts: List[str] = field(default_factory=list)
 
     @property
     def increments(self) -> int:
@@ -201,11 +213,13 @@ class SteadyRun:
         return (f"Newton its mean {self.newton_mean:.1f} max {self.newton_max}; wall "
                 f"{self.wall:.0f} s for {self.increments} increments; max |dV/V| "
                 f"{self.max_volume_change:.2e}; min quality {self.min_quality:.3f}\n"
-                f"wall by part: {format_wall_split(self.wall_split)}")
+                f"wall by part: {format_wall_split(self.wall_split)}"
+                + "".join(f"\n{line}" for line in self.contacts))
 
     def run_fields(self) -> dict:
         """This run's fields (to build a process result from it)."""
-        return {f.name: getattr(self, f.name) for f in fields(SteadyRun)[:6]}
+        return {**{f.name: getattr(self, f.name) for f in fields(SteadyRun)[:6]},
+                "contacts": self.contacts}
 
 
 class SteadyMonitor:
@@ -291,4 +305,4 @@ class SteadyMonitor:
             status = "no steady state"
             message = f"max_increments = {ru.max_increments} reached before a steady state"
         return SteadyRun(status, message, rows, gripped_at, steady_from,
-                         time.perf_counter() - wall0)
+                         time.perf_counter() - wall0, contacts=contact_lines(sim))

@@ -51,7 +51,7 @@ from fxcontact import compat, forming
 from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.mill import IDLE_METHODS, ControlledMotion, IdleRotation
 from fxcontact.power import PowerBalance, delivered_power
-from fxcontact.processes.monitor import RunNumerics, SteadyRun, is_number
+from fxcontact.processes.monitor import RunNumerics, SteadyRun, contact_lines, is_number
 from fxcontact.processes.ring_mill import (AxialRolls, RingCentring, cone_row, friction_law,
                                           friction_spec, set_ring_remeshing)
 
@@ -772,7 +772,7 @@ def run(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
         strain_rate_bite=th["strain_rate_bite"], sigma0=th["sigma0"],
         force_estimate=th["force_estimate"], Q=th["Q"], volume_initial=2.0 * measure.V0,
         sim_history=list(sim.history), cone_geometry=s.cone_geometry,
-        remeshes=list(sim.remeshes))
+        remeshes=list(sim.remeshes), contacts=contact_lines(sim))
     if rows:
         _summarize(res, comm, sim.mesh)
     paths = {}
