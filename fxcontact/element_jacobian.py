@@ -459,10 +459,10 @@ class CondensedJacobian:
                 bad += _jacobian_loop(self._tab, data, cells, lay.lpos, lay.bpos, self._A,
                                       self._b, S, self.X, self.Y, self.Binv, self.Abb)
             bc = bc_marker[lay.w_l[cells]]
-            if bc.any():   # Dirichlet rows and columns zeroed (kept in the pattern)
-                keep = ~bc
-                S *= keep[:, :, None]
-                S *= keep[:, None, :]
+            hit = np.flatnonzero(bc.any(axis=1))
+            if hit.size:   # Dirichlet rows and columns zeroed (kept in the pattern)
+                keep = ~bc[hit]
+                S[hit] *= keep[:, :, None] & keep[:, None, :]
             _project_cells(S, lay.cell_blocks[cells], self._proj, self._flag)
             self.S.setValuesBlockedLocalRCV(lay.cell_blocks[cells], lay.cell_blocks[cells],
                                             S.reshape(cells.size, -1),
