@@ -386,7 +386,7 @@ def build(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
                                               [0.5 * c.cone_speed]))
     sim.add_contributor(contact)
     if c.remesh:
-        set_ring_remeshing(sim, centring, c, h_theta)
+        set_ring_remeshing(sim, centring, c, h_theta, start=not resume)
     if resume:
         # the state of a checkpoint (True: the newest of this run): fields, geometry, contact,
         # the controllers (guide-roll and mandrel motions, ω, ring centre) and the history
