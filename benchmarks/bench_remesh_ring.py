@@ -174,20 +174,22 @@ def picture(case, rows, remeshes, mesh_pic, s, path):
     fig = plt.figure(figsize=(14, 9))
     ax = fig.add_subplot(2, 2, 1)
     T, c, t = mesh_pic
-    ax.add_collection(PolyCollection(T, facecolor="none", edgecolor="C0", linewidth=0.4))
-    for tl, rad in zip(s.tools[:2], (case.R1, case.R2)):
+    ax.add_collection(PolyCollection(T, facecolor="none", edgecolor="C0", linewidth=0.3))
+    for tl, rad in zip(s.tools[:4], (case.R1, case.R2, case.Rg, case.Rg)):
         x, y = tl.motion.axis_point_at(t)[:2]
         th = np.linspace(0, 2 * np.pi, 400)
         ax.fill(x + rad * np.cos(th), y + rad * np.sin(th), color="0.7", alpha=0.6)
-        ax.annotate(tl.name.replace("_", " "), (min(x, c[0] + 1.15 * case.R), y + 3), fontsize=8)
+        if tl.name in ("main_roll", "mandrel"):
+            ax.annotate(tl.name.replace("_", " "), (min(x - 0.5 * rad, c[0] + 1.2 * case.R),
+                                                    y + 0.3 * rad), fontsize=8)
     ax.plot(*c[:2], "r+")
-    ax.set_xlim(c[0] + 0.25 * case.R, c[0] + 1.15 * case.R)
-    ax.set_ylim(c[1] - 0.75 * case.R, c[1] + 0.25 * case.R)
+    ax.set_xlim(c[0] - 1.1 * case.R, c[0] + 1.5 * case.R)
+    ax.set_ylim(c[1] - 1.1 * case.R, c[1] + 1.1 * case.R)
     ax.set_aspect("equal")
-    ax.set_title(f"top face mesh after the last remesh (t = {t:.2f} s, {t / case.t_rev:.2f} "
-                 f"rev); the ring turns counterclockwise: the fine arc lies below the gap",
+    ax.set_title(f"top face after the last remesh (t = {t:.2f} s, {t / case.t_rev:.2f} rev):\n"
+                 f"the ring turns counterclockwise, the fine arc lies in front of the gap",
                  fontsize=9)
-    ax.set_xlabel("x [mm] (mill line)")
+    ax.set_xlabel("x [mm] (mill line)", fontsize=8)
     ax = fig.add_subplot(2, 2, 2)
     ax.plot(rev, [q["main_force_x"] / 1e3 for q in rows], ".-", ms=3, lw=0.8,
             label="main roll radial force")
@@ -196,6 +198,9 @@ def picture(case, rows, remeshes, mesh_pic, s, path):
     ax.set_xlabel("revolutions")
     ax.set_ylabel("force [kN] (whole ring)")
     ax.set_title("main roll force; grey lines: remeshes", fontsize=9)
+    lo, hi = np.percentile([q["main_force_x"] / 1e3 for q in rows], [1, 100])
+    ax.set_ylim(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo))   # the first increment's peak
+    # (the initial bite pressed out) may lie above
     ax.legend(fontsize=8)
     ax = fig.add_subplot(2, 2, 3)
     for k, st in (("main_roll", "C0"), ("mandrel", "C1")):

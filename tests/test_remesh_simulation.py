@@ -317,3 +317,59 @@ def test_ring_rolling_with_remeshing():
     # reached 3.4e-5 (1 rank) and 3.2e-4 (2 ranks, a run with a cut-back and a singular Newton
     # matrix) against 1e-5 without remeshing (tests/test_ring_rolling.py): not understood yet
     assert all(np.isfinite(q["power_balance_penalty"]) for q in kept)
+
+
+def test_ring_bite_refinement_follows_the_bite():
+    """RingRollingCase(remesh=True, remesh_min_across=3): the bite zones on the rolled surfaces
+    (size L/(1.3 × 3), L = √(2Δh/Σ) the bite's contact length of ring-rolling theory) are
+    meshed before the first increment and again as the ring turns (every increment of the
+    turn the zone's arc less the bite allows, or when a bite is spanned by fewer than 3
+    elements). A ring of half the quick one's height, started with a steady bite
+    (``initial_bite`` 0.5 mm per roll: the reduction Δh = 1 mm of one revolution), 0.2
+    revolution. Checked at every increment, before its remesh check (``ring_mill.
+    bite_coverage``: the contact nodes' arc over the mean edge of the facets between them,
+    not the criterion's measure): each bite is spanned by at least 3 elements; its contact arc
+    is the bite's length L of the theory within 35 %; the volume stays within 0.5 %; the
+    main roll's force changes at a remesh by no more than it does between two increments
+    without one (the steady oscillation of this coarse ring: a node crosses the bite in less
+    than one increment)."""
+    from fxcontact.processes import ring_mill
+    from fxcontact.processes import ring_rolling as rr
+    case = _ring_case(remesh_min_across=3.0, remesh_arc=30.0, H=20.0, initial_bite=0.5,
+                      revolutions=0.2)
+    s = rr.build(case, COMM)
+    sim = s.sim
+    assert len(sim.remeshes) == 1 and sim.remeshes[0].increment == 0
+    coverage = []
+    check = sim._remeshing.after_increment
+
+    def measured_then_checked(sim_):
+        coverage.append(ring_mill.bite_coverage(sim_, s.contact, s.centring.center))
+        check(sim_)
+    sim._remeshing.after_increment = measured_then_checked
+    for _ in range(s.n_increments):
+        sim.step(s.dt)
+    rows = sim.history
+    L = ring_mill.bite_length(case)
+    across = {k: [c[k][2] for c in coverage] for k in ("main_roll", "mandrel")}
+    arcs = {k: [c[k][0] for c in coverage] for k in ("main_roll", "mandrel")}
+    if COMM.rank == 0:
+        print(f"\nL = {L:.2f} mm; remeshes {[r.increment for r in sim.remeshes]}; cells "
+              f"{[r.cells_after for r in sim.remeshes]}")
+        for k in across:
+            print(f"{k}: across {np.round(across[k], 2).tolist()}, arcs "
+                  f"{np.round(arcs[k], 2).tolist()}, criterion "
+                  f"{[round(q.get(f'elements_across_{k}', 0), 2) for q in rows]}")
+        print("forces", [round(2 * q["main_roll_force_x"]) for q in rows])
+        print("volume", [f"{q['volume_change']:.1e}" for q in rows])
+    assert len(rows) == s.n_increments and len(sim.remeshes) >= 3
+    for k in across:
+        assert min(across[k]) >= 3.0, (k, across[k])
+        assert all(abs(a / L - 1.0) <= 0.35 for a in arcs[k]), (k, arcs[k], L)
+    assert max(abs(q["volume_change"]) for q in rows) <= 5e-3
+    F = np.array([abs(q["main_roll_force_x"]) for q in rows])
+    counts = np.array([q["remesh"] for q in rows])
+    dF = np.abs(np.diff(F))
+    at = counts[1:] != counts[:-1]
+    assert at.any() and (~at).any()
+    assert np.max(dF[at]) <= np.max(dF[~at]), (F, counts)

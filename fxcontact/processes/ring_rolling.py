@@ -396,7 +396,7 @@ def build(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
         x0 = sim.vertex_positions()
         v0 = np.zeros_like(x0)
         v0[:, 0], v0[:, 1] = -x0[:, 1] * v_s / R, x0[:, 0] * v_s / R
-        sim.w_prev.x.array[sp.vertex_dofs] = v0
+        sim.w_prev.x.array[sim.space.vertex_dofs] = v0
         sim.w_prev.x.scatter_forward()
     return RingRollingSetup(c, sim, contact, tools, exact, outer, inner, top, centring, idle,
                             axial, update, th, dt, n_inc, h_theta, cone_geo)
