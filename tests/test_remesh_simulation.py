@@ -329,7 +329,7 @@ def test_ring_bite_refinement_follows_the_bite():
     increment before its remesh check, by ``ring_mill.bite_coverage`` (the contact nodes' arc
     over the mean edge of the facets between them; not the criterion's measure):
 
-    * each bite is spanned by at least 3 elements (measured 3.6–5.9);
+    * each bite is spanned by at least 3 elements (measured 3.5–5.9);
     * its contact arc is at least L and at most 2.5 L (the nodes touch beyond the projected
       length of the theory by the penalty's depth and the material piled up at the entry:
       1.2–1.9 L measured);
