@@ -336,11 +336,15 @@ def test_ring_bite_refinement_follows_the_bite():
     * the volume stays within 0.5 %;
     * the main roll's force is continuous across the remeshes: its change at a remesh, less the
       trend's change per increment (a straight line fitted to the force from the second
-      increment on; the first presses the initial bite out), lies within the range of the
-      force about that trend at the increments not first on a new mesh (the steady
-      oscillation of this coarse ring, whose nodes cross the bite in less than an increment:
-      measured 1.30 kN of 42 kN on 1 rank, the remesh changes up to 0.80 kN; 1.18 and 1.10 kN
-      on 2 ranks)."""
+      increment on; the first presses the initial bite out), is of the size of the steady
+      oscillation of this coarse ring (its nodes cross the bite in less than an increment):
+      the range of the force about the trend at the increments not first on a new mesh. With
+      3 remeshes against 11 such increments the largest of 3 changes exceeds that range now and
+      then although both have the same size (over 5 revolutions, 126 remeshes, the largest
+      change at a remesh 2.13 kN, between two increments on one mesh 2.22 kN:
+      ``benchmarks/bench_remesh_ring.py``): the bound is 1.5 × the range. Measured: range 1.30
+      kN (of 42 kN), remesh changes up to 0.80 kN on 1 rank; on 2 ranks (whose new meshes vary
+      from run to run at round-off) ranges 1.18, 1.33 kN, changes up to 1.10, 1.36 kN."""
     from fxcontact.processes import ring_mill
     from fxcontact.processes import ring_rolling as rr
     case = _ring_case(remesh_min_across=3.0, remesh_arc=40.0, H=20.0, initial_bite=0.5,
@@ -385,4 +389,4 @@ def test_ring_bite_refinement_follows_the_bite():
         assert all(L <= a <= 2.5 * L for a in arcs[k]), (k, arcs[k], L)
     assert max(abs(q["volume_change"]) for q in rows) <= 5e-3
     assert first.any() and (~first).sum() >= 3
-    assert np.all(jumps <= band), (jumps, band)
+    assert np.all(jumps <= 1.5 * band), (jumps, band)
