@@ -286,14 +286,24 @@ def test_ring_remesh_refines_in_front_of_the_bite():
 def test_ring_rolling_with_remeshing():
     """RingRollingCase(remesh=True) over 0.3 revolution, remeshed every 4 increments (3/4 of
     a 40° arc): the run goes on across the remeshes (centring, idle mandrel, measures on
-    each new mesh), the volume is kept, and the main roll's force and the mandrel's speed stay
-    bounded at a remesh. This coarse ring (1.4 elements across the bite) changes its force by
-    up to about 25 % from one new mesh to another (five runs when gmsh gave a different new mesh
-    each time for the same boundary, before ``fxcontact.remesh.topology``: the forces after the
-    first remesh were 37.5k, 43.2k, 44.2k, 37.5k N after 42.0k): a remesh may move the force by
-    up to half of it, never more (a lost contact or a blow-up would)."""
+    each new mesh), the volume is kept, and the main roll's force and the mandrel's speed are
+    continuous at a remesh. This coarse ring (1.4 elements across the bite) changes its force
+    at the three remeshes by 3.3, 3.2 and 1.2 % (the same new meshes on 1 and 2 ranks), while
+    between two increments on one mesh it changes by 2–19 % in this bite-in: a remesh moves it
+    by at most 10 %. (Before ``fxcontact.remesh.topology`` gmsh gave a different new mesh each
+    time for the same boundary, and the force after the first remesh varied by 25 % from run to
+    run: 37.5k, 43.2k, 44.2k, 37.5k N after 42.0k.)
+
+    The power identity (tools = dissipation + friction + penalty work) holds across the
+    remeshes to Newton's tolerance, as without them (tests/test_ring_rolling.py): its error is
+    the final Newton residual tested with the velocity. With ``newton_rtol`` 1e-9 an increment
+    ends anywhere below 1e-9 of its first residual (the final residual 2e-6 to 9e-4 here) and
+    the identity reached 1.2e-5 (3.2e-4 once on 2 ranks, after a cut-back); with 1e-11 (one
+    Newton iteration more) every increment ends at the round-off floor (~1e-6) and it holds to
+    2e-8 on 1 and 2 ranks: bounded by 1e-6 here."""
     from fxcontact.processes import ring_rolling as rr
-    res = rr.run(_ring_case(revolutions=0.3, remesh_arc=40.0), COMM, pictures=False)
+    res = rr.run(_ring_case(revolutions=0.3, remesh_arc=40.0, newton_rtol=1e-11), COMM,
+                 pictures=False)
     rows = res.history
     assert res.status == "done" and res.revolutions > 0.29
     assert len(res.remeshes) >= 2
@@ -304,7 +314,7 @@ def test_ring_rolling_with_remeshing():
     assert jumps
     for i in jumps:
         F = [abs(q["main_force_x"]) for q in rows[i - 1: i + 1]]
-        assert abs(F[1] - F[0]) <= 0.5 * F[0], (i, F)
+        assert abs(F[1] - F[0]) <= 0.1 * F[0], (i, F)
         assert abs(rows[i]["mandrel_omega"] / rows[i - 1]["mandrel_omega"] - 1) < 0.1
     # one power balance over the remeshes: NaN at the increments ended by a remesh (their start
     # configuration on the new mesh is not known under the cylindrical update), the discrete
@@ -313,10 +323,12 @@ def test_ring_rolling_with_remeshing():
     assert ended and all(np.isnan(rows[i]["power_balance_penalty"]) for i in ended)
     kept = [rows[i] for i in range(1, len(rows)) if i not in ended]
     assert any(counts[rows.index(q)] >= 1 for q in kept)
-    # finite there; not bounded here: across the remeshes of this coarse ring the identity
-    # reached 3.4e-5 (1 rank) and 3.2e-4 (2 ranks, a run with a cut-back and a singular Newton
-    # matrix) against 1e-5 without remeshing (tests/test_ring_rolling.py): not understood yet
-    assert all(np.isfinite(q["power_balance_penalty"]) for q in kept)
+    worst = max(abs(q["power_balance_penalty"]) for q in kept)
+    if COMM.rank == 0:
+        print(f"\nforce changes at the remeshes "
+              f"{[round(rows[i]['main_force_x'] / rows[i - 1]['main_force_x'] - 1, 4) for i in jumps]}"
+              f"; power identity max {worst:.1e}")
+    assert worst < 1e-6
 
 
 def test_ring_bite_refinement_follows_the_bite():
