@@ -298,9 +298,9 @@ def test_ring_rolling_with_remeshing():
     remeshes to Newton's tolerance, as without them (tests/test_ring_rolling.py): its error is
     the final Newton residual tested with the velocity. With ``newton_rtol`` 1e-9 an increment
     ends anywhere below 1e-9 of its first residual (the final residual 2e-6 to 9e-4 here) and
-    the identity reached 1.2e-5 (3.2e-4 once on 2 ranks, after a cut-back); with 1e-11 (one
-    Newton iteration more) every increment ends at the round-off floor (~1e-6) and it holds to
-    2e-8 on 1 and 2 ranks: bounded by 1e-6 here."""
+    the identity reached 1.2e-5 (3.2e-4 once on 2 ranks, in an earlier run with a cut-back, not
+    reproduced since); with 1e-11 (one Newton iteration more) every increment ends at the
+    round-off floor (~1e-6) and it holds to 2e-8 on 1 and 2 ranks: bounded by 1e-6 here."""
     from fxcontact.processes import ring_rolling as rr
     res = rr.run(_ring_case(revolutions=0.3, remesh_arc=40.0, newton_rtol=1e-11), COMM,
                  pictures=False)
@@ -325,9 +325,9 @@ def test_ring_rolling_with_remeshing():
     assert any(counts[rows.index(q)] >= 1 for q in kept)
     worst = max(abs(q["power_balance_penalty"]) for q in kept)
     if COMM.rank == 0:
-        print(f"\nforce changes at the remeshes "
-              f"{[round(rows[i]['main_force_x'] / rows[i - 1]['main_force_x'] - 1, 4) for i in jumps]}"
-              f"; power identity max {worst:.1e}")
+        change = [rows[i]["main_force_x"] / rows[i - 1]["main_force_x"] - 1 for i in jumps]
+        print(f"\nforce changes at the remeshes {np.round(change, 4).tolist()}; power "
+              f"identity max {worst:.1e}")
     assert worst < 1e-6
 
 
@@ -387,7 +387,8 @@ def test_ring_bite_refinement_follows_the_bite():
     jumps = np.abs(np.diff(F) - slope)[first[1:]]
     if COMM.rank == 0:
         print(f"\nL = {L:.2f} mm; remeshes after increments "
-              f"{[r.increment for r in sim.remeshes]}, cells {[r.cells_after for r in sim.remeshes]}")
+              f"{[r.increment for r in sim.remeshes]}, cells "
+              f"{[r.cells_after for r in sim.remeshes]}")
         for k in across:
             print(f"{k}: across {np.round(across[k], 2).tolist()}, arcs / L "
                   f"{np.round(np.array(arcs[k]) / L, 2).tolist()}, criterion "

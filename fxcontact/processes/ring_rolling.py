@@ -122,10 +122,11 @@ class RingRollingCase(RunNumerics):
     sticky_gap: float = 0.0
     max_it: int = 60                #: Newton iterations per solve
     newton_rtol: float = 1e-9       #: Newton's relative residual tolerance
-    # remeshing (off by default; ring_mill.set_ring_remeshing): a new mesh, finer (remesh_zone_h,
-    # default h_theta) over the arc remesh_arc [degrees] in front of each gap (ring_mill.BiteZones),
-    # made when the ring has turned by 3/4 of that arc, when a cell's quality falls below
-    # remesh_min_quality, and when a bite is spanned by fewer than remesh_min_across elements
+    # remeshing (off by default; ring_mill.set_ring_remeshing): a new mesh, finer over the arc
+    # remesh_arc [degrees] in front of each gap (ring_mill.BiteZones), made when the ring has
+    # turned by about 3/4 of it or a cell's quality falls below remesh_min_quality; with
+    # remesh_min_across = n also when a bite is spanned by fewer than n elements, the zones then on
+    # the rolled surfaces of size L/n (the bite's length) and the ring remeshed at the start
     remesh: bool = False
     remesh_min_quality: float = 0.15
     remesh_min_across: Optional[float] = None
