@@ -173,8 +173,8 @@ class Remeshing:
         for name, a in across.items():
             if a > 0:
                 self.across_after.setdefault(name, a)
-        return {name: (min(v, 0.5 * self.across_after[name])
-                       if v is not None and name in self.across_after else v)
+        fresh = self.across_after
+        return {name: (0.5 * fresh[name] if v is not None and fresh.get(name, v) < v else v)
                 for name, v in limits.items()}
 
     def reasons(self, sim) -> List[str]:
