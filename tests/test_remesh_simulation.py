@@ -356,7 +356,7 @@ def test_ring_bite_refinement_follows_the_bite():
       change at a remesh 2.13 kN, between two increments on one mesh 2.22 kN:
       ``benchmarks/bench_remesh_ring.py``): the bound is 1.5 × the range. Measured: range 1.30
       kN (of 42 kN), remesh changes up to 0.80 kN on 1 rank; on 2 ranks (whose new meshes vary
-      from run to run at round-off) ranges 1.18, 1.33 kN, changes up to 1.10, 1.36 kN."""
+      from run to run at round-off) ranges 1.05–1.33 kN, changes up to 1.09–1.36 kN."""
     from fxcontact.processes import ring_mill
     from fxcontact.processes import ring_rolling as rr
     case = _ring_case(remesh_min_across=3.0, remesh_arc=40.0, H=20.0, initial_bite=0.5,
