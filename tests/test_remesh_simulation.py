@@ -321,6 +321,9 @@ def test_ring_rolling_with_remeshing():
     # identity with the penalty work elsewhere, the first increments on a new mesh included
     ended = [i for i in range(len(rows) - 1) if counts[i + 1] != counts[i]]
     assert ended and all(np.isnan(rows[i]["power_balance_penalty"]) for i in ended)
+    # and what the tools delivered (the contact was reset by the remesh), not 0
+    assert all(np.isnan(rows[i]["power_in"]) and np.isnan(rows[i]["main_power"]) for i in ended)
+    assert np.isfinite(res.power_in) and res.power_in > 0
     kept = [rows[i] for i in range(1, len(rows)) if i not in ended]
     assert any(counts[rows.index(q)] >= 1 for q in kept)
     worst = max(abs(q["power_balance_penalty"]) for q in kept)

@@ -478,12 +478,15 @@ class _Measure:
         (:class:`fxcontact.power.PowerBalance` with the velocities turned by the cylindrical
         update)."""
         s = self.s
+        ended = s.sim.space is not self.power._space   # by a remesh: the contact was reset
         pw = self.power(q)
-        P = [2 * delivered_power(s.contact, s.sim.t, k) for k in range(len(s.tools))]
+        P = [math.nan if ended else 2 * delivered_power(s.contact, s.sim.t, k)
+             for k in range(len(s.tools))]
         return dict(main_power=P[0], mandrel_power=P[1], guide_power=P[2] + P[3],
                     cone_power=sum(P[4:]),
                     mandrel_rotation_power=-2 * q.get("mandrel_torque", 0.0) * q["mandrel_omega"],
-                    power_in=2 * pw["power_in"], dissipation=2 * pw["dissipation"],
+                    power_in=math.nan if ended else 2 * pw["power_in"],
+                    dissipation=2 * pw["dissipation"],
                     friction_power=2 * pw["friction_power"],
                     penalty_power=2 * pw["penalty_power"], power_balance=pw["power_balance"],
                     power_balance_penalty=pw["power_balance_penalty"])
