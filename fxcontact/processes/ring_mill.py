@@ -8,8 +8,10 @@
   follows the ring's centre on the mill line, moving along the ring axis at a given speed;
 * :func:`cone_row` — the upper cone's outputs and its axial-force estimate.
 * :class:`BiteZones` — the zones of a remesh (:meth:`fxcontact.Simulation.set_remeshing`): the
-  ring's wall in front of each roll gap, placed again at each remesh
-  (:func:`set_ring_remeshing`: the remeshing of ``RingRollingCase(remesh=True)``).
+  ring's wall, or its rolled surfaces, in front of each roll gap, placed again at each remesh
+  (:func:`set_ring_remeshing`: the remeshing of ``RingRollingCase(remesh=True)``, with the
+  zones' size from the bite's length :func:`bite_length` when ``remesh_min_across`` is set);
+  :func:`bite_coverage` — the elements across each bite, measured.
 
 They are registered with :meth:`fxcontact.Simulation.add_controller`, save what changes with
 ``checkpoint_state()`` and get it back with ``restore_state()``. The tool motions they drive
