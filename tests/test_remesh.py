@@ -461,6 +461,30 @@ def test_criteria_measures():
     assert criteria.elements_across(criteria.zone_moments(pts[:2]), 0.5) == 0.0
 
 
+def test_coverage_limits_after_a_remesh():
+    """The coverage criterion (``min_elements_across``): a zone below its limit calls for a
+    remesh (no contact, 0, never); after a remesh the first measure of each zone is kept, and a
+    zone that the new mesh spans by fewer elements than the limit (a bite smaller than the zone
+    resolves) calls again only when it has become twice as coarse; a new remesh forgets it."""
+    from fxcontact.remesh.simulation import Remeshing
+    assert criteria.coverage_reasons({"a": 2.0, "b": 0.0, "c": 4.0}, 3.0) == \
+        ["contact 'a' spanned by 2 < 3 elements"]
+    assert criteria.coverage_reasons({"a": 2.0, "c": 1.0}, {"c": 3.0}) == \
+        ["contact 'c' spanned by 1 < 3 elements"]
+    assert criteria.coverage_reasons({"a": 2.0}, None) == []
+    rm = Remeshing.__new__(Remeshing)           # its coverage state only
+    rm.across_after = None                      # before any remesh: the limits as given
+    assert rm._coverage_limits(3.0, {"a": 2.0, "b": 5.0}) == {"a": 3.0, "b": 3.0}
+    rm.across_after = {}                        # just remeshed
+    first = rm._coverage_limits(3.0, {"a": 2.0, "b": 5.0, "c": 0.0})
+    assert first == {"a": 1.0, "b": 3.0, "c": 3.0}
+    assert criteria.coverage_reasons({"a": 2.0, "b": 5.0, "c": 0.0}, first) == []
+    later = rm._coverage_limits(3.0, {"a": 0.9, "b": 2.5, "c": 2.0})
+    assert rm.across_after == {"a": 2.0, "b": 5.0, "c": 2.0}
+    assert criteria.coverage_reasons({"a": 0.9, "b": 2.5, "c": 2.0}, later) == [
+        "contact 'a' spanned by 0.9 < 1 elements", "contact 'b' spanned by 2.5 < 3 elements"]
+
+
 def test_criteria_check_is_collective():
     msh = _box(COMM, [3, 3, 3])
     P = cell_vertex_coordinates(msh)

@@ -286,14 +286,24 @@ def test_ring_remesh_refines_in_front_of_the_bite():
 def test_ring_rolling_with_remeshing():
     """RingRollingCase(remesh=True) over 0.3 revolution, remeshed every 4 increments (3/4 of
     a 40° arc): the run goes on across the remeshes (centring, idle mandrel, measures on
-    each new mesh), the volume is kept, and the main roll's force and the mandrel's speed stay
-    bounded at a remesh. This coarse ring (1.4 elements across the bite) changes its force by
-    up to about 25 % from one new mesh to another (five runs when gmsh gave a different new mesh
-    each time for the same boundary, before ``fxcontact.remesh.topology``: the forces after the
-    first remesh were 37.5k, 43.2k, 44.2k, 37.5k N after 42.0k): a remesh may move the force by
-    up to half of it, never more (a lost contact or a blow-up would)."""
+    each new mesh), the volume is kept, and the main roll's force and the mandrel's speed are
+    continuous at a remesh. This coarse ring (1.4 elements across the bite) changes its force
+    at the three remeshes by 3.3, 3.2 and 1.2 % (the same new meshes on 1 and 2 ranks), while
+    between two increments on one mesh it changes by 2–19 % in this bite-in: a remesh moves it
+    by at most 10 %. (Before ``fxcontact.remesh.topology`` gmsh gave a different new mesh each
+    time for the same boundary, and the force after the first remesh varied by 25 % from run to
+    run: 37.5k, 43.2k, 44.2k, 37.5k N after 42.0k.)
+
+    The power identity (tools = dissipation + friction + penalty work) holds across the
+    remeshes to Newton's tolerance, as without them (tests/test_ring_rolling.py): its error is
+    the final Newton residual tested with the velocity. With ``newton_rtol`` 1e-9 an increment
+    ends anywhere below 1e-9 of its first residual (the final residual 2e-6 to 9e-4 here) and
+    the identity reached 1.2e-5 (3.2e-4 once on 2 ranks, in an earlier run with a cut-back, not
+    reproduced since); with 1e-11 (one Newton iteration more) every increment ends at the
+    round-off floor (~1e-6) and it holds to 2e-8 on 1 and 2 ranks: bounded by 1e-6 here."""
     from fxcontact.processes import ring_rolling as rr
-    res = rr.run(_ring_case(revolutions=0.3, remesh_arc=40.0), COMM, pictures=False)
+    res = rr.run(_ring_case(revolutions=0.3, remesh_arc=40.0, newton_rtol=1e-11), COMM,
+                 pictures=False)
     rows = res.history
     assert res.status == "done" and res.revolutions > 0.29
     assert len(res.remeshes) >= 2
@@ -304,16 +314,95 @@ def test_ring_rolling_with_remeshing():
     assert jumps
     for i in jumps:
         F = [abs(q["main_force_x"]) for q in rows[i - 1: i + 1]]
-        assert abs(F[1] - F[0]) <= 0.5 * F[0], (i, F)
+        assert abs(F[1] - F[0]) <= 0.1 * F[0], (i, F)
         assert abs(rows[i]["mandrel_omega"] / rows[i - 1]["mandrel_omega"] - 1) < 0.1
     # one power balance over the remeshes: NaN at the increments ended by a remesh (their start
     # configuration on the new mesh is not known under the cylindrical update), the discrete
     # identity with the penalty work elsewhere, the first increments on a new mesh included
     ended = [i for i in range(len(rows) - 1) if counts[i + 1] != counts[i]]
     assert ended and all(np.isnan(rows[i]["power_balance_penalty"]) for i in ended)
+    # and what the tools delivered (the contact was reset by the remesh), not 0
+    assert all(np.isnan(rows[i]["power_in"]) and np.isnan(rows[i]["main_power"]) for i in ended)
+    assert np.isfinite(res.power_in) and res.power_in > 0
     kept = [rows[i] for i in range(1, len(rows)) if i not in ended]
     assert any(counts[rows.index(q)] >= 1 for q in kept)
-    # finite there; not bounded here: across the remeshes of this coarse ring the identity
-    # reached 3.4e-5 (1 rank) and 3.2e-4 (2 ranks, a run with a cut-back and a singular Newton
-    # matrix) against 1e-5 without remeshing (tests/test_ring_rolling.py): not understood yet
-    assert all(np.isfinite(q["power_balance_penalty"]) for q in kept)
+    worst = max(abs(q["power_balance_penalty"]) for q in kept)
+    if COMM.rank == 0:
+        change = [rows[i]["main_force_x"] / rows[i - 1]["main_force_x"] - 1 for i in jumps]
+        print(f"\nforce changes at the remeshes {np.round(change, 4).tolist()}; power "
+              f"identity max {worst:.1e}")
+    assert worst < 1e-6
+
+
+def test_ring_bite_refinement_follows_the_bite():
+    """RingRollingCase(remesh=True, remesh_min_across=3): the bite zones on the rolled surfaces
+    (size L/3, L = √(2Δh/Σ) the bite's contact length of ring-rolling theory) are meshed before
+    the first increment and again as the ring turns (every 4 increments here: 3/4 of the
+    zone's 40° arc), or when a bite is spanned by fewer than 3 elements. A ring of half the
+    quick one's height started with a steady bite (``initial_bite`` 0.5 mm per roll: the
+    reduction Δh = 1 mm of one revolution), 0.3 revolution. Checked at every
+    increment before its remesh check, by ``ring_mill.bite_coverage`` (the contact nodes' arc
+    over the mean edge of the facets between them; not the criterion's measure):
+
+    * each bite is spanned by at least 3 elements (measured 3.5–5.9);
+    * its contact arc is at least L and at most 2.5 L (the nodes touch beyond the projected
+      length of the theory by the penalty's depth and the material piled up at the entry:
+      1.2–1.9 L measured);
+    * the volume stays within 0.5 %;
+    * the main roll's force is continuous across the remeshes: its change at a remesh, less the
+      trend's change per increment (a straight line fitted to the force from the second
+      increment on; the first presses the initial bite out), is of the size of the steady
+      oscillation of this coarse ring (its nodes cross the bite in less than an increment):
+      the range of the force about the trend at the increments not first on a new mesh. With
+      3 remeshes against 11 such increments the largest of 3 changes exceeds that range now and
+      then although both have the same size (over 5 revolutions, 126 remeshes, the largest
+      change at a remesh 2.13 kN, between two increments on one mesh 2.22 kN:
+      ``benchmarks/bench_remesh_ring.py``): the bound is 1.5 × the range. Measured: range 1.30
+      kN (of 42 kN), remesh changes up to 0.80 kN on 1 rank; on 2 ranks (whose new meshes vary
+      from run to run at round-off) ranges 1.05–1.33 kN, changes up to 1.09–1.36 kN."""
+    from fxcontact.processes import ring_mill
+    from fxcontact.processes import ring_rolling as rr
+    case = _ring_case(remesh_min_across=3.0, remesh_arc=40.0, H=20.0, initial_bite=0.5,
+                      revolutions=0.3)
+    s = rr.build(case, COMM)
+    sim = s.sim
+    assert len(sim.remeshes) == 1 and sim.remeshes[0].increment == 0
+    coverage = []
+    check = sim._remeshing.after_increment
+
+    def measured_then_checked(sim_):
+        coverage.append(ring_mill.bite_coverage(sim_, s.contact, s.centring.center))
+        check(sim_)
+    sim._remeshing.after_increment = measured_then_checked
+    for _ in range(s.n_increments):
+        sim.step(s.dt)
+    rows = sim.history
+    L = ring_mill.bite_length(case)
+    across = {k: [c[k][2] for c in coverage] for k in ("main_roll", "mandrel")}
+    arcs = {k: [c[k][0] for c in coverage] for k in ("main_roll", "mandrel")}
+    F = np.array([abs(q["main_roll_force_x"]) for q in rows])[1:]
+    counts = np.array([q["remesh"] for q in rows])[1:]
+    i = np.arange(len(F))
+    slope, f0 = np.polyfit(i, F, 1)
+    dev = F - (f0 + slope * i)
+    first = np.r_[False, counts[1:] != counts[:-1]]      # the first increment on a new mesh
+    band = np.ptp(dev[~first])
+    jumps = np.abs(np.diff(F) - slope)[first[1:]]
+    if COMM.rank == 0:
+        print(f"\nL = {L:.2f} mm; remeshes after increments "
+              f"{[r.increment for r in sim.remeshes]}, cells "
+              f"{[r.cells_after for r in sim.remeshes]}")
+        for k in across:
+            print(f"{k}: across {np.round(across[k], 2).tolist()}, arcs / L "
+                  f"{np.round(np.array(arcs[k]) / L, 2).tolist()}, criterion "
+                  f"{[round(q.get(f'elements_across_{k}', 0), 2) for q in rows]}")
+        print(f"force [kN] {np.round(2e-3 * F, 2).tolist()}; band {2e-3 * band:.2f}, jumps "
+              f"{np.round(2e-3 * jumps, 2).tolist()}; volume change max "
+              f"{max(abs(q['volume_change']) for q in rows):.1e}")
+    assert len(rows) == s.n_increments and len(sim.remeshes) >= 3
+    for k in across:
+        assert min(across[k]) >= 3.0, (k, across[k])
+        assert all(L <= a <= 2.5 * L for a in arcs[k]), (k, arcs[k], L)
+    assert max(abs(q["volume_change"]) for q in rows) <= 5e-3
+    assert first.any() and (~first).sum() >= 3
+    assert np.all(jumps <= 1.5 * band), (jumps, band)

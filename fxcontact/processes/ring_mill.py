@@ -8,8 +8,10 @@
   follows the ring's centre on the mill line, moving along the ring axis at a given speed;
 * :func:`cone_row` — the upper cone's outputs and its axial-force estimate.
 * :class:`BiteZones` — the zones of a remesh (:meth:`fxcontact.Simulation.set_remeshing`): the
-  ring's wall in front of each roll gap, placed again at each remesh
-  (:func:`set_ring_remeshing`: the remeshing of ``RingRollingCase(remesh=True)``).
+  ring's wall, or its rolled surfaces, in front of each roll gap, placed again at each remesh
+  (:func:`set_ring_remeshing`: the remeshing of ``RingRollingCase(remesh=True)``, with the
+  zones' size from the bite's length :func:`bite_length` when ``remesh_min_across`` is set);
+  :func:`bite_coverage` — the elements across each bite, measured.
 
 They are registered with :meth:`fxcontact.Simulation.add_controller`, save what changes with
 ``checkpoint_state()`` and get it back with ``restore_state()``. The tool motions they drive
@@ -34,7 +36,8 @@ from fxcontact.processes.monitor import is_number
 from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
 
 __all__ = ["RingCentring", "AxialRolls", "cone_row", "BiteZones", "set_ring_remeshing",
-           "FRICTIONS", "friction_spec", "friction_law"]
+           "bite_length", "bite_coverage", "BITE_MARGIN", "FRICTIONS", "friction_spec",
+           "friction_law"]
 
 
 #: the friction laws of a tool: ``(law, a, b)``: ("coulomb", μ, m̄) or ("norton", α_f, q)
@@ -330,27 +333,47 @@ def cone_row(q, nodes, depth, Hm, Ro, Ri, w_ring, geo, K, m) -> dict:
 
 
 class BiteZones:
-    """The refinement of a ring's remesh: the ring's wall over the arc ``arc`` in front of each
-    roll gap (upstream: the material that the ring's rotation brings into the gap) and
+    """The refinement of a ring's remesh: the ring in front of each roll gap over the arc
+    ``arc`` (upstream: the material that the ring's rotation brings into the gap) and
     ``downstream`` past it, meshed with size ``h``. A callable ``zones(sim) -> [SizeZone]``
     (:meth:`fxcontact.Simulation.set_remeshing`): evaluated at each remesh on the ring as it is
     then (its centre from ``centring``, its radii and height from its vertices), since the ring
     turns under the fixed gaps: each remesh puts the fine arc back in front of the gaps.
 
+    Each zone is a :class:`~fxcontact.remesh.volume.SizeZone` of points spaced by about ``h``
+    (gmsh's Distance field to them): with ``surfaces=False`` they fill the whole wall over the
+    arc; with ``surfaces=True`` they lie on the surfaces the rolls touch only — the outer
+    surface and the bore at a radial gap (the main roll and the mandrel), the top face at an
+    axial gap (the cones) — and the size grows by ``grading`` per unit depth below them (the
+    bites refined at a fraction of the whole wall's cells).
+
     Args:
         centring: the mill's :class:`RingCentring` (ring axis, mill line, centre).
         h: the element size in the zones.
-        angles: the gaps' angles [rad] about the ring axis from the mill line's direction
-            (radial rolling: 0; the axial gap of the cones: π).
+        angles: the radial gaps' angles [rad] about the ring axis from the mill line's
+            direction (the main roll and the mandrel: 0).
         arc: the arc [rad] refined upstream of each gap; ``downstream`` past it.
         sense: the ring's sense of rotation about the axis (+1: counterclockwise).
+        axial: the axial gaps' angles [rad] (the cones of a radial-axial mill: π).
+        surfaces: points on the rolled surfaces only (see above) instead of the whole wall.
+        grading: the zones' growth of the size per unit distance.
     """
 
     def __init__(self, centring: RingCentring, h: float, angles: Sequence[float] = (0.0,),
-                 arc: float = 0.5 * math.pi, downstream: float = 0.1, sense: float = 1.0):
+                 arc: float = 0.5 * math.pi, downstream: float = 0.1, sense: float = 1.0,
+                 axial: Sequence[float] = (), surfaces: bool = False, grading: float = 0.3):
         self.centring = centring
         self.h, self.angles = float(h), [float(a) for a in angles]
+        self.axial = [float(a) for a in axial]
         self.arc, self.downstream, self.sense = float(arc), float(downstream), float(sense)
+        self.surfaces, self.grading = bool(surfaces), float(grading)
+        if not (math.isfinite(self.h) and self.h > 0 and self.arc > 0 and self.grading >= 0):
+            raise ValueError(f"BiteZones: need h > 0, arc > 0 and grading >= 0, got h = {h!r}, "
+                             f"arc = {arc!r}, grading = {grading!r}")
+
+    @staticmethod
+    def _levels(lo: float, hi: float, h: float) -> np.ndarray:
+        return np.linspace(lo, hi, max(2, int(math.ceil((hi - lo) / h)) + 1))
 
     def __call__(self, sim) -> list:
         from fxcontact.remesh.volume import SizeZone
@@ -364,36 +387,115 @@ class BiteZones:
         lo = [sim.comm.allreduce(float(np.min(v, initial=np.inf)), op=MPI.MIN) for v in (rho, z)]
         hi = [sim.comm.allreduce(float(np.max(v, initial=-np.inf)), op=MPI.MAX) for v in (rho, z)]
         h = self.h
-        radii = np.linspace(lo[0], hi[0], max(2, int(math.ceil((hi[0] - lo[0]) / h)) + 1))
-        heights = np.linspace(lo[1], hi[1], max(2, int(math.ceil((hi[1] - lo[1]) / h)) + 1))
+        radii = self._levels(lo[0], hi[0], h)
+        heights = self._levels(lo[1], hi[1], h)
         zones = []
-        for phi in self.angles:
-            span = self.arc + self.downstream
-            n = max(2, int(math.ceil(span * hi[0] / h)) + 1)
-            th = phi + self.sense * np.linspace(-self.arc, self.downstream, n)
-            T, P, Z = np.meshgrid(th, radii, heights, indexing="ij")
-            pts = (c + np.outer(P.ravel() * np.cos(T.ravel()), e)
-                   + np.outer(P.ravel() * np.sin(T.ravel()), f) + np.outer(Z.ravel(), a))
-            zones.append(SizeZone(h=h, points=pts))
+        for phi, radial in [(p, True) for p in self.angles] + [(p, False) for p in self.axial]:
+            if self.surfaces:
+                rs, zs = ((np.array([lo[0], hi[0]]), heights) if radial else
+                          (radii, np.array([hi[1]])))
+            else:
+                rs, zs = radii, heights
+            pts = []
+            for rr in rs:   # about h apart along the arc at each radius
+                n = max(2, int(math.ceil((self.arc + self.downstream) * rr / h)) + 1)
+                th = phi + self.sense * np.linspace(-self.arc, self.downstream, n)
+                T, Z = np.meshgrid(th, zs, indexing="ij")
+                pts.append(c + np.outer(rr * np.cos(T.ravel()), e)
+                           + np.outer(rr * np.sin(T.ravel()), f) + np.outer(Z.ravel(), a))
+            zones.append(SizeZone(h=h, points=np.concatenate(pts), grading=self.grading))
         return zones
 
 
-def set_ring_remeshing(sim, centring: RingCentring, case, h_theta: float):
+#: with ``remesh_min_across`` = n, the bite zones' size is L / (BITE_MARGIN n), L the contact
+#: length of the pass's theory (:func:`bite_length`). The contact zones of the nodes are longer
+#: than L (1.3–1.7 L measured for the main roll and the mandrel of the quick ring with a steady
+#: bite: the penalty lets the nodes touch a little before and after the theory's bite), so 1
+#: gives the n elements with some room (3.7–5.2 measured for n = 3 by :func:`bite_coverage`)
+BITE_MARGIN = 1.0
+
+
+def bite_length(case) -> float:
+    """The steady bite's contact length L = √(2Δh/Σ) of a ring-rolling case (THEORY §14.4):
+    Δh the feed per revolution at the main roll's surface speed."""
+    dh = case.feed_speed * 2.0 * math.pi * case.R / (case.omega_main * case.R1)
+    return forming.ring_rolling_contact_length(dh, case.R1, case.R2, case.R, case.r)
+
+
+def set_ring_remeshing(sim, centring: RingCentring, case, h_theta: float, start: bool = False):
     """The remeshing of a :class:`~fxcontact.processes.ring_rolling.RingRollingCase` with
     ``remesh=True`` (its ``remesh_*`` fields): size the initial mean edge length, the
-    :class:`BiteZones` of size ``remesh_zone_h`` (default ``h_theta``) over ``remesh_arc``
-    in front of the radial gap (and of the axial one with cones); a remesh when the ring has
-    turned by 3/4 of that arc (``RemeshCriteria.every``, at the nominal speed), when a cell's
-    quality falls below ``remesh_min_quality``, and when the main roll's or the mandrel's bite
-    is spanned by fewer than ``remesh_min_across`` elements (None: not checked)."""
+    :class:`BiteZones` over ``remesh_arc`` in front of the radial gap (and of the axial one with
+    cones); a remesh when the ring has turned (at the nominal speed) by 3/4 of that arc, or by
+    the arc less the bite's angle at the bore if that is less (``RemeshCriteria.every``), when
+    a cell's quality falls below ``remesh_min_quality``, and when the main roll's or the
+    mandrel's bite is spanned by fewer than ``remesh_min_across`` elements.
+
+    Without ``remesh_min_across`` the zones fill the wall with size ``remesh_zone_h`` (default
+    ``h_theta``). With it (n elements across each bite asked for) they lie on the rolled
+    surfaces (``BiteZones(surfaces=True)``), of size ``remesh_zone_h`` or by default
+    L / (:data:`BITE_MARGIN` n) (L: :func:`bite_length`; not above ``h_theta``), and, with
+    ``start``, the ring is remeshed before the first increment (its bite refined from the
+    start). The bite's length is the steady one: while the bite grows (the first revolution
+    from a small ``initial_bite``) it is spanned by fewer elements."""
     from fxcontact.remesh.criteria import RemeshCriteria
     from fxcontact.remesh.simulation import mean_edge_length
     c = case
-    across = None if c.remesh_min_across is None else \
-        dict.fromkeys(("main_roll", "mandrel"), c.remesh_min_across)
-    every = max(1, int(0.75 * c.remesh_arc / 360.0 * c.increments_per_rev))
-    zones = BiteZones(centring, c.remesh_zone_h or h_theta, [0.0, math.pi] if c.cones else [0.0],
-                      math.radians(c.remesh_arc))
+    n = c.remesh_min_across
+    across = None if n is None else dict.fromkeys(("main_roll", "mandrel"), n)
+    L = bite_length(c)
+    h = c.remesh_zone_h or (h_theta if not n else min(h_theta, L / (BITE_MARGIN * n)))
+    arc = math.radians(c.remesh_arc)
+    turn = 2.0 * math.pi / c.increments_per_rev          # per increment
+    every = max(1, int(min(0.75 * arc, arc - L / c.r) / turn + 1e-9))
+    zones = BiteZones(centring, h, [0.0], arc, axial=[math.pi] if c.cones else [],
+                      surfaces=bool(n))
+    size = mean_edge_length(sim)
     sim.set_remeshing(RemeshCriteria(min_quality=c.remesh_min_quality, every=every,
-                                     min_elements_across=across),
-                      size=mean_edge_length(sim), zones=zones)
+                                     min_elements_across=across), size=size, zones=zones)
+    if n and start:
+        sim.remesh(reason="the bites refined before the first increment")
+    return zones
+
+
+def bite_coverage(sim, contact, center, tools=("main_roll", "mandrel"), axis=(0.0, 0.0, 1.0)):
+    """Elements across the bite of each of ``tools`` now (collective; the same on every rank):
+    the contact zone's arc (the extreme angles of the tool's contact nodes about the ring's
+    ``center`` times their mean distance from the axis) over the mean edge length of the
+    boundary facets whose three vertices are contact nodes of that tool. ``{tool: (arc, mean
+    edge, elements across)}``; (0, nan, 0) for a tool with fewer than 3 contact nodes. An
+    independent measure of what ``RemeshCriteria.min_elements_across`` checks (that one: the
+    width 2√3σ of the nodes' spread, over the facets around them)."""
+    from scipy.spatial import cKDTree
+    comm, b = sim.comm, contact.boundary
+    msh = sim.mesh
+    fdim = msh.topology.dim - 1
+    msh.topology.create_connectivity(fdim, 0)
+    f2v = np.asarray(msh.topology.connectivity(fdim, 0).array).reshape(-1, fdim + 1)
+    owned = b.facets[b.facets < msh.topology.index_map(fdim).size_local]
+    X = sim.vertex_positions()
+    a = unit_vector(axis, "ring axis")
+    out = {}
+    for name in tools:
+        k = [t.name for t in contact.tools].index(name)
+        mine = X[b.vertices[(contact._h > 0) & (contact._tool == k)]]
+        P = np.concatenate(comm.allgather(mine)) if comm.size > 1 else mine
+        if len(P) < 3:
+            out[name] = (0.0, math.nan, 0.0)
+            continue
+        d = P - np.asarray(center, dtype=float)
+        d -= np.outer(d @ a, a)
+        u = d / np.linalg.norm(d, axis=1)[:, None]
+        m = u.sum(axis=0)                      # the zone's mean direction: angles from it
+        m /= np.linalg.norm(m)
+        th = np.arctan2(np.cross(m, u) @ a, u @ m)
+        arc = float((th.max() - th.min()) * np.mean(np.linalg.norm(d, axis=1)))
+        F = X[f2v[owned]]
+        hit = cKDTree(P).query(F.reshape(-1, 3), distance_upper_bound=1e-9)[0]
+        F = F[np.all(np.isfinite(hit).reshape(-1, 3), axis=1)]
+        s = sum(float(np.sum(np.linalg.norm(F[:, i] - F[:, j], axis=1)))
+                for i, j in ((0, 1), (1, 2), (0, 2)))
+        s, n = comm.allreduce(np.array([s, 3.0 * len(F)]), op=MPI.SUM)
+        h = s / n if n else math.nan
+        out[name] = (arc, h, arc / h if n else 0.0)
+    return out

@@ -122,10 +122,11 @@ class RingRollingCase(RunNumerics):
     sticky_gap: float = 0.0
     max_it: int = 60                #: Newton iterations per solve
     newton_rtol: float = 1e-9       #: Newton's relative residual tolerance
-    # remeshing (off by default; ring_mill.set_ring_remeshing): a new mesh, finer (remesh_zone_h,
-    # default h_theta) over the arc remesh_arc [degrees] in front of each gap (ring_mill.BiteZones),
-    # made when the ring has turned by 3/4 of that arc, when a cell's quality falls below
-    # remesh_min_quality, and when a bite is spanned by fewer than remesh_min_across elements
+    # remeshing (off by default; ring_mill.set_ring_remeshing): a new mesh, finer over the arc
+    # remesh_arc [degrees] in front of each gap (ring_mill.BiteZones), made when the ring has
+    # turned by about 3/4 of it or a cell's quality falls below remesh_min_quality; with
+    # remesh_min_across = n also when a bite is spanned by fewer than n elements, the zones then on
+    # the rolled surfaces of size L/n (the bite's length) and the ring remeshed at the start
     remesh: bool = False
     remesh_min_quality: float = 0.15
     remesh_min_across: Optional[float] = None
@@ -386,7 +387,7 @@ def build(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
                                               [0.5 * c.cone_speed]))
     sim.add_contributor(contact)
     if c.remesh:
-        set_ring_remeshing(sim, centring, c, h_theta)
+        set_ring_remeshing(sim, centring, c, h_theta, start=not resume)
     if resume:
         # the state of a checkpoint (True: the newest of this run): fields, geometry, contact,
         # the controllers (guide-roll and mandrel motions, ω, ring centre) and the history
@@ -396,7 +397,7 @@ def build(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
         x0 = sim.vertex_positions()
         v0 = np.zeros_like(x0)
         v0[:, 0], v0[:, 1] = -x0[:, 1] * v_s / R, x0[:, 0] * v_s / R
-        sim.w_prev.x.array[sp.vertex_dofs] = v0
+        sim.w_prev.x.array[sim.space.vertex_dofs] = v0
         sim.w_prev.x.scatter_forward()
     return RingRollingSetup(c, sim, contact, tools, exact, outer, inner, top, centring, idle,
                             axial, update, th, dt, n_inc, h_theta, cone_geo)
@@ -477,12 +478,15 @@ class _Measure:
         (:class:`fxcontact.power.PowerBalance` with the velocities turned by the cylindrical
         update)."""
         s = self.s
+        ended = s.sim.space is not self.power._space   # by a remesh: the contact was reset
         pw = self.power(q)
-        P = [2 * delivered_power(s.contact, s.sim.t, k) for k in range(len(s.tools))]
+        P = [math.nan if ended else 2 * delivered_power(s.contact, s.sim.t, k)
+             for k in range(len(s.tools))]
         return dict(main_power=P[0], mandrel_power=P[1], guide_power=P[2] + P[3],
                     cone_power=sum(P[4:]),
                     mandrel_rotation_power=-2 * q.get("mandrel_torque", 0.0) * q["mandrel_omega"],
-                    power_in=2 * pw["power_in"], dissipation=2 * pw["dissipation"],
+                    power_in=math.nan if ended else 2 * pw["power_in"],
+                    dissipation=2 * pw["dissipation"],
                     friction_power=2 * pw["friction_power"],
                     penalty_power=2 * pw["penalty_power"], power_balance=pw["power_balance"],
                     power_balance_penalty=pw["power_balance_penalty"])

@@ -29,7 +29,7 @@ from mpi4py import MPI
 from fxcontact.mesh_health import simplex_measures
 
 __all__ = ["RemeshCriteria", "quality_and_volume_ratio", "strain_increment",
-           "zone_moments", "elements_across", "check"]
+           "zone_moments", "elements_across", "coverage_reasons", "check"]
 
 
 def quality_and_volume_ratio(P: np.ndarray, vol_ref: np.ndarray):
@@ -102,6 +102,20 @@ def _mean_edge(P: np.ndarray) -> tuple:
     return float(s), len(P) * k * (k - 1) // 2
 
 
+def coverage_reasons(across: Dict[str, float],
+                     limits: Union[float, Dict[str, float], None]) -> List[str]:
+    """The reasons to remesh of the contact zones spanned by fewer elements than their
+    limit (a number for every zone, ``{name: number}`` or None; zones of 0, no contact, are
+    not checked)."""
+    if limits is None:
+        return []
+    if not isinstance(limits, dict):
+        limits = {name: limits for name in across}
+    return [f"contact '{name}' spanned by {a:.2g} < {limits[name]:g} elements"
+            for name, a in across.items()
+            if limits.get(name) is not None and 0.0 < a < limits[name]]
+
+
 def check(comm, criteria: RemeshCriteria, cells: np.ndarray, vol_ref: np.ndarray,
           strain: Optional[np.ndarray] = None, strain_ref: Optional[np.ndarray] = None,
           contact_zones: Optional[Dict[str, tuple]] = None) -> Dict[str, object]:
@@ -137,11 +151,6 @@ def check(comm, criteria: RemeshCriteria, cells: np.ndarray, vol_ref: np.ndarray
         reasons.append(f"min volume ratio {r:.3g} < {c.min_volume_ratio:g}")
     if c.max_strain_increment is not None and de > c.max_strain_increment:
         reasons.append(f"strain increment {de:.3g} > {c.max_strain_increment:g}")
-    limits = c.min_elements_across
-    if not isinstance(limits, dict):
-        limits = {name: limits for name in across}
-    for name, a in across.items():
-        if limits.get(name) is not None and 0.0 < a < limits[name]:
-            reasons.append(f"contact '{name}' spanned by {a:.2g} < {limits[name]:g} elements")
+    reasons += coverage_reasons(across, c.min_elements_across)
     return {"min_quality": q, "min_volume_ratio": r, "max_strain_increment": de,
             "elements_across": across, "reasons": reasons}

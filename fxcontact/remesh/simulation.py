@@ -149,6 +149,9 @@ class Remeshing:
         self.strain_ref = sim.strain.x.array.copy()
         #: the quality the last remesh gave (the quality criterion never asks for better)
         self.quality_after = math.inf
+        #: {tool: elements across its contact zone} at the first increment on the last new
+        #: mesh (the coverage criterion never asks for better; None: not measured yet)
+        self.across_after = None
 
     def zones_for(self, sim) -> list:
         return list(self.zones(sim) if callable(self.zones) else self.zones)
@@ -156,6 +159,23 @@ class Remeshing:
     def after_remesh(self, sim, record: RemeshRecord):
         self.strain_ref = sim.strain.x.array.copy()
         self.quality_after = record.min_quality_after
+        self.across_after = {}
+
+    def _coverage_limits(self, limits, across: dict) -> dict:
+        """The coverage limits {tool: n} of this increment: a new mesh whose first increment
+        spans a bite by fewer than n elements (a bite smaller than its zone resolves, as while
+        it grows) calls again only when that bite gets twice as coarse, as for the quality;
+        the first measure on a new mesh is kept (``across_after``)."""
+        if not isinstance(limits, dict):
+            limits = {name: limits for name in across}
+        if self.across_after is None:
+            return limits
+        for name, a in across.items():
+            if a > 0:
+                self.across_after.setdefault(name, a)
+        fresh = self.across_after
+        return {name: (0.5 * fresh[name] if v is not None and fresh.get(name, v) < v else v)
+                for name, v in limits.items()}
 
     def reasons(self, sim) -> List[str]:
         """Why the current mesh should be remeshed (collective; empty: it need not be)."""
@@ -168,9 +188,17 @@ class Remeshing:
         mh = sim._mesh_health
         n = len(mh._c2v_owned)
         cells = sim.vertex_positions()[mh._c2v_owned]
-        res = _criteria.check(sim.comm, crit, cells, mh._vol0, sim.strain.x.array[:n],
-                              self.strain_ref[:n],
-                              _contact_zones(sim) if crit.min_elements_across else None)
+        limits = crit.min_elements_across
+        res = _criteria.check(sim.comm, replace(crit, min_elements_across=None), cells,
+                              mh._vol0, sim.strain.x.array[:n], self.strain_ref[:n],
+                              _contact_zones(sim) if limits else None)
+        if limits:
+            across = res["elements_across"]
+            res["reasons"] += _criteria.coverage_reasons(
+                across, self._coverage_limits(limits, across))
+            if sim.history:   # the measure in the increment's row of the history
+                sim.history[-1].update({f"elements_across_{k}": float(a)
+                                        for k, a in across.items()})
         since = sim.increment - (sim.remeshes[-1].increment if sim.remeshes else 0)
         if crit.every and since >= crit.every:
             res["reasons"].append(f"{since} increments since the last remesh")
