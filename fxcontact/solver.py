@@ -477,12 +477,9 @@ class ContactNewtonSolver:
             stable = all([c.stable() for c in contributors])
             period = self._cycle_period(contributors, fnorm)
             # the Jacobian of this iterate may keep the factorisation (reuse_factorisation)
-            # where Newton contracts fast with an unchanged contact state: the iterates, and
-            # so the Newton matrices, then change little
-            # and the factorisation is regular: on a singular Newton matrix (MUMPS's null
-            # pivots) the Krylov solve preconditioned by it may move far along the null space
-            # where a direct solve picks a moderate step (the quick ring's first increment
-            # inverted an element that way)
+            # where Newton contracts fast with an unchanged contact state (the Newton matrices
+            # change little) and the factorisation has no null pivot (a Krylov solve
+            # preconditioned by a singular one may move far along the null space)
             self._reuse_ok = (it > 0 and stable
                               and fnorm <= REUSE_CONTRACTION * self._norms[-2]
                               and not (self._pivots and self._pivots[-1]))
@@ -717,20 +714,16 @@ class ContactNewtonSolver:
             # a failed attempt must not poison the next one (factorisation, locked vectors)
             self.reset()
         # linear solve: from the end of each Jacobian callback to the line search's pre-check
-        # (or the end of the SNES after a failed linear solve): KSPSetOperators, the PC set-up
-        # (MUMPS factorisation; condensation and inner set-up), the Krylov iterations or
-        # triangular solves. (Not the PETSc KSPSolve/PCSetUp log events: a nested solve under
-        # a python PC is counted in both, and an error raised inside an event leaves it open,
-        # so that it is never timed again.) "other": the SNES's vector updates and norms, the
-        # callbacks' Python glue (iterate copy, ghost update, convergence test) and, in
-        # parallel, the waits in their collectives.
+        # (or the SNES's end after a failed linear solve): KSPSetOperators, the PC set-up, the
+        # Krylov iterations or triangular solves (not PETSc's log events: a solve nested under
+        # a python PC counts in both, an error inside an event leaves it open for good).
+        # "other": the SNES's vector operations, the callbacks' Python glue, collective waits.
         lin = self.linear_time - lin0
         times = {"assembly": prob.timers.get("assembly"), "contact": prob.timers.get("contact"),
                  "linear_solve": lin}
         times["other"] = max(wall - sum(times.values()), 0.0)
         times["total"] = wall
-        if cpc is not None:  # parts of linear_solve: forming the condensed system, and the
-            # set-up of its solver (the factorisation with a direct one)
+        if cpc is not None:  # parts of linear_solve: the condensed system, its factorisation
             times["condensation"] = cond
             times["factorisation"] = cpc.times["inner_setup"] - fac0
         # sub-parts of "assembly"
