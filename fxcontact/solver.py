@@ -196,8 +196,7 @@ class ContactNewtonSolver:
         #: the active-set prediction of the Newton steps (None when off); its ``stats``
         self.prediction = None
         self._set_prediction()
-        #: factorisations made since the solver was built (``reuse_factorisation``: the
-        #: Jacobians that were factorised; else one per Jacobian)
+        #: factorisations made since the solver was built (one per Jacobian but the kept ones)
         self.factorisations = 0
         PETSc.Log.begin()   # PETSc's event log on (benchmarks read its events)
 
