@@ -79,12 +79,6 @@ def _condense_cell(A, b, lpos, bpos, S, r, X, y):
 
 # -- generic loops over cells of an element-tensor source ``tab(data, cell, A, b)`` ----------
 @numba.njit
-def _tensors_loop(tab, data, cells, A_out, b_out):
-    for n in range(cells.size):
-        tab(data, cells[n], A_out[n], b_out[n])
-
-
-@numba.njit
 def _kernel_loop(tab, data, cells, A, b):
     """The element tensors of ``cells`` into one scratch pair (timing of the kernel alone);
     returns a checksum."""
@@ -292,26 +286,12 @@ class FFCxElementTensors:
         for n, c in enumerate(cells):
             crd = np.ascontiguousarray(x[xdofs[c]])
             crd_p = ptr("double *", crd.ctypes.data)
-            An, bn = np.zeros((ndofs, ndofs)), np.zeros(ndofs)
             wa, wL = np.ascontiguousarray(ca[c]), np.ascontiguousarray(cL[c])
-            self._kernel_a(ptr("double *", An.ctypes.data), ptr("double *", wa.ctypes.data),
-                           ka_p, crd_p, ent_p, perm_p)
-            self._kernel_L(ptr("double *", bn.ctypes.data), ptr("double *", wL.ctypes.data),
+            self._kernel_a(ptr("double *", A[n].ctypes.data), ptr("double *", wa.ctypes.data),
+                           ka_p, crd_p, ent_p, perm_p)   # (A[n], b[n]: contiguous, zeroed)
+            self._kernel_L(ptr("double *", b[n].ctypes.data), ptr("double *", wL.ctypes.data),
                            kL_p, crd_p, ent_p, perm_p)
-            A[n], b[n] = An, bn
         return A, b
-
-
-def _element_tensors(src, cells):
-    ndofs = src.layout.W.element.space_dimension
-    cells = np.asarray(cells, dtype=np.int32)
-    A = np.zeros((cells.size, ndofs, ndofs))
-    b = np.zeros((cells.size, ndofs))
-    if src.tab is _nh_tab:   # (a loop numba caches on disk: no compilation per process)
-        _nh_tensors_loop(src.data(), cells, A, b)
-    else:
-        _tensors_loop(src.tab, src.data(), cells, A, b)
-    return A, b
 
 
 # -- element tensors of Norton–Hoff from a hand-written kernel ----------------------------------
@@ -579,7 +559,7 @@ def _nh_tab(data, c, A, b):
 
 @numba.njit(cache=True)
 def _nh_tensors_loop(data, cells, A_out, b_out):
-    """:func:`_tensors_loop` of the hand kernel (called directly: cached on disk)."""
+    """The element tensors of ``cells`` by the hand kernel (called directly: cached on disk)."""
     for n in range(cells.size):
         _nh_tab(data, cells[n], A_out[n], b_out[n])
 
@@ -697,7 +677,11 @@ class NortonHoffElementTensors:
 
     def tensors(self, cells: np.ndarray):
         """(A, b): the (n, 19, 19) element matrices and (n, 19) vectors of ``cells``."""
-        return _element_tensors(self, cells)
+        cells = np.asarray(cells, dtype=np.int32)
+        A = np.zeros((cells.size, 19, 19))
+        b = np.zeros((cells.size, 19))
+        _nh_tensors_loop(self.data(), cells, A, b)
+        return A, b
 
     def inputs(self, cells: np.ndarray) -> tuple:
         """The arguments of :func:`norton_hoff_tensors_numpy` for ``cells`` (the numpy twin)."""
