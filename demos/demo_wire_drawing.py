@@ -107,7 +107,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description="Wire drawing, the thesis case (see the header).")
     for k in ("R0", "R1", "length", "K", "m", "speed", "alpha", "land", "fillet", "h",
               "facet", "size", "dt", "t_end", "mu", "mbar", "beta", "penalty_dt", "window",
-              "steady_tol", "penalty_continuation", "newton_rtol"):
+              "steady_tol", "penalty_continuation", "newton_rtol", "newton_ftol"):
         ap.add_argument(f"--{k}", type=float)
     ap.add_argument("--die", choices=DIES)
     ap.add_argument("--die_mesh", choices=DIE_MESHES)

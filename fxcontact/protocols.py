@@ -20,7 +20,8 @@ outputs and checkpoints check with ``isinstance`` before they call it (the Newto
 * :class:`HasSummary` — contributors (the run's summary);
 * :class:`Remeshable` — contributors and controllers (``Simulation.remesh``);
 * :class:`SolvesIncrement` — one controller at most;
-* :class:`SolverHooks` — ``begin_solve``, ``fingerprint``, ``cycle_hint``, ``residual_floor``:
+* :class:`SolverHooks` — ``begin_solve``, ``fingerprint``, ``cycle_hint``, ``residual_floor``,
+  ``force_norm``:
   contributors, called by the Newton solver.
 
 ``docs/architecture.md`` ("The contributor protocol") says when each is called.
@@ -149,3 +150,7 @@ class SolverHooks(Protocol):
 
     def residual_floor(self) -> float:
         """The round-off level of the contributor's residual norm."""
+
+    def force_norm(self) -> float:
+        """ℓ² norm of the contributor's nodal forces at the last iterate (the scale of
+        ``SolverOptions.ftol``)."""

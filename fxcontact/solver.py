@@ -483,7 +483,8 @@ class ContactNewtonSolver:
                               and fnorm <= REUSE_CONTRACTION * self._norms[-2]
                               and not (self._pivots and self._pivots[-1]))
         self._last_it, self._last_stable = it, stable
-        log.debug("Newton it %d: |R| = %.3e  |dx| = %.3e  stable=%s", it, fnorm, snorm, stable)
+        log.debug("Newton it %d: |R| = %.3e  |dx| = %.3e  stable=%s  |F| = %.3e", it, fnorm,
+                  snorm, stable, self._force_scale(contributors))
         if stable and it > 0 and fnorm <= self._residual_floor(contributors):
             # as small as the round-off of the contact gaps allows (a tiny dt): converged
             log.debug("Newton it %d: |R| = %.3e at the contributors' round-off floor", it, fnorm)
@@ -497,11 +498,19 @@ class ContactNewtonSolver:
                 return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
             if it > 0 and fnorm <= self._rtol * self._f0:
                 return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_RELATIVE
+            if it > 0 and fnorm <= o.ftol * self._force_scale(contributors):
+                return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
             if it > 0 and snorm <= o.stol * max(xnorm, 1e-300):
                 return PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE
         if it >= o.max_it:
             return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
         return PETSc.SNES.ConvergedReason.ITERATING
+
+    @staticmethod
+    def _force_scale(contributors) -> float:
+        """ℓ² norm of the contributors' nodal forces (``force_norm()``): ``ftol``'s scale."""
+        return math.sqrt(sum(c.force_norm() ** 2 for c in contributors
+                             if hasattr(c, "force_norm")))
 
     @staticmethod
     def _residual_floor(contributors) -> float:

@@ -107,6 +107,11 @@ class SolverOptions:
         rtol: relative residual tolerance ‖R‖/‖R₀‖.
         atol: absolute residual tolerance.
         stol: relative step tolerance ‖Δx‖/‖x‖ (a converged Newton step).
+        ftol: force-scaled tolerance: converged when ‖R‖ ≤ ftol × the ℓ² norm of the
+            contributors' nodal forces (``force_norm()``, the contact forces) with their state
+            stable; 0 (default) leaves it off. Unlike ``rtol`` it does not depend on how good
+            the increment's predictor was: ‖R₀‖ varies by 100× between similar increments of
+            a process, so ``rtol`` alone asks for a different accuracy each time.
         max_it: maximum Newton iterations per solve.
         line_search: globalisation of the Newton step: a PETSc SNES line search ("bt",
             "basic", "l2", "cp", "nleqerr") or ``"trust-region"`` (SNES ``newtontr``). On a
@@ -195,6 +200,7 @@ class SolverOptions:
     rtol: float = 1e-9
     atol: float = 1e-10
     stol: float = 1e-9
+    ftol: float = 0.0
     max_it: int = 30
     line_search: str = "bt"
     line_search_fallback: Optional[str] = "auto"
@@ -211,7 +217,7 @@ class SolverOptions:
     petsc_options: Dict[str, object] = field(default_factory=dict)
 
     def __post_init__(self):
-        for name in ("rtol", "atol", "stol"):
+        for name in ("rtol", "atol", "stol", "ftol"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")

@@ -204,6 +204,7 @@ CASES = [
     ("elastic-E<=0", lambda c: fx.LinearElastic(-5.0, 0.3), ValueError, "E"),
     ("elastic-nu=0.5", lambda c: fx.LinearElastic(1.0, 0.5), ValueError, "nu"),
     ("solver-rtol<0", lambda c: fx.SolverOptions(rtol=-1.0), ValueError, "rtol.*>= 0"),
+    ("solver-ftol-nan", lambda c: fx.SolverOptions(ftol=float("nan")), ValueError, "ftol.*>= 0"),
     ("solver-max_it<1", lambda c: fx.SolverOptions(max_it=0), ValueError, "max_it.*>= 1"),
     ("solver-unknown-line-search", lambda c: fx.SolverOptions(line_search="wolfe"), ValueError,
      "unknown line search 'wolfe'"),

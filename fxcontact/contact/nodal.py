@@ -275,6 +275,7 @@ class NodalContact(NodalContactIO):
         #: fall-back per node), to say what changes over a cycle (:meth:`cycle_hint`)
         self._recent = deque(maxlen=5)   # the longest cycle the solver looks for, 4, + 1
         self._floor = 0.0
+        self._force = 0.0
         self._rho_eval = 0.0
         self._fingerprint = ()
         self._placement_checked = False
@@ -292,6 +293,7 @@ class NodalContact(NodalContactIO):
         self._v_last = np.zeros((n, self.gdim))
         self._ever_active = np.zeros(n, dtype=bool)
         self._r = np.zeros((n, self.gdim))
+        self._r_all = np.zeros((n, self.gdim))
         # friction state: pressures of the previous converged increment (explicit friction),
         # per-node shear flow stress and consistency, last evaluation's friction terms
         self._p_prev = np.zeros(n)
@@ -624,6 +626,7 @@ class NodalContact(NodalContactIO):
             r = r + rf
             if jacobian:
                 K = K + Kf
+        self._r_all = r
         if jacobian and self.formulation == "displacement":
             K = K / self.dt
         return NodalTerms(b.dofs, r, K if jacobian else None)
@@ -756,6 +759,7 @@ class NodalContact(NodalContactIO):
         X = np.abs(x_t).max(axis=1, initial=0.0) + self.dt * np.linalg.norm(self._v_last, axis=1)
         floor = self.boundary.areas * self._rho_eval * np.finfo(float).eps * X / self.dt
         self._floor = math.sqrt(comm.allreduce(float(np.sum(floor[active] ** 2)), op=MPI.SUM))
+        self._force = math.sqrt(comm.allreduce(float(np.sum(self._r_all ** 2)), op=MPI.SUM))
         self._fingerprint = tuple(comm.allgather(zlib.crc32(status.tobytes())))
         self._status_prev = status
         self._settled = bool(comm.allreduce(int(same), op=MPI.MIN))
@@ -788,6 +792,12 @@ class NodalContact(NodalContactIO):
         residual below it; the solver accepts an iterate there (a tiny dt, where this floor
         exceeds the relative tolerance)."""
         return self._floor
+
+    def force_norm(self) -> float:
+        """ℓ² norm of this contact's nodal forces (normal and friction, every rank's owned
+        nodes) at the last iterate (collective value of the last :meth:`stable` call): the
+        force scale of ``SolverOptions.ftol``."""
+        return self._force
 
     def end_increment(self, sim, dt: float):
         """Measure the true penetration of the updated nodes against the tools at t + dt."""
