@@ -60,11 +60,10 @@ NULL_PIVOT_HINT = (
 #: ``benchmarks/README.md`` (sections "Condensed solvers" and ``bench_element_newton.py``):
 #: spaces without cell-interior dofs (Taylor–Hood) always get ``"mumps"``; MINI problems below
 #: AUTO_CONDENSED_MIN_DOFS global dofs get ``"mumps"`` (the plain path), up to
-#: AUTO_ITERATIVE_MIN_DOFS ``"condensed-mumps"``, above it ``"condensed-amg"``. With the bubble
-#: condensed in the element matrices the condensed direct solver costs 0.69× of MUMPS on the
-#: MINI system per Newton iteration at 5.9k dofs and 0.53× at 12k (the wire drawing), about the
-#: same at 2–3k, hence the threshold at 5k. Module attributes, so a user can move them; an
-#: explicit ``linear_solver`` is never overridden.
+#: AUTO_ITERATIVE_MIN_DOFS ``"condensed-mumps"``, above it ``"condensed-amg"`` (the condensed
+#: direct solver: 0.69× of MUMPS on MINI per Newton iteration at 5.9k dofs, 0.53× at 12k,
+#: about the same at 2–3k). Module attributes a user can move; an explicit
+#: ``linear_solver`` is never overridden.
 AUTO_CONDENSED_MIN_DOFS = 5_000
 AUTO_ITERATIVE_MIN_DOFS = 300_000
 
@@ -454,10 +453,8 @@ class ContactNewtonSolver:
         contributors = self.problem.contributors
         o = self.options
         if it > 0 and it == self._last_it:
-            # the trust region re-tests the same iterate after a rejected step (newtontr calls
-            # the test again with the iteration number and residual unchanged): not a new
-            # iterate, so no new entry in the history and no cycle (the repeats would look like
-            # one), and the contributors keep the verdict they gave for this iterate
+            # newtontr re-tests the same iterate after a rejected step: no new history entry,
+            # no cycle, and the contributors keep their verdict for this iterate
             stable = self._last_stable
             period = 0
         else:
@@ -475,16 +472,14 @@ class ContactNewtonSolver:
             # (called at every iteration, including 0, so each contributor takes its snapshot)
             stable = all([c.stable() for c in contributors])
             period = self._cycle_period(contributors, fnorm)
-            # the Jacobian of this iterate may keep the factorisation (reuse_factorisation)
-            # where Newton contracts fast with an unchanged contact state (the Newton matrices
-            # change little) and the factorisation has no null pivot (a Krylov solve
-            # preconditioned by a singular one may move far along the null space)
+            # the Jacobian may keep the factorisation (reuse_factorisation) where Newton
+            # contracts fast with an unchanged contact state and no null pivot (a Krylov solve
+            # preconditioned by a singular factorisation may move far along the null space)
             self._reuse_ok = (it > 0 and stable
                               and fnorm <= REUSE_CONTRACTION * self._norms[-2]
                               and not (self._pivots and self._pivots[-1]))
         self._last_it, self._last_stable = it, stable
-        log.debug("Newton it %d: |R| = %.3e  |dx| = %.3e  stable=%s  |F| = %.3e", it, fnorm,
-                  snorm, stable, self._force_scale(contributors))
+        log.debug("Newton it %d: |R| = %.3e  |dx| = %.3e  stable=%s", it, fnorm, snorm, stable)
         if stable and it > 0 and fnorm <= self._residual_floor(contributors):
             # as small as the round-off of the contact gaps allows (a tiny dt): converged
             log.debug("Newton it %d: |R| = %.3e at the contributors' round-off floor", it, fnorm)
@@ -498,19 +493,13 @@ class ContactNewtonSolver:
                 return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
             if it > 0 and fnorm <= self._rtol * self._f0:
                 return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_RELATIVE
-            if it > 0 and fnorm <= o.ftol * self._force_scale(contributors):
+            if it > 0 and o.ftol > 0 and fnorm <= o.ftol * _force_scale(contributors):
                 return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
             if it > 0 and snorm <= o.stol * max(xnorm, 1e-300):
                 return PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE
         if it >= o.max_it:
             return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
         return PETSc.SNES.ConvergedReason.ITERATING
-
-    @staticmethod
-    def _force_scale(contributors) -> float:
-        """ℓ² norm of the contributors' nodal forces (``force_norm()``): ``ftol``'s scale."""
-        return math.sqrt(sum(c.force_norm() ** 2 for c in contributors
-                             if hasattr(c, "force_norm")))
 
     @staticmethod
     def _residual_floor(contributors) -> float:
@@ -800,6 +789,11 @@ class ContactNewtonSolver:
 #: the former name of :class:`ContactNewtonSolver` (the same class)
 NewtonSolver = ContactNewtonSolver
 
+
+
+def _force_scale(contributors) -> float:
+    """ℓ² norm of the contributors' nodal forces (``force_norm()``): ``ftol``'s scale."""
+    return math.sqrt(sum(c.force_norm() ** 2 for c in contributors if hasattr(c, "force_norm")))
 
 
 def _reason_name(reason: int, kind=PETSc.SNES.ConvergedReason) -> str:
