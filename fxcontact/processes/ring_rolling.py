@@ -122,6 +122,7 @@ class RingRollingCase(RunNumerics):
     sticky_gap: float = 0.0
     max_it: int = 60                #: Newton iterations per solve
     newton_rtol: float = 1e-9       #: Newton's relative residual tolerance
+    newton_ftol: float = 0.0        #: Newton's force-scaled tolerance (SolverOptions.ftol)
     # remeshing (off by default; ring_mill.set_ring_remeshing): a new mesh, finer over the arc
     # remesh_arc [degrees] in front of each gap (ring_mill.BiteZones), made when the ring has
     # turned by about 3/4 of it or a cell's quality falls below remesh_min_quality; with
@@ -312,7 +313,8 @@ def build(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
     update = RingAxisUpdate((0.0, 0.0, 0.0)) if c.update == "cylindrical" else None
     files = bool(vtk_every or checkpoint_every or resume)
     sim = fx.Simulation(sp, mat, solver_options=fx.SolverOptions(
-        max_it=int(c.max_it), rtol=float(c.newton_rtol), line_search=c.line_search,
+        max_it=int(c.max_it), rtol=float(c.newton_rtol), ftol=float(c.newton_ftol),
+        line_search=c.line_search,
         active_set_prediction=c.active_set_prediction,
         penalty_continuation=c.penalty_continuation),
         kinematics=update, output_dir=output_dir if files else None, name=name,
