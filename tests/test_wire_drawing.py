@@ -223,40 +223,42 @@ def test_bad_parameters():
         DrawingCase.quick(newton_ftol=1.0)
 
 
-def test_newton_rtol_looser_same_drawing_stress():
-    """Newton's relative tolerance 1e-6 instead of 1e-9: the same drawing stress at every
-    increment within 1e-5, 500x below the 0.5 % accepted for the drawing stress (measured:
-    5.4e-6 at this size, 5e-8 at size 0.4). The first increment starts from the same state,
-    so its iterates are the same and the looser test stops no later (the later increments
-    start from states that differ by the tolerance: their counts are not compared)."""
-    n = 3 * DrawingCase.QUICK["dt"]
-    a = _run(t_end=n, stop_at_steady=False)
-    b = _run(t_end=n, stop_at_steady=False, newton_rtol=1e-6)
-    assert len(a.history) == len(b.history) == 3
-    for qa, qb in zip(a.history, b.history):
+@pytest.fixture(scope="module")
+def three_increments():
+    """Three increments of the quick case at the default Newton tolerances (the reference of
+    the looser-tolerance tests)."""
+    return _run(t_end=3 * DrawingCase.QUICK["dt"], stop_at_steady=False)
+
+
+def _looser_same_stress(ref, bound, **tolerance):
+    """The run with ``tolerance`` against ``ref``: the drawing stress at every increment
+    within ``bound`` (relative) and no more Newton iterations in the first increment (same
+    start, same iterates); returns the looser run."""
+    b = _run(t_end=3 * DrawingCase.QUICK["dt"], stop_at_steady=False, **tolerance)
+    assert len(ref.history) == len(b.history) == 3
+    for qa, qb in zip(ref.history, b.history):
         print("drawing stress", qa["drawing_stress"], qb["drawing_stress"],
               "Newton", qa["newton_iterations"], qb["newton_iterations"])
-        assert abs(qb["drawing_stress"] - qa["drawing_stress"]) <= 1e-5 * abs(qa["drawing_stress"])
-    assert b.history[0]["newton_iterations"] <= a.history[0]["newton_iterations"]
+        assert abs(qb["drawing_stress"] - qa["drawing_stress"]) <= bound * abs(qa["drawing_stress"])
+    assert b.history[0]["newton_iterations"] <= ref.history[0]["newton_iterations"]
+    return b
 
 
+def test_newton_rtol_looser_same_drawing_stress(three_increments):
+    """Newton's relative tolerance 1e-6 instead of 1e-9: the same drawing stress at every
+    increment within 1e-5, 500x below the 0.5 % accepted for the drawing stress (measured:
+    5.4e-6 at this size, 5e-8 at size 0.4); the later increments start from states that differ
+    by the tolerance: their counts are not compared."""
+    _looser_same_stress(three_increments, 1e-5, newton_rtol=1e-6)
 
-def test_force_tolerance_same_drawing_stress():
+
+def test_force_tolerance_same_drawing_stress(three_increments):
     """Newton stopped at ‖R‖ ≤ 1e-3 × the die's nodal force norm (``newton_ftol=1e-3``)
     against the default relative tolerance 1e-9 alone: the same drawing stress at every
     increment within 1e-3, 5x below the 0.5 % accepted for the drawing stress (measured
-    3.9e-4 at this size, 2.4e-7 at size 0.7), fewer Newton iterations over the run (the
-    option's purpose; measured 21 against 28) and none more in the first increment (same
-    start, same iterates)."""
-    n = 3 * DrawingCase.QUICK["dt"]
-    a = _run(t_end=n, stop_at_steady=False)
-    b = _run(t_end=n, stop_at_steady=False, newton_ftol=1e-3)
+    3.9e-4 at this size, 2.4e-7 at size 0.7), and fewer Newton iterations over the run (the
+    option's purpose; measured 21 against 28)."""
     assert DrawingCase.quick().newton_ftol == 0.0
-    assert len(a.history) == len(b.history) == 3
-    for qa, qb in zip(a.history, b.history):
-        print("drawing stress", qa["drawing_stress"], qb["drawing_stress"],
-              "Newton", qa["newton_iterations"], qb["newton_iterations"])
-        assert abs(qb["drawing_stress"] - qa["drawing_stress"]) <= 1e-3 * abs(qa["drawing_stress"])
-    assert b.history[0]["newton_iterations"] <= a.history[0]["newton_iterations"]
+    b = _looser_same_stress(three_increments, 1e-3, newton_ftol=1e-3)
     assert (sum(q["newton_iterations"] for q in b.history)
-            < sum(q["newton_iterations"] for q in a.history))
+            < sum(q["newton_iterations"] for q in three_increments.history))
