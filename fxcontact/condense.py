@@ -241,6 +241,41 @@ def asymmetry(S: PETSc.Mat) -> float:
     return out
 
 
+def _direct_mumps(ksp) -> bool:
+    """True if ``ksp`` is a single application of a MUMPS factorisation."""
+    if ksp is None or ksp.getType() != PETSc.KSP.Type.PREONLY:
+        return False
+    pc = ksp.getPC()
+    return (pc.getType() in (PETSc.PC.Type.LU, PETSc.PC.Type.CHOLESKY)
+            and pc.getFactorSolverType() == "mumps")
+
+
+def factor_solve_many(F: PETSc.Mat, template: PETSc.Vec, columns, comm):
+    """The solutions with the factored matrix ``F`` of the right-hand sides ``columns``
+    (arrays of the owned entries of vectors laid out as ``template``), in one solve with
+    several right-hand sides (``MatMatSolve``; collective, every rank the same number of
+    columns). Returns the solutions as arrays of the owned entries."""
+    k = len(columns)
+    n, N = template.getLocalSize(), template.getSize()
+    B = PETSc.Mat().createDense(((n, N), (PETSc.DECIDE, k)), comm=comm)
+    X = PETSc.Mat().createDense(((n, N), (PETSc.DECIDE, k)), comm=comm)
+    try:
+        B.setUp()
+        X.setUp()
+        Ba = B.getDenseArray()
+        for j, c in enumerate(columns):
+            Ba[:, j] = c
+        del Ba
+        B.assemble()
+        X.assemble()
+        F.matSolve(B, X)
+        Xa = X.getDenseArray()
+        return [Xa[:, j].copy() for j in range(k)]
+    finally:
+        B.destroy()
+        X.destroy()
+
+
 class CondensedPC:
     """petsc4py python-type PC: exact block elimination of the cell-interior dofs.
 
@@ -296,6 +331,8 @@ class CondensedPC:
         self.reuse = False
         #: set-ups that kept the factorisation (``setups`` counts those that made one)
         self.reuses = 0
+        #: whether the inner factorisation is that of the current matrix (not a kept one)
+        self._fresh = False
 
     # -- helpers ------------------------------------------------------------------------
     def _sub(self, P, name, isr, isc):
@@ -381,6 +418,7 @@ class CondensedPC:
             # condensation reassembles it in place)
             self.ksp.getPC().setReusePreconditioner(True)
             self.reuses += 1
+            self._fresh = False
             return
         t0 = time.perf_counter()
         self.setups += 1
@@ -410,6 +448,7 @@ class CondensedPC:
         self.times["inner_setup"] += time.perf_counter() - t0
         self._rl = self._rl or S.createVecRight()
         self._yl = self._yl or S.createVecRight()
+        self._fresh = True
 
     _xb = _tb = _rl = _yl = None
 
@@ -558,6 +597,28 @@ class CondensedPC:
                           f"'{self.prefix}')")
             raise RuntimeError(self.error)
         self._write_solution(x, y)
+
+    def apply_many(self, xs, ys) -> bool:
+        """``ys[j]`` = the preconditioner applied to ``xs[j]``, all columns in one MUMPS solve
+        with several right-hand sides (collective). Only when the inner solve is a direct
+        one with the factorisation of the current matrix; returns False (nothing done)
+        otherwise."""
+        if not self._fresh or not _direct_mumps(self.ksp):
+            return False
+        t0 = time.perf_counter()
+        try:
+            F = self.ksp.getPC().getFactorMatrix()
+            cols = []
+            for x in xs:
+                self._condensed_rhs(x)
+                cols.append(self._rl.getArray(readonly=True).copy())
+            for j, Xj in enumerate(factor_solve_many(F, self._rl, cols, self.comm)):
+                self._yl.getArray(readonly=False)[:] = Xj
+                self._write_solution(xs[j], ys[j])
+            self.inner_solves += len(xs)
+        finally:
+            self.times["apply"] += time.perf_counter() - t0
+        return True
 
     def _write_solution(self, x, y):
         """The full solution y from the condensed one (``_yl``) and the right-hand side x."""

@@ -40,7 +40,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-__all__ = ["ActiveSetPrediction", "woodbury_step_numpy"]
+__all__ = ["ActiveSetPrediction", "apply_many", "woodbury_step_numpy"]
 
 log = logging.getLogger(__name__)
 
@@ -50,6 +50,33 @@ def woodbury_step_numpy(J: np.ndarray, F: np.ndarray, U: np.ndarray, dc: np.ndar
     """Reference for the corrected step: ``(J + U diag(dc) Uᵀ)⁻¹ (F + U o)`` by a dense solve
     (for testing only)."""
     return np.linalg.solve(J + (U * dc) @ U.T, F + U @ o)
+
+
+def apply_many(ksp: PETSc.KSP, xs: List[PETSc.Vec], ys: List[PETSc.Vec]) -> bool:
+    """``ys[j]`` = ``ksp``'s preconditioner applied to ``xs[j]``, all in one solve with
+    several right-hand sides, when that preconditioner is a MUMPS factorisation (``lu`` or
+    ``cholesky``) or a python preconditioner with an ``apply_many`` method (the condensed
+    one); returns False (nothing done) otherwise. Collective.
+
+    Under ``preonly`` that is ``ksp.solve`` itself; under a Krylov method it is exact only
+    if the factorisation is that of the operator (the caller checks).
+    """
+    from fxcontact.condense import factor_solve_many
+    if not xs:
+        return True
+    pc = ksp.getPC()
+    kind = pc.getType()
+    if kind == PETSc.PC.Type.PYTHON:
+        many = getattr(pc.getPythonContext(), "apply_many", None)
+        return bool(many is not None and many(xs, ys))
+    if kind in (PETSc.PC.Type.LU, PETSc.PC.Type.CHOLESKY) and \
+            pc.getFactorSolverType() == "mumps":
+        sol = factor_solve_many(pc.getFactorMatrix(), xs[0],
+                                [x.getArray(readonly=True) for x in xs], ksp.comm)
+        for y, s in zip(ys, sol):
+            y.getArray(readonly=False)[:] = s
+        return True
+    return False
 
 
 class ActiveSetPrediction:
@@ -74,7 +101,8 @@ class ActiveSetPrediction:
         #: steps left uncorrected because of max_nodes or a singular small system
         #: ("skipped") or because the predicted set did not settle ("unsettled")
         self.stats: Dict[str, float] = {"steps": 0, "corrected": 0, "rounds": 0, "solves": 0,
-                                        "time": 0.0, "skipped": 0, "unsettled": 0}
+                                        "time": 0.0, "skipped": 0, "unsettled": 0,
+                                        "batched": 0}
 
     def _contributors(self) -> List:
         return [c for c in self.problem.contributors if hasattr(c, "active_set_prediction")
@@ -104,6 +132,35 @@ class ActiveSetPrediction:
             vals = arr[idx].copy()
         del arr
         return u, idx, vals
+
+    def _solve_columns(self, ksp: PETSc.KSP, us: List[PETSc.Vec]) -> List[PETSc.Vec]:
+        """``J⁻¹ u`` for the columns ``us`` (collective). With a direct solver, all in one
+        solve with several right-hand sides (:func:`apply_many`). Under a Krylov method the
+        sum of the columns is checked against ``ksp``'s tolerances (one product with J: the
+        columns sit at different nodes, their sum does not cancel); if it fails (e.g. a kept
+        factorisation), every column is solved by ``ksp`` as without the batch."""
+        zs = [u.duplicate() for u in us]
+        redo = not apply_many(ksp, us, zs)
+        if not redo and ksp.getType() != PETSc.KSP.Type.PREONLY:
+            su, sz, r = us[0].duplicate(), us[0].duplicate(), us[0].duplicate()
+            su.set(0.0)
+            sz.set(0.0)
+            for u, z in zip(us, zs):
+                su.axpy(1.0, u)
+                sz.axpy(1.0, z)
+            ksp.getOperators()[0].mult(sz, r)
+            r.aypx(-1.0, su)
+            rtol, atol = ksp.getTolerances()[:2]
+            redo = r.norm() > max(rtol * su.norm(), atol)
+            for v in (su, sz, r):
+                v.destroy()
+        if redo:
+            for u, z in zip(us, zs):
+                ksp.solve(u, z)
+        else:
+            self.stats["batched"] += len(us)
+        self.stats["solves"] += len(us)
+        return zs
 
     def correct(self, ksp: PETSc.KSP, y: PETSc.Vec) -> bool:
         """Replace the Newton step ``y`` (x_new = x − y, ``ksp`` holding the factorisation or
@@ -157,19 +214,24 @@ class ActiveSetPrediction:
                 self.stats["rounds"] += 1
                 if cur is None:
                     y0, cur = y.copy(), y.copy()
+                new = {}
+                for r, kk in enumerate(keys):
+                    for m, (ci, d, _, _) in enumerate(kk):
+                        ck = (r, ci, d)
+                        if ck not in cache and ck not in new:
+                            mine = r == comm.rank
+                            new[ck] = self._column(y, np.array(d) if mine else None,
+                                                   sel[m][2] if mine else None)
+                if new:
+                    us = [v[0] for v in new.values()]
+                    zs = self._solve_columns(ksp, us)
+                    for (ck, (u, idx, vals)), z in zip(new.items(), zs):
+                        cache[ck] = (u, z, idx, vals)
                 Us, Zs, dcs, os_ = [], [], np.zeros(k), np.zeros(k)
                 j = 0
                 for r, kk in enumerate(keys):
                     for m, (ci, d, dc_, o_) in enumerate(kk):
                         ck = (r, ci, d)
-                        if ck not in cache:
-                            mine = r == comm.rank
-                            u, idx, vals = self._column(y, np.array(d) if mine else None,
-                                                        sel[m][2] if mine else None)
-                            z = y.duplicate()
-                            ksp.solve(u, z)
-                            self.stats["solves"] += 1
-                            cache[ck] = (u, z, idx, vals)
                         Us.append(cache[ck][2:])
                         Zs.append(cache[ck][1])
                         dcs[j], os_[j] = dc_, o_
