@@ -16,6 +16,8 @@ from typing import List
 import numpy as np
 from petsc4py import PETSc
 
+from fxcontact.multisolve import pc_apply_many
+
 __all__ = ["BorderedPC"]
 
 
@@ -63,12 +65,26 @@ class BorderedPC:
 
     def apply(self, pc, x, y):
         self.inner.apply(x, y)
-        if self._M is None:
-            return
+        if self._M is not None:
+            self._correct(y)
+
+    def _correct(self, y):
+        """y += Z (D − G Z)⁻¹ G y."""
         c = np.array([g.dot(y) for g in self._G])
         s = np.linalg.solve(self._M, c)
         for z, sj in zip(self._Z, s):
             y.axpy(float(sj), z)
+
+    def apply_many(self, xs, ys) -> bool:
+        """:meth:`apply` to several vectors, the inner preconditioner applied to all of them at
+        once where it can be (:func:`~fxcontact.multisolve.pc_apply_many`); returns False
+        (nothing done) where it cannot."""
+        if not pc_apply_many(self.inner, xs, ys):
+            return False
+        if self._M is not None:
+            for y in ys:
+                self._correct(y)
+        return True
 
     def view(self, pc, viewer=None):
         self.inner.view(viewer)

@@ -51,6 +51,7 @@ from petsc4py import PETSc
 import dolfinx.fem.petsc
 
 from fxcontact import compat
+from fxcontact.multisolve import direct_mumps, factor_solve_many
 from fxcontact.petsc import same_nonzero_pattern
 
 __all__ = ["CondensationLayout", "CondensedPC", "rigid_body_modes"]
@@ -239,41 +240,6 @@ def asymmetry(S: PETSc.Mat) -> float:
     for v in (x, y, z):
         v.destroy()
     return out
-
-
-def _direct_mumps(ksp) -> bool:
-    """True if ``ksp`` is a single application of a MUMPS factorisation."""
-    if ksp is None or ksp.getType() != PETSc.KSP.Type.PREONLY:
-        return False
-    pc = ksp.getPC()
-    return (pc.getType() in (PETSc.PC.Type.LU, PETSc.PC.Type.CHOLESKY)
-            and pc.getFactorSolverType() == "mumps")
-
-
-def factor_solve_many(F: PETSc.Mat, template: PETSc.Vec, columns, comm):
-    """The solutions with the factored matrix ``F`` of the right-hand sides ``columns``
-    (arrays of the owned entries of vectors laid out as ``template``), in one solve with
-    several right-hand sides (``MatMatSolve``; collective, every rank the same number of
-    columns). Returns the solutions as arrays of the owned entries."""
-    k = len(columns)
-    n, N = template.getLocalSize(), template.getSize()
-    B = PETSc.Mat().createDense(((n, N), (PETSc.DECIDE, k)), comm=comm)
-    X = PETSc.Mat().createDense(((n, N), (PETSc.DECIDE, k)), comm=comm)
-    try:
-        B.setUp()
-        X.setUp()
-        Ba = B.getDenseArray()
-        for j, c in enumerate(columns):
-            Ba[:, j] = c
-        del Ba
-        B.assemble()
-        X.assemble()
-        F.matSolve(B, X)
-        Xa = X.getDenseArray()
-        return [Xa[:, j].copy() for j in range(k)]
-    finally:
-        B.destroy()
-        X.destroy()
 
 
 class CondensedPC:
@@ -603,7 +569,7 @@ class CondensedPC:
         with several right-hand sides (collective). Only when the inner solve is a direct
         one with the factorisation of the current matrix; returns False (nothing done)
         otherwise."""
-        if not self._fresh or not _direct_mumps(self.ksp):
+        if not self._fresh or not direct_mumps(self.ksp):
             return False
         t0 = time.perf_counter()
         try:

@@ -40,7 +40,9 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-__all__ = ["ActiveSetPrediction", "apply_many", "woodbury_step_numpy"]
+from fxcontact.multisolve import pc_apply_many
+
+__all__ = ["ActiveSetPrediction", "woodbury_step_numpy"]
 
 log = logging.getLogger(__name__)
 
@@ -50,33 +52,6 @@ def woodbury_step_numpy(J: np.ndarray, F: np.ndarray, U: np.ndarray, dc: np.ndar
     """Reference for the corrected step: ``(J + U diag(dc) Uᵀ)⁻¹ (F + U o)`` by a dense solve
     (for testing only)."""
     return np.linalg.solve(J + (U * dc) @ U.T, F + U @ o)
-
-
-def apply_many(ksp: PETSc.KSP, xs: List[PETSc.Vec], ys: List[PETSc.Vec]) -> bool:
-    """``ys[j]`` = ``ksp``'s preconditioner applied to ``xs[j]``, all in one solve with
-    several right-hand sides, when that preconditioner is a MUMPS factorisation (``lu`` or
-    ``cholesky``) or a python preconditioner with an ``apply_many`` method (the condensed
-    one); returns False (nothing done) otherwise. Collective.
-
-    Under ``preonly`` that is ``ksp.solve`` itself; under a Krylov method it is exact only
-    if the factorisation is that of the operator (the caller checks).
-    """
-    from fxcontact.condense import factor_solve_many
-    if not xs:
-        return True
-    pc = ksp.getPC()
-    kind = pc.getType()
-    if kind == PETSc.PC.Type.PYTHON:
-        many = getattr(pc.getPythonContext(), "apply_many", None)
-        return bool(many is not None and many(xs, ys))
-    if kind in (PETSc.PC.Type.LU, PETSc.PC.Type.CHOLESKY) and \
-            pc.getFactorSolverType() == "mumps":
-        sol = factor_solve_many(pc.getFactorMatrix(), xs[0],
-                                [x.getArray(readonly=True) for x in xs], ksp.comm)
-        for y, s in zip(ys, sol):
-            y.getArray(readonly=False)[:] = s
-        return True
-    return False
 
 
 class ActiveSetPrediction:
@@ -135,12 +110,12 @@ class ActiveSetPrediction:
 
     def _solve_columns(self, ksp: PETSc.KSP, us: List[PETSc.Vec]) -> List[PETSc.Vec]:
         """``J⁻¹ u`` for the columns ``us`` (collective). With a direct solver, all in one
-        solve with several right-hand sides (:func:`apply_many`). Under a Krylov method the
+        solve with several right-hand sides (:func:`~fxcontact.multisolve.pc_apply_many`). Under a Krylov method the
         sum of the columns is checked against ``ksp``'s tolerances (one product with J: the
         columns sit at different nodes, their sum does not cancel); if it fails (e.g. a kept
         factorisation), every column is solved by ``ksp`` as without the batch."""
         zs = [u.duplicate() for u in us]
-        redo = not apply_many(ksp, us, zs)
+        redo = not pc_apply_many(ksp.getPC(), us, zs)
         if not redo and ksp.getType() != PETSc.KSP.Type.PREONLY:
             su, sz, r = us[0].duplicate(), us[0].duplicate(), us[0].duplicate()
             su.set(0.0)
