@@ -198,6 +198,7 @@ def test_steady_state(tmp_path):
     (dict(h=0.0), "h must be a finite number > 0"),
     (dict(R0=200.0, roll_radius=100.0), "the draft R0 - R1 must be smaller than the roll"),
     (dict(max_increments=0), "max_increments must be an integer >= 1"),
+    (dict(newton_ftol=-1e-3), "newton_ftol must be in [0, 1)"),
 ])
 def test_bad_case(fields, words):
     """The case refuses a bad field when it is made, naming the field and its range."""

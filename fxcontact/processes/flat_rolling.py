@@ -89,7 +89,7 @@ class FlatRollingCase(RunNumerics):
     roll: str = "analytic"          #: one of :data:`ROLLS`
     facet_size: Optional[float] = None   #: faceted roll: facet width (default h_x/2)
     # (RunNumerics: scheme, line_search, penalty_continuation, active_set_prediction,
-    # max_increments)
+    # newton_ftol, max_increments)
 
     def __post_init__(self):
         super().__post_init__()

@@ -67,26 +67,32 @@ def _finite(name, value, low=0.0, strict=True):
 @dataclass(frozen=True)
 class RunNumerics:
     """The numerics every process case shares (the base of the cases): the contact scheme,
-    Newton's line search, penalty continuation and active-set prediction
-    (:class:`fxcontact.SolverOptions`), and the increments allowed."""
+    Newton's line search, penalty continuation, active-set prediction and force-scaled
+    tolerance (:class:`fxcontact.SolverOptions`), and the increments allowed."""
 
     scheme: str = "implicit"
     line_search: str = "bt"
     penalty_continuation: Optional[float] = None
     active_set_prediction: object = "auto"
+    #: Newton's force-scaled tolerance (``SolverOptions.ftol``: converged when the residual
+    #: is below this fraction of the contact's nodal force norm; 0: off, the default)
+    newton_ftol: float = 0.0
     max_increments: int = 2000
 
     def __post_init__(self):
         if not (isinstance(self.max_increments, (int, np.integer)) and self.max_increments >= 1):
             raise ValueError(f"max_increments must be an integer >= 1, got "
                              f"{self.max_increments!r}")
+        if not (is_number(self.newton_ftol) and 0.0 <= self.newton_ftol < 1.0):
+            raise ValueError(f"newton_ftol must be in [0, 1), got {self.newton_ftol!r}")
 
     def solver_options(self):
         """The :class:`fxcontact.SolverOptions` of these numerics."""
         from fxcontact.solver import SolverOptions
         return SolverOptions(line_search=self.line_search,
                              active_set_prediction=self.active_set_prediction,
-                             penalty_continuation=self.penalty_continuation)
+                             penalty_continuation=self.penalty_continuation,
+                             ftol=float(self.newton_ftol))
 
 
 @dataclass(frozen=True)

@@ -122,7 +122,6 @@ class RingRollingCase(RunNumerics):
     sticky_gap: float = 0.0
     max_it: int = 60                #: Newton iterations per solve
     newton_rtol: float = 1e-9       #: Newton's relative residual tolerance
-    newton_ftol: float = 0.0        #: Newton's force-scaled tolerance (SolverOptions.ftol)
     # remeshing (off by default; ring_mill.set_ring_remeshing): a new mesh, finer over the arc
     # remesh_arc [degrees] in front of each gap (ring_mill.BiteZones), made when the ring has
     # turned by about 3/4 of it or a cell's quality falls below remesh_min_quality; with
@@ -134,7 +133,7 @@ class RingRollingCase(RunNumerics):
     remesh_zone_h: Optional[float] = None
     remesh_arc: float = 90.0
     # (RunNumerics: scheme, line_search, penalty_continuation, active_set_prediction,
-    # max_increments)
+    # newton_ftol, max_increments)
 
     def __post_init__(self):
         super().__post_init__()
