@@ -14,7 +14,8 @@ m = 0.016"). The prediction solves the Newton system *of the predicted branch* i
    the tangent's active flag, δ = −y): their stiffness changes ``dc ∇h⊗∇h`` and residual offsets
    ``o ∇h``;
 3. ``y = (J + U C Uᵀ)⁻¹ (F + U o)`` by the Woodbury identity, with one solve ``Z = J⁻¹U`` per
-   selected node (back-substitutions with the factorisation of a direct solver), C = diag(dc):
+   selected node, C = diag(dc) (with a MUMPS factorisation, the columns of a round in one
+   solve with several right-hand sides, :mod:`fxcontact.multisolve`):
    ``w = y₀ + Z o``, ``y = w − Z (I + C UᵀZ)⁻¹ C Uᵀ w``;
 4. repeat from 2 with the new step until the predicted set is unchanged (at most ``rounds``
    times; the solves of nodes already selected are reused).

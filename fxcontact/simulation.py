@@ -404,7 +404,8 @@ class Simulation:
         self._startup = None
         if lin_mat is not self.material:
             F0 = sum(extras, lin_mat.residual(v, p, wt, q, sp.dx, self.dt_c, self.u))
-            opts = SolverOptions(**{**self.solver_options.__dict__, "prefix":
+            # (no contributors there: no force scale for ftol)
+            opts = SolverOptions(**{**self.solver_options.__dict__, "ftol": 0.0, "prefix":
                                     self.solver_options.prefix + "startup_"})
             eta0 = shear_viscosity_ufl(lin_mat, v, self.dt_c)
             self._startup = ContactNewtonSolver(NodalNonlinearProblem(

@@ -139,6 +139,7 @@ class ContactNewtonSolver:
     _resolved_its = 0
     #: the next Jacobian may keep the factorisation (see :meth:`_converged`)
     _reuse_ok = False
+    _ftol_warned = False
     _disagreement = None   #: a RanksDisagree raised inside the SNES (raised again after it)
 
     def __init__(self, problem: NonlinearProblem, options: Optional[SolverOptions] = None,
@@ -459,6 +460,7 @@ class ContactNewtonSolver:
             period = 0
         else:
             if it == 0:
+                self._ftol_warned = self._ftol_warned or _check_force_scale(contributors, o.ftol)
                 self._f0 = fnorm
                 self._norms = [fnorm]
                 self._states = []
@@ -794,6 +796,16 @@ NewtonSolver = ContactNewtonSolver
 def _force_scale(contributors) -> float:
     """ℓ² norm of the contributors' nodal forces (``force_norm()``): ``ftol``'s scale."""
     return math.sqrt(sum(c.force_norm() ** 2 for c in contributors if hasattr(c, "force_norm")))
+
+
+def _check_force_scale(contributors, ftol: float) -> bool:
+    """Warn when ``ftol`` is set and no contributor reports ``force_norm()``; returns whether
+    it warned."""
+    if ftol > 0 and not any(hasattr(c, "force_norm") for c in contributors):
+        log.warning("ftol = %g has no effect: no contributor reports force_norm() (the nodal "
+                    "contact does); Newton stops on rtol, atol and stol only", ftol)
+        return True
+    return False
 
 
 def _reason_name(reason: int, kind=PETSc.SNES.ConvergedReason) -> str:

@@ -769,6 +769,19 @@ def _no_wall(history):
     return [{k: v for k, v in r.items() if not k.startswith("wall_")} for r in history]
 
 
+def test_force_tolerance_without_contact_warns(cube, out, caplog):
+    """``SolverOptions.ftol`` on a problem with no contributor that reports a nodal force
+    norm (no contact): a warning, once per solver, says it has no effect, and Newton
+    converges on rtol."""
+    s = _pressed(cube, out, solver_options=fx.SolverOptions(ftol=1e-3))
+    with caplog.at_level("WARNING", logger="fxcontact.solver"):
+        s.run(0.2, 0.1)
+    assert "ftol = 0.001 has no effect: no contributor reports force_norm()" in caplog.text
+    assert caplog.text.count("has no effect") == 1
+    assert len(s.history) == 2
+    s.close()
+
+
 def test_new_run_over_another_runs_checkpoints(cube, out, caplog):
     first = _die_run(cube, out, checkpoint_every=1)
     first.run(0.2, 0.1)
