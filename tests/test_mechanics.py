@@ -520,7 +520,7 @@ def test_trust_region_retest_of_the_same_iterate_is_not_a_cycle():
         fake = SimpleNamespace(problem=SimpleNamespace(contributors=[c]),
                                options=SolverOptions(max_it=100), _rtol=1e-12, _states=[],
                                _norms=[], _f0=None, _last_it=-1, _last_stable=False,
-                               _cycle_message="",
+                               _cycle_message="", _ftol_warned=False,
                                CYCLE_PERIODS=ContactNewtonSolver.CYCLE_PERIODS,
                                CYCLE_RTOL=ContactNewtonSolver.CYCLE_RTOL)
         fake._cycle_period = lambda cs, f: ContactNewtonSolver._cycle_period(fake, cs, f)
