@@ -111,10 +111,11 @@ class ActiveSetPrediction:
 
     def _solve_columns(self, ksp: PETSc.KSP, us: List[PETSc.Vec]) -> List[PETSc.Vec]:
         """``J⁻¹ u`` for the columns ``us`` (collective). With a direct solver, all in one
-        solve with several right-hand sides (:func:`~fxcontact.multisolve.pc_apply_many`). Under a Krylov method the
-        sum of the columns is checked against ``ksp``'s tolerances (one product with J: the
-        columns sit at different nodes, their sum does not cancel); if it fails (e.g. a kept
-        factorisation), every column is solved by ``ksp`` as without the batch."""
+        solve with several right-hand sides (:func:`~fxcontact.multisolve.pc_apply_many`).
+        Under a Krylov method the sum of the columns is checked against ``ksp``'s tolerances
+        (one product with J: the columns sit at different nodes, their sum does not cancel);
+        if it fails (e.g. a kept factorisation), every column is solved by ``ksp`` as
+        without the batch."""
         zs = [u.duplicate() for u in us]
         redo = not pc_apply_many(ksp.getPC(), us, zs)
         if not redo and ksp.getType() != PETSc.KSP.Type.PREONLY:
