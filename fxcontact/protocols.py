@@ -22,13 +22,17 @@ outputs and checkpoints check with ``isinstance`` before they call it (the Newto
 * :class:`SolvesIncrement` — one controller at most;
 * :class:`SolverHooks` — ``begin_solve``, ``fingerprint``, ``cycle_hint``, ``residual_floor``,
   ``force_norm``:
-  contributors, called by the Newton solver.
+  contributors, called by the Newton solver (:func:`force_scale` and
+  :func:`warn_unscaled_ftol`: the ``force_norm`` of all contributors, for
+  ``SolverOptions.ftol``).
 
 ``docs/architecture.md`` ("The contributor protocol") says when each is called.
 """
 
 from __future__ import annotations
 
+import logging
+import math
 from typing import TYPE_CHECKING, Callable, Dict, List, Protocol, runtime_checkable
 
 if TYPE_CHECKING:   # pragma: no cover
@@ -40,7 +44,7 @@ if TYPE_CHECKING:   # pragma: no cover
 __all__ = ["Contributor", "Controller", "BeginsIncrement", "EndsIncrement", "HasDiagnostics",
            "HasOutputFields", "UpdatesOutputFields", "SavesState", "RestoresState",
            "HasSetupSignature", "HasSummary", "Remeshable", "SolvesIncrement",
-           "SolverHooks"]
+           "SolverHooks", "force_scale", "warn_unscaled_ftol"]
 
 
 @runtime_checkable
@@ -154,3 +158,20 @@ class SolverHooks(Protocol):
     def force_norm(self) -> float:
         """ℓ² norm of the contributor's nodal forces at the last iterate (the scale of
         ``SolverOptions.ftol``)."""
+
+
+def force_scale(contributors) -> float:
+    """ℓ² norm of the contributors' nodal forces (``force_norm()``): ``SolverOptions.ftol``'s
+    scale."""
+    return math.sqrt(sum(c.force_norm() ** 2 for c in contributors if hasattr(c, "force_norm")))
+
+
+def warn_unscaled_ftol(contributors, ftol: float) -> bool:
+    """Warn (logger ``fxcontact.solver``) when ``ftol`` is set and no contributor reports
+    ``force_norm()``; returns whether it warned."""
+    if ftol > 0 and not any(hasattr(c, "force_norm") for c in contributors):
+        logging.getLogger("fxcontact.solver").warning(
+            "ftol = %g has no effect: no contributor reports force_norm() (the nodal contact "
+            "does); Newton stops on rtol, atol and stol only", ftol)
+        return True
+    return False

@@ -39,6 +39,7 @@ from petsc4py import PETSc
 from fxcontact.bordered import BorderedPC, _BorderedOperator
 from fxcontact.collective import RanksDisagree, check_decision
 from fxcontact.petsc import NonlinearProblem, mumps_null_pivots
+from fxcontact.protocols import force_scale, warn_unscaled_ftol
 from fxcontact.solver_options import (LINE_SEARCHES, LINEAR_SOLVERS, MATERIAL_TANGENTS,
                                       SolverOptions, _globalization_options)
 
@@ -460,7 +461,7 @@ class ContactNewtonSolver:
             period = 0
         else:
             if it == 0:
-                self._ftol_warned = self._ftol_warned or _check_force_scale(contributors, o.ftol)
+                self._ftol_warned = self._ftol_warned or warn_unscaled_ftol(contributors, o.ftol)
                 self._f0 = fnorm
                 self._norms = [fnorm]
                 self._states = []
@@ -495,7 +496,7 @@ class ContactNewtonSolver:
                 return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
             if it > 0 and fnorm <= self._rtol * self._f0:
                 return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_RELATIVE
-            if it > 0 and o.ftol > 0 and fnorm <= o.ftol * _force_scale(contributors):
+            if it > 0 and o.ftol > 0 and fnorm <= o.ftol * force_scale(contributors):
                 return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
             if it > 0 and snorm <= o.stol * max(xnorm, 1e-300):
                 return PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE
@@ -791,21 +792,6 @@ class ContactNewtonSolver:
 #: the former name of :class:`ContactNewtonSolver` (the same class)
 NewtonSolver = ContactNewtonSolver
 
-
-
-def _force_scale(contributors) -> float:
-    """ℓ² norm of the contributors' nodal forces (``force_norm()``): ``ftol``'s scale."""
-    return math.sqrt(sum(c.force_norm() ** 2 for c in contributors if hasattr(c, "force_norm")))
-
-
-def _check_force_scale(contributors, ftol: float) -> bool:
-    """Warn when ``ftol`` is set and no contributor reports ``force_norm()``; returns whether
-    it warned."""
-    if ftol > 0 and not any(hasattr(c, "force_norm") for c in contributors):
-        log.warning("ftol = %g has no effect: no contributor reports force_norm() (the nodal "
-                    "contact does); Newton stops on rtol, atol and stol only", ftol)
-        return True
-    return False
 
 
 def _reason_name(reason: int, kind=PETSc.SNES.ConvergedReason) -> str:
