@@ -75,7 +75,9 @@ class RunNumerics:
     penalty_continuation: Optional[float] = None
     active_set_prediction: object = "auto"
     #: Newton's force-scaled tolerance (``SolverOptions.ftol``: converged when the residual
-    #: is below this fraction of the contact's nodal force norm; 0: off, the default)
+    #: is below this fraction of the contact's nodal force norm; 0: off, the default; on the
+    #: quick bar-rolling pass 1e-3 and 1e-4 both led to a Newton failure at t ≈ 0.24 s that
+    #: a dt/2 cut-back recovered, benchmarks/README.md)
     newton_ftol: float = 0.0
     max_increments: int = 2000
 
