@@ -172,3 +172,50 @@ def geometry_dofmap(msh) -> np.ndarray:
 def ghosted_vector(V):
     """A ghosted PETSc vector of the layout of the function space ``V``."""
     return dolfinx.la.create_petsc_vector(V.dofmap.index_map, V.dofmap.index_map_bs)
+
+
+# -- gmsh -----------------------------------------------------------------------------------
+# gmsh 4.8 (Debian 12) has no ``gmsh.isInitialized``, and any other call of its API before
+# ``gmsh.initialize`` is undefined: it usually raises, but can also end the process with exit
+# status 1 and no message (seen about once in 40 concurrent runs of a demo). So fxcontact
+# never probes gmsh with a call: it follows ``gmsh.initialize`` / ``gmsh.finalize`` itself.
+
+def import_gmsh():
+    """The ``gmsh`` module, with its initialisation followed (see :func:`gmsh_initialized`)."""
+    import sys
+    fresh = "gmsh" not in sys.modules
+    import gmsh
+    if not hasattr(gmsh, "isInitialized") and not hasattr(gmsh, "_fxcontact_state"):
+        _follow_gmsh(gmsh, False if fresh else None)
+    return gmsh
+
+
+def _follow_gmsh(gmsh, state):
+    import functools
+    init, fin = gmsh.initialize, gmsh.finalize
+
+    @functools.wraps(init)
+    def initialize(*args, **kwargs):
+        init(*args, **kwargs)
+        gmsh._fxcontact_state[0] = True
+
+    @functools.wraps(fin)
+    def finalize(*args, **kwargs):
+        try:
+            fin(*args, **kwargs)
+        finally:
+            gmsh._fxcontact_state[0] = False
+
+    gmsh._fxcontact_state = [state]
+    gmsh.initialize, gmsh.finalize = initialize, finalize
+
+
+def gmsh_initialized(gmsh):
+    """Whether gmsh is initialised: True, False, or None where it cannot be told (gmsh 4.8
+    imported and possibly initialised before fxcontact followed it; then
+    ``gmsh.initialize`` is safe to call and does nothing if it was)."""
+    if hasattr(gmsh, "isInitialized"):
+        return bool(gmsh.isInitialized())
+    state = getattr(gmsh, "_fxcontact_state", None)
+    return None if state is None else state[0]
+

@@ -53,29 +53,24 @@ GMSH_MESH_DEFAULTS: Dict[str, float] = {
 }
 
 
-def _gmsh_initialized(gmsh) -> bool:
-    try:
-        return gmsh.option.getString("General.Version") != ""
-    except Exception:  # raised after a gmsh.finalize()
-        return False
-
-
 @contextlib.contextmanager
 def gmsh_session(name: str):
     """A fresh gmsh model with default meshing options, isolated from other gmsh users.
 
     If gmsh is not initialised it is initialised here and finalised on exit, so nothing
     (mesh-size options, fields) leaks from one builder to the next. If the caller already
-    initialised gmsh, the options of :data:`GMSH_MESH_DEFAULTS` are reset to gmsh's defaults
-    for the block and restored afterwards, and only the model created here is removed.
+    initialised gmsh (or may have: gmsh imported before fxcontact could follow it, see
+    :func:`fxcontact.compat.gmsh_initialized`), the options of :data:`GMSH_MESH_DEFAULTS` are
+    reset to gmsh's defaults for the block and restored afterwards, and only the model created
+    here is removed.
     """
-    import gmsh
-
-    owned = not _gmsh_initialized(gmsh)
+    gmsh = compat.import_gmsh()
+    state = compat.gmsh_initialized(gmsh)
+    owned = state is False
     saved = None
-    if owned:
+    if state is not True:   # (None: does nothing if the caller's session is open)
         gmsh.initialize([], readConfigFiles=False)
-    else:
+    if not owned:
         saved = {k: gmsh.option.getNumber(k) for k in GMSH_MESH_DEFAULTS}
         for k, v in GMSH_MESH_DEFAULTS.items():
             gmsh.option.setNumber(k, v)

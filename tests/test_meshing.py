@@ -49,6 +49,82 @@ def test_caller_session_is_restored():
         gmsh.finalize()
 
 
+
+class _StrictGmsh:
+    """A stand-in for gmsh 4.8's module (no ``isInitialized``) that fails on any call of its
+    API while it is not initialised: the real one may then end the process with exit status 1
+    and no message."""
+
+    def __init__(self, initialized=False):
+        import types
+        self.initialized, self.calls = initialized, []
+        self.opts = {}
+        self.option = types.SimpleNamespace(
+            getNumber=self._api("getNumber", self.opts.get),
+            setNumber=self._api("setNumber", self.opts.__setitem__),
+            getString=self._api("getString", lambda name: "4.8.0"))
+        self.model = types.SimpleNamespace(add=self._api("add", lambda n: None),
+                                           remove=self._api("remove", lambda: None))
+
+    def _api(self, name, fn):
+        def call(*args):
+            self.calls.append(name)
+            if not self.initialized:
+                raise AssertionError(f"gmsh.{name} called before gmsh.initialize")
+            return fn(*args)
+        return call
+
+    def initialize(self, *args, **kwargs):
+        self.calls.append("initialize")
+        if not self.initialized:
+            from fxcontact.meshing import GMSH_MESH_DEFAULTS
+            self.opts.update(GMSH_MESH_DEFAULTS)
+        self.initialized = True
+
+    def finalize(self):
+        self._api("finalize", lambda: None)()
+        self.initialized = False
+
+
+@pytest.mark.parametrize("imported, initialized", [(False, False), (True, False), (True, True)])
+def test_session_never_calls_gmsh_before_initialize(monkeypatch, imported, initialized):
+    """gmsh_session calls nothing of gmsh's API before it is initialised, whether gmsh is
+    imported first by fxcontact, imported by someone else (its state unknown), or open in a
+    caller's session (which it leaves open, with the caller's options back)."""
+    import sys
+    fake = _StrictGmsh(initialized)
+    if initialized:
+        fake.initialize()
+        fake.opts["Mesh.MeshSizeMax"] = 0.3
+    if imported:
+        monkeypatch.setitem(sys.modules, "gmsh", fake)
+    else:
+        monkeypatch.delitem(sys.modules, "gmsh", raising=False)
+        import importlib.machinery
+
+        class _Finder:   # the first ``import gmsh`` finds the stand-in
+            def find_spec(self, name, path=None, target=None):
+                if name != "gmsh":
+                    return None
+                loader = type("L", (), {"create_module": lambda _s, spec: fake,
+                                        "exec_module": lambda _s, m: None})()
+                return importlib.machinery.ModuleSpec("gmsh", loader)
+        monkeypatch.setattr(sys, "meta_path", [_Finder()] + sys.meta_path)
+    with gmsh_session("probe") as g:
+        assert g is fake and fake.initialized
+        g.option.setNumber("Mesh.MeshSizeMax", 2.0)
+    assert fake.calls[0] == "initialize"
+    # fxcontact's own session is closed again; a session it cannot tell from the caller's
+    # (gmsh imported elsewhere) or the caller's own stays open with the caller's options
+    assert fake.initialized == imported
+    assert ("finalize" in fake.calls) == (not imported)
+    if initialized:
+        assert fake.opts["Mesh.MeshSizeMax"] == 0.3
+    with gmsh_session("again"):    # followed from now on: no second initialize
+        pass
+    assert fake.calls.count("initialize") == (1 + initialized if imported else 2)
+
+
 # ------------------------------------------------------------------ drawing bar
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
