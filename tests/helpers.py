@@ -97,32 +97,15 @@ def run_script(path, args=(), nranks=1, timeout=HANG_TIMEOUT):
     cmd = [sys.executable, "-u", str(path), *map(str, args)]
     if nranks > 1:
         cmd = ["mpirun", "-n", str(nranks), "--oversubscribe"] + cmd
-    for attempt in (1, 2):
-        p = subprocess.Popen(cmd, env=env, cwd=root, stdout=subprocess.PIPE,
-                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
-        try:
-            out, _ = p.communicate(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            os.killpg(p.pid, signal.SIGKILL)
-            p.communicate()
-            pytest.fail(f"{path} on {nranks} rank(s) hangs (killed after {timeout} s)")
-        if p.returncode == 0 or not _silent_mpi_exit(out) or attempt == 2:
-            return p.returncode, out
-        # The script printed nothing at all before mpirun reported a non-zero exit (seen once
-        # on a loaded machine, not reproduced in 15 runs): nothing ran far enough to write a
-        # result, so it is run once more, and the first attempt is reported as a warning.
-        import warnings
-        warnings.warn(f"{path} on {nranks} ranks exited with {p.returncode} without any output "
-                      f"of its own; run again. mpirun said:\n{out}")
+    p = subprocess.Popen(cmd, env=env, cwd=root, stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        out, _ = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.communicate()
+        pytest.fail(f"{path} on {nranks} rank(s) hangs (killed after {timeout} s)")
     return p.returncode, out
-
-
-def _silent_mpi_exit(text: str) -> bool:
-    """True if ``text`` holds nothing but mpirun's report of a rank's non-zero exit."""
-    body = [ln for ln in text.splitlines() if ln.strip() and not set(ln.strip()) <= {"-"}]
-    mpirun = ("Primary job", "a non-zero exit code", "mpirun detected", "the job to be",
-              "Process name", "Exit code", "Per user-direction", "The first process")
-    return bool(body) and all(any(m in ln for m in mpirun) for ln in body)
 
 
 def load_tool_meshes():
