@@ -25,9 +25,9 @@
 # Run: `python demos/demo_bar_rolling.py --quick` (the reduced size of the tests: 16 mm
 # elements, dt = 20 ms, about 85 increments to steady state), the thesis size without
 # `--quick` (9 mm elements, dt = 1 ms: 15 min on 2 ranks to steady state), any field of the
-# case (`--groove_angle 45`, `--roll_radius 250`, `--model full` …, `--help`), `--compare N` (the third against the
-# whole bar over N increments); on 2 ranks with `mpirun -n 2`. Outputs in
-# `results/bar_rolling`.
+# case (`--groove_angle 45`, `--roll_radius 250`, `--model full` …, `--help`), `--compare N`
+# (the third against the whole bar over N increments); on 2 ranks with `mpirun -n 2`.
+# Outputs in `results/bar_rolling`.
 
 # %%
 import math
