@@ -177,7 +177,7 @@ def ghosted_vector(V):
 # -- gmsh -----------------------------------------------------------------------------------
 # gmsh 4.8 (Debian 12) has no ``gmsh.isInitialized``, and any other call of its API before
 # ``gmsh.initialize`` is undefined: it usually raises, but can also end the process with exit
-# status 1 and no message (seen about once in 40 concurrent runs of a demo). So fxcontact
+# status 1 and no message (seen in 4 of 76 concurrent runs of a demo). So fxcontact
 # never probes gmsh with a call: it follows ``gmsh.initialize`` / ``gmsh.finalize`` itself.
 
 def import_gmsh():
@@ -218,4 +218,3 @@ def gmsh_initialized(gmsh):
         return bool(gmsh.isInitialized())
     state = getattr(gmsh, "_fxcontact_state", None)
     return None if state is None else state[0]
-

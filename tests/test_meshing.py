@@ -49,7 +49,6 @@ def test_caller_session_is_restored():
         gmsh.finalize()
 
 
-
 class _StrictGmsh:
     """A stand-in for gmsh 4.8's module (no ``isInitialized``) that fails on any call of its
     API while it is not initialised: the real one may then end the process with exit status 1
