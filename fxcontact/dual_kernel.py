@@ -13,6 +13,11 @@ the bubble), written straight into the dual stress array:
 * update along a step v_old → v_new: s* ← s_p(ε̇_old) + 2K z_old^(m−1) (e_new − e_old)
   − 2(1−m)/z_old² (e_old : (e_new − e_old)) s*, its norm capped at that of s_p(ε̇_new).
 
+An update starts from the state of the previous call (the last iterate): the coefficient
+2K z^(m−1) and z² of that state are kept per quadrature point and read instead of recomputed
+when the state, the geometry and the material are the same (the power is the loop's main cost;
+the values are bitwise the same).
+
 :func:`dual_update_numpy` is the plain-numpy twin; both are checked against the UFL expressions
 in ``tests/test_dual.py``.
 """
@@ -56,9 +61,13 @@ def _deviator_at(Lc, vb, gB, e):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, share, mode):
+def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, share, mode,
+               ca, cz2, cached):
     """mode 0: s = primal stress of w_new; 1: the dual update from w_old to w_new (s holds the
-    current dual stress, overwritten)."""
+    current dual stress, overwritten). ``ca[c, q]``, ``cz2[c, q]`` receive the coefficient
+    2K z^(m−1) and z² of w_new; with ``cached`` they hold those of w_old on entry (the same
+    geometry), which the update then reads instead of recomputing them (the power is the
+    loop's main cost)."""
     coords = np.empty((4, 3))
     Ki = np.empty((3, 3))
     G = np.empty((4, 3))
@@ -84,6 +93,8 @@ def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, shar
             _vertex_part(wo, G, share, Lo, vo)
         for q in range(gb.shape[0]):
             row = sdofs[c, q] * 9
+            ao = 0.0
+            zo2 = 0.0
             for j in range(3):
                 gB[j] = Ki[0, j] * gb[q, 0] + Ki[1, j] * gb[q, 1] + Ki[2, j] * gb[q, 2]
             _deviator_at(Ln, vn, gB, en)
@@ -92,19 +103,27 @@ def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, shar
                 for j in range(3):
                     zn2 += 2.0 * en[i, j] * en[i, j]
             an = 2.0 * K * np.sqrt(zn2) ** (m - 1.0)
+            if cached:
+                ao = ca[c, q]
+                zo2 = cz2[c, q]
+            ca[c, q] = an
+            cz2[c, q] = zn2
             if mode == 0:
                 for i in range(3):
                     for j in range(3):
                         s[row + 3 * i + j] = an * en[i, j]
                 continue
             _deviator_at(Lo, vo, gB, eo)
-            zo2 = 3.0 * eps0 * eps0
             ed = 0.0
             for i in range(3):
                 for j in range(3):
-                    zo2 += 2.0 * eo[i, j] * eo[i, j]
                     ed += eo[i, j] * (en[i, j] - eo[i, j])
-            ao = 2.0 * K * np.sqrt(zo2) ** (m - 1.0)
+            if not cached:
+                zo2 = 3.0 * eps0 * eps0
+                for i in range(3):
+                    for j in range(3):
+                        zo2 += 2.0 * eo[i, j] * eo[i, j]
+                ao = 2.0 * K * np.sqrt(zo2) ** (m - 1.0)
             cr = 2.0 * (1.0 - m) / zo2 * ed
             nn = 0.0
             ncap = 0.0
@@ -195,11 +214,29 @@ class DualUpdateKernel:
         if sd.shape[1] != self.gb.shape[0]:
             raise ValueError("the dual stress is not at the quadrature points of the space")
         self._sdofs = np.ascontiguousarray(sd)
+        # the coefficient 2K z^(m−1) and z² at each quadrature point for the state, geometry
+        # and material of the last call (``_key``): the next update starts from that state
+        self._ca = np.zeros(self._sdofs.shape)
+        self._cz2 = np.zeros(self._sdofs.shape)
+        self._key = None
+        #: calls that read the kept coefficients (for the tests)
+        self.cache_hits = 0
 
     def __call__(self, mode: int, w_old: np.ndarray, w_new: np.ndarray):
         """Set the dual stress array: mode 0 the primal stress of ``w_new``, 1 the update
         (local W arrays with ghosts)."""
         mat = self.dual.material
+        prm = (float(mat.K), float(mat.m), float(mat.regularization))
+        key = self._key
+        cached = (mode != 0 and key is not None and key[2] == prm
+                  and np.array_equal(key[0], w_old) and np.array_equal(key[1], self._x))
         _dual_loop(self._x, self._xdofs, w_old, w_new, self._wdofs, self.dual.s.x.array,
-                   self._sdofs, float(mat.K), float(mat.m), float(mat.regularization),
-                   self.g1, self.gb, self.share, int(mode))
+                   self._sdofs, *prm, self.g1, self.gb, self.share, int(mode),
+                   self._ca, self._cz2, cached)
+        self.cache_hits += int(cached)
+        if key is None or key[0].shape != w_new.shape:
+            self._key = (w_new.copy(), self._x.copy(), prm)
+        else:   # no new arrays at each call
+            np.copyto(key[0], w_new)
+            np.copyto(key[1], self._x)
+            self._key = (key[0], key[1], prm)

@@ -318,3 +318,61 @@ def test_dual_kernel_equals_the_expressions_and_the_numpy_twin(m):
                 np.linalg.norm(a[blocks], axis=(2, 3)), np.linalg.norm(sp_new, axis=(2, 3)),
                 rtol=1e-12)))
     assert MPI.COMM_WORLD.allreduce(capped) > 0
+
+
+def test_dual_kernel_kept_coefficients_follow_state_and_geometry():
+    """The kernel keeps the coefficient 2K z^(m−1) of the last state and reads it in the next
+    update when that update starts from the same state on the same geometry. It must not read it
+    after the mesh moved or from another starting state: each update equals the UFL
+    expressions, and the kept values are used only where they apply."""
+    import dolfinx
+    from fxcontact import MixedSpace
+    from fxcontact.dual import DualStress
+    from fxcontact.dual_kernel import dual_update_numpy
+    from fxcontact.element_condense import P1P1Layout
+    from helpers import box_mesh
+    from test_element_condense import set_state
+    sp = MixedSpace(box_mesh(MPI.COMM_WORLD, n=(3, 3, 3), perturb=0.25))
+    mat = _material(m=0.016, reg=1e-2)
+    lay = P1P1Layout(sp.W)
+    w = dolfinx.fem.Function(sp.W)
+    ref = DualStress(mat, sp.W, sp.quadrature_degree)
+    fast = DualStress(mat, sp.W, sp.quadrature_degree)
+    assert fast.use_kernel(sp)
+    kern = fast.kernel
+
+    def check(step):
+        for ds in (ref, fast):
+            step(ds)
+        a, b = fast.s.x.array, ref.s.x.array
+        assert np.abs(a - b).max() <= 1e-11 * np.abs(b).max()
+
+    set_state(lay, w, 0.3)
+    check(lambda ds: ds.begin(w.vector))
+    set_state(lay, w, 0.9)
+    check(lambda ds: ds.accept(w.vector))
+    assert kern.cache_hits == 1          # the update from the state of the primal start
+    # the mesh moves (a configuration update): the kept values are stale
+    x = sp.mesh.geometry.x
+    x[:, :3] += 0.02 * np.sin(3.0 * x[:, [1, 2, 0]])
+    set_state(lay, w, -0.4)
+    check(lambda ds: ds.accept(w.vector))
+    assert kern.cache_hits == 1
+    set_state(lay, w, 1.7)
+    check(lambda ds: ds.accept(w.vector))
+    assert kern.cache_hits == 2
+    # an update from a state other than the last one: computed afresh (numpy twin)
+    w_a = w.x.array.copy()
+    set_state(lay, w, 0.1)
+    w_b = w.x.array.copy()
+    w_a[kern._wdofs[:, 0]] *= 1.5
+    s_before = fast.s.x.array.copy()
+    kern(1, w_a, w_b)
+    assert kern.cache_hits == 2
+    cells = np.arange(lay.num_cells)
+    blocks = kern._sdofs[cells]
+    tw = dual_update_numpy(kern._x[kern._xdofs[cells]], w_a[kern._wdofs[cells]],
+                           w_b[kern._wdofs[cells]], s_before.reshape(-1, 3, 3)[blocks],
+                           mat.K, mat.m, mat.regularization, kern.g1, kern.gb, kern.share, 1)
+    a = fast.s.x.array.reshape(-1, 3, 3)[blocks]
+    assert np.abs(tw - a).max() <= 1e-11 * np.abs(tw).max()
