@@ -153,7 +153,12 @@ def cell_kernel(form, name: str = "form"):
 def pack_cell_coefficients(form) -> np.ndarray:
     """(num_cells, stride) packed coefficients of the whole-mesh cell integral of a form."""
     packed = dolfinx.cpp.fem.pack_coefficients(form)
-    return np.ascontiguousarray(packed[(dolfinx.fem.IntegralType.cell, -1)])
+    arr = packed[(dolfinx.fem.IntegralType.cell, -1)]
+    if arr.size == 0:   # a form without coefficients: one (unread) zero per cell
+        msh = form.mesh
+        imap = msh.topology.index_map(msh.topology.dim)
+        return np.zeros((imap.size_local + imap.num_ghosts, 1))
+    return np.ascontiguousarray(arr)
 
 
 def pack_constants(form) -> np.ndarray:

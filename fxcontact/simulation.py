@@ -408,10 +408,15 @@ class Simulation:
             opts = SolverOptions(**{**self.solver_options.__dict__, "ftol": 0.0, "prefix":
                                     self.solver_options.prefix + "startup_"})
             eta0 = shear_viscosity_ufl(lin_mat, v, self.dt_c)
-            self._startup = ContactNewtonSolver(NodalNonlinearProblem(
+            prob0 = NodalNonlinearProblem(
                 F0, self.w, [b.bc for b in self._bcs], constraints=cons,
                 schur_weight=None if eta0 is None else q / eta0 * sp.dx,
-                augment=volumetric_augment_ufl(lin_mat, eta0, sp.W, wt, sp.dx)), opts, fs_is)
+                augment=volumetric_augment_ufl(lin_mat, eta0, sp.W, wt, sp.dx))
+            if _standard_norton_hoff(lin_mat):   # the hand kernel there too (checked alike)
+                from fxcontact.element_condense import NortonHoffElementTensors
+                prob0.element_tensors = lambda layout: NortonHoffElementTensors(
+                    layout, sp, lin_mat, self.w, None)
+            self._startup = ContactNewtonSolver(prob0, opts, fs_is)
         # cell averages of the strain rate, volume
         q0 = ufl.TestFunction(sp.DG0)
         epsd = equivalent_strain_rate_ufl(v, sp.gdim)

@@ -226,6 +226,28 @@ def test_hand_kernel_equals_ffcx_element_tensors(m):
     assert _max_rel(*matrices) > 1e-3
 
 
+def test_ffcx_tensors_of_forms_without_coefficients():
+    """FFCx's element tensors of a form pair without coefficients (a linear Stokes problem:
+    nothing to pack) equal those of the same forms written with a coefficient equal to 1."""
+    msh = box_mesh(MPI.COMM_WORLD, n=(3, 3, 3), perturb=0.25)
+    sp = fx.MixedSpace(msh)
+    lay = P1P1Layout(sp.W)
+    du, dp = ufl.TrialFunctions(sp.W)
+    v, q = ufl.TestFunctions(sp.W)
+    one = dolfinx.fem.Function(sp.DG0)
+    one.x.array[:] = 1.0
+    f = dolfinx.fem.Constant(msh, PETSc.ScalarType((1.0, -2.0, 0.5)))
+    cells = np.arange(lay.num_cells, dtype=np.int32)
+    out = []
+    for c in (1.0, one):
+        a = (c * ufl.inner(ufl.grad(du), ufl.grad(v)) - dp * ufl.div(v) - q * ufl.div(du)) * sp.dx
+        L = c * ufl.inner(f, v) * sp.dx
+        out.append(FFCxElementTensors(lay, a, L).tensors(cells))
+    (A0, b0), (A1, b1) = out
+    assert np.abs(A0).max() > 0 and np.abs(b0).max() > 0
+    assert _max_rel(A0, A1) <= 1e-13 and _max_rel(b0, b1) <= 1e-13
+
+
 def test_hand_kernel_jacobian_is_derivative_of_its_residual():
     """Without a dual stress the hand kernel's matrix is the derivative of its vector (central
     differences in every element unknown of a few cells)."""

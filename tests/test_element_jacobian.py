@@ -112,6 +112,18 @@ def test_element_newton_is_used(iterate):
     assert iterate.solver.element.kernel in ("ffcx", "hand")
 
 
+def test_startup_solve_uses_the_hand_kernel(iterate):
+    """The start-up solve (the linearised law's first guess) of a Norton–Hoff simulation
+    condenses with the hand kernel too (its Jacobian form has no coefficient)."""
+    startup = getattr(iterate, "_startup", None)
+    if startup is None:
+        pytest.skip("no start-up solve for this material")
+    el = startup.element
+    assert el is not None
+    startup.problem.jacobian(None, startup.problem.w.vector, None, None, element=el)
+    assert el.assemblies > 0 and el.kernel == "hand"
+
+
 def test_product_equals_assembled_jacobian(iterate):
     prob = iterate.problem
     A_full = prob.assemble_jacobian()
