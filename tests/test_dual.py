@@ -267,19 +267,14 @@ def test_written_out_jacobian_only_for_the_plain_norton_hoff_residual():
     assert abs(a - b) <= 1e-12 * abs(a)
 
 
-@pytest.mark.parametrize("m", [0.016, 0.3])
-def test_dual_kernel_equals_the_expressions_and_the_numpy_twin(m):
-    """The numba dual update (fxcontact.dual_kernel) against dolfinx's evaluation of the UFL
-    expressions, on a distorted mesh with a nonlinear velocity field and bubbles, over a
-    primal start and three updates (each with another field), and against its numpy twin; the
-    cap of the update is reached on some points."""
+def _ufl_and_kernel_duals(m):
+    """A distorted box's MINI space: the material, layout, a state function, and two dual
+    stresses, by the UFL expressions and by the numba kernel."""
     import dolfinx
     from fxcontact import MixedSpace
     from fxcontact.dual import DualStress
-    from fxcontact.dual_kernel import dual_update_numpy
     from fxcontact.element_condense import P1P1Layout
     from helpers import box_mesh
-    from test_element_condense import set_state
     sp = MixedSpace(box_mesh(MPI.COMM_WORLD, n=(3, 3, 3), perturb=0.25))
     mat = _material(m=m, reg=1e-2)
     lay = P1P1Layout(sp.W)
@@ -287,6 +282,18 @@ def test_dual_kernel_equals_the_expressions_and_the_numpy_twin(m):
     ref = DualStress(mat, sp.W, sp.quadrature_degree)
     fast = DualStress(mat, sp.W, sp.quadrature_degree)
     assert fast.use_kernel(sp)
+    return mat, lay, w, ref, fast
+
+
+@pytest.mark.parametrize("m", [0.016, 0.3])
+def test_dual_kernel_equals_the_expressions_and_the_numpy_twin(m):
+    """The numba dual update (fxcontact.dual_kernel) against dolfinx's evaluation of the UFL
+    expressions, on a distorted mesh with a nonlinear velocity field and bubbles, over a
+    primal start and three updates (each with another field), and against its numpy twin; the
+    cap of the update is reached on some points."""
+    from fxcontact.dual_kernel import dual_update_numpy
+    from test_element_condense import set_state
+    mat, lay, w, ref, fast = _ufl_and_kernel_duals(m)
     kern = fast.kernel
     ncell = lay.num_cells
     capped = 0
@@ -325,20 +332,9 @@ def test_dual_kernel_kept_coefficients_follow_state_and_geometry():
     update when that update starts from the same state on the same geometry. It must not read it
     after the mesh moved or from another starting state: each update equals the UFL
     expressions, and the kept values are used only where they apply."""
-    import dolfinx
-    from fxcontact import MixedSpace
-    from fxcontact.dual import DualStress
     from fxcontact.dual_kernel import dual_update_numpy
-    from fxcontact.element_condense import P1P1Layout
-    from helpers import box_mesh
     from test_element_condense import set_state
-    sp = MixedSpace(box_mesh(MPI.COMM_WORLD, n=(3, 3, 3), perturb=0.25))
-    mat = _material(m=0.016, reg=1e-2)
-    lay = P1P1Layout(sp.W)
-    w = dolfinx.fem.Function(sp.W)
-    ref = DualStress(mat, sp.W, sp.quadrature_degree)
-    fast = DualStress(mat, sp.W, sp.quadrature_degree)
-    assert fast.use_kernel(sp)
+    mat, lay, w, ref, fast = _ufl_and_kernel_duals(0.016)
     kern = fast.kernel
 
     def check(step):
@@ -353,7 +349,7 @@ def test_dual_kernel_kept_coefficients_follow_state_and_geometry():
     check(lambda ds: ds.accept(w.vector))
     assert kern.cache_hits == 1          # the update from the state of the primal start
     # the mesh moves (a configuration update): the kept values are stale
-    x = sp.mesh.geometry.x
+    x = lay.W.mesh.geometry.x
     x[:, :3] += 0.02 * np.sin(3.0 * x[:, [1, 2, 0]])
     set_state(lay, w, -0.4)
     check(lambda ds: ds.accept(w.vector))
