@@ -390,12 +390,7 @@ class Simulation:
                                                                             sp.W, wt, sp.dx))
         if self.dual is not None:
             self.problem.iterate_hooks.append(self.dual)
-        if _standard_norton_hoff(self.material):
-            # the hand-written kernel of the condensed Jacobian (fxcontact.element_jacobian
-            # checks it against the problem's own Jacobian before using it)
-            from fxcontact.element_condense import NortonHoffElementTensors
-            self.problem.element_tensors = lambda layout: NortonHoffElementTensors(
-                layout, sp, self.material, self.w, self.dual)
+        self._use_hand_kernel(self.problem, self.material, self.dual)
         fs_is = self.fieldsplit_is() if self.solver_options.uses_fieldsplit else None
         self.solver = ContactNewtonSolver(self.problem, self.solver_options, fs_is)
         # start-up problem: the linearised material without contributors gives the first guess
@@ -412,10 +407,7 @@ class Simulation:
                 F0, self.w, [b.bc for b in self._bcs], constraints=cons,
                 schur_weight=None if eta0 is None else q / eta0 * sp.dx,
                 augment=volumetric_augment_ufl(lin_mat, eta0, sp.W, wt, sp.dx))
-            if _standard_norton_hoff(lin_mat):   # the hand kernel there too (checked alike)
-                from fxcontact.element_condense import NortonHoffElementTensors
-                prob0.element_tensors = lambda layout: NortonHoffElementTensors(
-                    layout, sp, lin_mat, self.w, None)
+            self._use_hand_kernel(prob0, lin_mat, None)
             self._startup = ContactNewtonSolver(prob0, opts, fs_is)
         # cell averages of the strain rate, volume
         q0 = ufl.TestFunction(sp.DG0)
@@ -431,6 +423,15 @@ class Simulation:
         self._volume_initial = self.volume()
         if self.output_dir is not None:
             self._outputs.open()
+
+    def _use_hand_kernel(self, problem, material, dual):
+        """Give ``problem`` the hand-written Norton–Hoff kernel of its condensed Jacobian if
+        ``material`` is NortonHoff's own law (fxcontact.element_jacobian checks it against the
+        problem's own Jacobian before using it)."""
+        if _standard_norton_hoff(material):
+            from fxcontact.element_condense import NortonHoffElementTensors
+            problem.element_tensors = lambda layout: NortonHoffElementTensors(
+                layout, self.space, material, self.w, dual)
 
     def _volume_correction_term(self, q):
         """``-q ln(V/V⁰)/dt dx`` added to the incompressibility equation ``-q div v dx``
