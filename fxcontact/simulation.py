@@ -46,7 +46,8 @@ from fxcontact.forms import uses_dual_stress as _uses_dual_stress
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import Material
 from fxcontact.mesh_health import MeshHealth
-from fxcontact.outputs import (OutputError, Outputs, format_wall_split, output_dir_problem,
+from fxcontact.outputs import (OutputError, Outputs, format_iteration_split,
+                               format_wall_split, output_dir_problem,
                                wall_split)
 from fxcontact.petsc import ContributorError, NodalNonlinearProblem, add_nodal_residual
 from fxcontact.protocols import (BeginsIncrement, Contributor, EndsIncrement, HasDiagnostics,
@@ -64,7 +65,8 @@ from fxcontact.spaces import (MixedSpace, checked_facets, facets_with_tags, set_
                               velocity_bc)
 
 __all__ = ["Simulation", "IncrementError", "MeshInversionError", "OutputError", "IncrementResult",
-           "VOLUME_CORRECTIONS", "wall_split", "format_wall_split"]
+           "VOLUME_CORRECTIONS", "wall_split", "format_wall_split",
+           "format_iteration_split"]
 
 #: incompressibility corrections of the accumulated volume error (``Simulation``)
 VOLUME_CORRECTIONS = ("global", "none")

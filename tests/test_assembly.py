@@ -212,6 +212,15 @@ def test_time_split_adds_up(solver):
         sum(q["wall_factorisation"] for q in sim.history), rel=1e-12)
     assert 0.0 <= ws["factorisation"] <= ws["linear_solve"] * (1.0 + 1e-9)
     assert ("factorisation" in format_wall_split(ws)) == (ws["factorisation"] > 0.0)
+    # per Newton iteration: the run's iterations of all attempts, the total divided by them
+    from fxcontact.simulation import format_iteration_split
+    n = sum(q["newton_iterations_all"] for q in sim.history)
+    assert ws["iterations"] == n > 0
+    line = format_iteration_split(ws)
+    assert line.startswith(f"{ws['total'] / n:.3g} s per Newton iteration ({n}): ")
+    assert f"assembly {ws['assembly'] / n:.3g}," in line
+    assert ("factorisation" in line) == (ws["factorisation"] > 0.0)
+    assert format_iteration_split(wall_split([])) == ""
 
 
 def test_iterative_step_keeps_dirichlet_values_exact():

@@ -221,13 +221,14 @@ class ProcessResult:
 
     def numerics_lines(self) -> list:
         """The report's lines on the power balance and the numerics."""
-        from fxcontact.simulation import format_wall_split
+        from fxcontact.simulation import format_iteration_split, format_wall_split
 
         return [f"power balance P_in / (D + P_f) - 1 = {100 * self.power_balance:.2f} % "
                 f"(with the penalty work {self.power_balance_penalty:.1e})",
                 f"Newton its mean {self.newton_mean:.1f} max {self.newton_max}, cut-backs "
                 f"{self.cutbacks}; wall {self.wall:.0f} s: "
                 f"{format_wall_split(self.wall_split)}",
+                *[x for x in [format_iteration_split(self.wall_split)] if x],
                 f"max |dV/V| {self.max_volume_change:.2e}; min element quality "
                 f"{self.min_quality:.3f}", *self.contacts]
 

@@ -33,7 +33,8 @@ from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from fxcontact.simulation import IncrementError, format_wall_split, wall_split
+from fxcontact.simulation import (IncrementError, format_iteration_split, format_wall_split,
+                                  wall_split)
 from fxcontact.steady import steady_window
 
 __all__ = ["StopRules", "SteadyMonitor", "SteadyRun", "RunNumerics", "STATUSES", "contact_lines",
@@ -222,6 +223,7 @@ class SteadyRun:
                 f"{self.wall:.0f} s for {self.increments} increments; max |dV/V| "
                 f"{self.max_volume_change:.2e}; min quality {self.min_quality:.3f}\n"
                 f"wall by part: {format_wall_split(self.wall_split)}"
+                + "".join(f"\n{x}" for x in [format_iteration_split(self.wall_split)] if x)
                 + "".join(f"\n{line}" for line in self.contacts))
 
     def run_fields(self) -> dict:
