@@ -574,17 +574,26 @@ class CondensedPC:
         t0 = time.perf_counter()
         try:
             F = self.ksp.getPC().getFactorMatrix()
-            cols = []
-            for x in xs:
-                self._condensed_rhs(x)
-                cols.append(self._rl.getArray(readonly=True).copy())
-            for j, Xj in enumerate(factor_solve_many(F, self._rl, cols, self.comm)):
-                self._yl.getArray(readonly=False)[:] = Xj
-                self._write_solution(xs[j], ys[j])
+            cols = self._condensed_rhs_many(xs)
+            self._write_solutions(xs, factor_solve_many(F, self._rl, cols, self.comm), ys)
             self.inner_solves += len(xs)
         finally:
             self.times["apply"] += time.perf_counter() - t0
         return True
+
+    def _condensed_rhs_many(self, xs) -> list:
+        """The condensed right-hand sides (owned entries) of the vectors ``xs``."""
+        cols = []
+        for x in xs:
+            self._condensed_rhs(x)
+            cols.append(self._rl.getArray(readonly=True).copy())
+        return cols
+
+    def _write_solutions(self, xs, ycs, ys):
+        """``ys[j]`` from the condensed solutions ``ycs[j]`` (owned entries) and ``xs[j]``."""
+        for x, yc, y in zip(xs, ycs, ys):
+            self._yl.getArray(readonly=False)[:] = yc
+            self._write_solution(x, y)
 
     def _write_solution(self, x, y):
         """The full solution y from the condensed one (``_yl``) and the right-hand side x."""

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import copy
 import logging
-from typing import Optional
+from typing import List, Optional
 
 import numba
 import numpy as np
@@ -501,6 +501,21 @@ class CondensedJacobian:
         self.apply_M(ga)
         rc.setArray(f.getArray(readonly=True)[self.owned_w] - ga[self.owned_w])
 
+    def condensed_rhs_many(self, fs: List[PETSc.Vec]) -> List[np.ndarray]:
+        """The owned entries of ``f_l − M Y f_b`` (P1/P1 layout) of each vector of ``fs``
+        (collective, the same number of vectors on every rank). Vectors without bubble
+        entries on any rank (the contact columns of the active-set prediction) need no pass
+        over the cells: their vertex entries."""
+        lay = self.layout
+        arrays = [f.getArray(readonly=True) for f in fs]
+        if lay.comm.allreduce(any(bool(np.any(a[lay.w_b])) for a in arrays), op=MPI.LOR):
+            out = []
+            for f in fs:
+                self.condensed_rhs(f, self._xc)
+                out.append(self._xc.getArray(readonly=True).copy())
+            return out
+        return [a[self.owned_w].copy() for a in arrays]
+
     def recover(self, f: PETSc.Vec, yc: PETSc.Vec, y: PETSc.Vec):
         """y_l = yc, ``y_b = A_bb⁻¹ f_b − X M y_l``."""
         self.from_condensed(yc, y)
@@ -591,6 +606,9 @@ def _condensed_pc_class():
 
         def _recover(self, x, y):
             pass
+
+        def _condensed_rhs_many(self, xs):
+            return self.element.condensed_rhs_many(xs)
 
         def _weighted_mass(self) -> np.ndarray:
             return self._weighted_mass_at(self.element.pressure_w_dofs())

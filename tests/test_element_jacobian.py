@@ -139,6 +139,30 @@ def test_product_equals_assembled_jacobian(iterate):
     assert y_el.norm() <= 1e-10 * y_full.norm()
 
 
+@pytest.mark.parametrize("bubbles", [True, False], ids=["full", "no-bubble-entries"])
+def test_many_right_hand_sides_equal_one_by_one(iterate, bubbles):
+    """The condensed right-hand sides of several vectors at once (the active-set prediction's
+    columns) equal those of one vector at a time, with bubble entries and without (the
+    contact columns: the condensed right-hand side is then their vertex entries)."""
+    prob = iterate.problem
+    el = CondensedJacobian(prob)
+    prob.jacobian(None, prob.w.vector, None, None, element=el)
+    rng = np.random.default_rng(5 + iterate.comm.rank)
+    fs = []
+    for _ in range(3):
+        f = prob.w.vector.copy()
+        f.setArray(rng.normal(size=f.getLocalSize()))
+        if not bubbles:
+            f.getArray(readonly=False)[np.unique(el.layout.w_b)] = 0.0
+        fs.append(f)
+    many = el.condensed_rhs_many(fs)
+    xc = el.S.createVecRight()
+    for f, rc_many in zip(fs, many):
+        el.condensed_rhs(f, xc)
+        one = xc.getArray(readonly=True)
+        assert np.allclose(rc_many, one, rtol=1e-12, atol=1e-12 * np.abs(one).max())
+
+
 def test_step_equals_full_mumps_step(iterate):
     """The element-condensed Newton step (its own solver: shell J', ElementCondensedPC) equals
     MUMPS on the MINI Jacobian, and solves the full system."""
