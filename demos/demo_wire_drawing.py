@@ -35,7 +35,8 @@
 # Run: `python demos/demo_wire_drawing.py --quick` (the test size, seconds),
 # `mpirun -n 2 python demos/demo_wire_drawing.py --size 0.4 --t_end 0.1` (the main demo) or
 # without options (the thesis size; on 2 ranks, idle, 7 min 45 s with `--newton_ftol 1e-3` and
-# 7 min 24 s with `--newton_ftol 1e-2`, benchmarks/README.md). Outputs in `results/wire_drawing`.
+# 6 min 29 s – 7 min 24 s with `--newton_ftol 1e-2`, against Forge3's 7 min 12 s; benchmarks/README.md).
+# Outputs in `results/wire_drawing`.
 
 # %%
 import argparse
