@@ -35,6 +35,7 @@ from __future__ import annotations
 import basix
 import cffi
 import numba
+import numba.experimental.function_type  # noqa: F401 (numba's typing of first-class functions)
 import numpy as np
 import ufl
 from petsc4py import PETSc
@@ -102,7 +103,7 @@ def _condense_loop(tab, data, cells, lpos, bpos, A, b, S, r, X, y):
     return bad
 
 
-@numba.njit
+@numba.njit(cache=True)
 def _recover_loop(w, w_l, w_b, X, y):
     """x_b = y − X x_l for every cell (w: local W values; the bubble entries are written)."""
     for c in range(w_l.shape[0]):
@@ -205,39 +206,62 @@ class P1P1Layout:
 
 
 # -- element tensors from the FFCx kernels ------------------------------------------------------
-def _ffcx_tabulators(kernel_a, kernel_L):
-    """numba element-tensor sources calling the FFCx kernels of a (Jacobian, residual) pair:
-    both, and the Jacobian alone (benchmarks)."""
-    ffi = _ffi
+#: the signature of FFCx's ``tabulate_tensor_float64``: (A, w, c, coordinate_dofs,
+#: entity_local_index, quadrature_permutation)
+_KERNEL_SIGNATURE = numba.types.void(*(numba.types.CPointer(t) for t in (
+    numba.types.float64, numba.types.float64, numba.types.float64, numba.types.float64,
+    numba.types.int32, numba.types.uint8)))
 
-    @numba.njit
-    def _coords(data, c):
-        x, xdofs, coords = data[0], data[1], data[6]
-        for i in range(xdofs.shape[1]):
-            for j in range(3):
-                coords[i, j] = x[xdofs[c, i], j]
 
-    @numba.njit
-    def tab(data, c, A, b):
-        _coords(data, c)
-        ca, ka, cL, kL, coords, ent, perm = data[2], data[3], data[4], data[5], data[6], \
-            data[7], data[8]
-        A[:] = 0.0
-        b[:] = 0.0
-        kernel_a(ffi.from_buffer(A), ffi.from_buffer(ca[c]), ffi.from_buffer(ka),
-                 ffi.from_buffer(coords), ffi.from_buffer(ent), ffi.from_buffer(perm))
-        kernel_L(ffi.from_buffer(b), ffi.from_buffer(cL[c]), ffi.from_buffer(kL),
-                 ffi.from_buffer(coords), ffi.from_buffer(ent), ffi.from_buffer(perm))
+class _FFCxKernel(numba.types.WrapperAddressProtocol):
+    """An FFCx ``tabulate_tensor`` (a cffi function pointer) as a numba first-class function:
+    every kernel has the same numba type, so the loops that call one are compiled once and
+    cached on disk, not compiled again for each form (2–3 s each: every new problem, every
+    remesh)."""
 
-    @numba.njit
-    def tab_jacobian(data, c, A, b):
-        _coords(data, c)
-        ca, ka, coords, ent, perm = data[2], data[3], data[6], data[7], data[8]
-        A[:] = 0.0
-        kernel_a(ffi.from_buffer(A), ffi.from_buffer(ca[c]), ffi.from_buffer(ka),
-                 ffi.from_buffer(coords), ffi.from_buffer(ent), ffi.from_buffer(perm))
+    def __init__(self, fn):
+        self._fn = fn                                  # keeps the compiled module alive
+        self._address = int(_ffi.cast("uintptr_t", fn))
 
-    return tab, tab_jacobian
+    def __wrapper_address__(self):
+        return self._address
+
+    def signature(self):
+        return _KERNEL_SIGNATURE
+
+
+@numba.njit(cache=True)
+def _ffcx_coords(data, c):
+    x, xdofs, coords = data[0], data[1], data[6]
+    for i in range(xdofs.shape[1]):
+        for j in range(3):
+            coords[i, j] = x[xdofs[c, i], j]
+
+
+@numba.njit(cache=True)
+def _ffcx_tab(data, c, A, b):
+    """Element matrix and vector of cell c from the FFCx kernels in ``data``
+    (:meth:`FFCxElementTensors.data`)."""
+    _ffcx_coords(data, c)
+    ca, ka, cL, kL, coords, ent, perm = data[2], data[3], data[4], data[5], data[6], \
+        data[7], data[8]
+    kernel_a, kernel_L = data[9], data[10]
+    A[:] = 0.0
+    b[:] = 0.0
+    kernel_a(_ffi.from_buffer(A), _ffi.from_buffer(ca[c]), _ffi.from_buffer(ka),
+             _ffi.from_buffer(coords), _ffi.from_buffer(ent), _ffi.from_buffer(perm))
+    kernel_L(_ffi.from_buffer(b), _ffi.from_buffer(cL[c]), _ffi.from_buffer(kL),
+             _ffi.from_buffer(coords), _ffi.from_buffer(ent), _ffi.from_buffer(perm))
+
+
+@numba.njit(cache=True)
+def _ffcx_tab_jacobian(data, c, A, b):
+    """The element matrix of cell c alone (``b`` untouched)."""
+    _ffcx_coords(data, c)
+    ca, ka, coords, ent, perm, kernel_a = data[2], data[3], data[6], data[7], data[8], data[9]
+    A[:] = 0.0
+    kernel_a(_ffi.from_buffer(A), _ffi.from_buffer(ca[c]), _ffi.from_buffer(ka),
+             _ffi.from_buffer(coords), _ffi.from_buffer(ent), _ffi.from_buffer(perm))
 
 
 class FFCxElementTensors:
@@ -257,7 +281,8 @@ class FFCxElementTensors:
         ka = compat.cell_kernel(self.a, "a")
         kL = compat.cell_kernel(self.L, "L")
         self._kernel_a, self._kernel_L = ka, kL
-        self.tab, self.tab_jacobian = _ffcx_tabulators(ka, kL)
+        self._kernels = (_FFCxKernel(ka), _FFCxKernel(kL))
+        self.tab, self.tab_jacobian = _ffcx_tab, _ffcx_tab_jacobian
         msh = layout.W.mesh
         self._x = msh.geometry.x
         self._xdofs = compat.geometry_dofmap(msh)
@@ -268,7 +293,7 @@ class FFCxElementTensors:
         """The kernels' inputs at the current coefficients and constants (packed here)."""
         return (self._x, self._xdofs, compat.pack_cell_coefficients(self.a),
                 compat.pack_constants(self.a), compat.pack_cell_coefficients(self.L),
-                compat.pack_constants(self.L)) + self._scratch
+                compat.pack_constants(self.L)) + self._scratch + self._kernels
 
     def tensors(self, cells: np.ndarray):
         """(A, b): the (n, ndofs, ndofs) element matrices and (n, ndofs) vectors of ``cells``
@@ -279,7 +304,7 @@ class FFCxElementTensors:
         cells = np.asarray(cells, dtype=np.int32)
         A = np.zeros((cells.size, ndofs, ndofs))
         b = np.zeros((cells.size, ndofs))
-        (x, xdofs, ca, ka, cL, kL, coords, ent, perm) = self.data()
+        (x, xdofs, ca, ka, cL, kL, coords, ent, perm) = self.data()[:9]
         ptr = _ffi.cast
         ka_p, kL_p = ptr("double *", ka.ctypes.data), ptr("double *", kL.ctypes.data)
         ent_p, perm_p = ptr("int *", ent.ctypes.data), ptr("uint8_t *", perm.ctypes.data)

@@ -42,7 +42,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from fxcontact.cell_kernels import _bubble_inverse, _schur
-from fxcontact.element_condense import _nh_tab
+from fxcontact.element_condense import _ffcx_tab_jacobian, _nh_tab
 
 __all__ = ["CondensedJacobian", "ElementCondensedPC", "condense_cell_numpy",
            "element_condensation_supported"]
@@ -95,6 +95,19 @@ def _jacobian_loop(tab, data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
     for n in range(cells.size):
         c = cells[n]
         tab(data, c, A, b)
+        if not _condense_cell(A, lpos, bpos, S[n], X[c], Y[c], Binv[c], Abb[c]):
+            bad += 1
+    return bad
+
+
+@numba.njit(cache=True)
+def _jacobian_loop_ffcx(data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
+    """:func:`_jacobian_loop` of the FFCx kernels, called directly (cached on disk; the
+    kernels are first-class functions in ``data``: one compilation for every form)."""
+    bad = 0
+    for n in range(cells.size):
+        c = cells[n]
+        _ffcx_tab_jacobian(data, c, A, b)
         if not _condense_cell(A, lpos, bpos, S[n], X[c], Y[c], Binv[c], Abb[c]):
             bad += 1
     return bad
@@ -455,6 +468,9 @@ class CondensedJacobian:
             if self._tab is _nh_tab:
                 bad += _jacobian_loop_nh(data, cells, lay.lpos, lay.bpos, self._A, self._b,
                                          S, self.X, self.Y, self.Binv, self.Abb)
+            elif self._tab is _ffcx_tab_jacobian:
+                bad += _jacobian_loop_ffcx(data, cells, lay.lpos, lay.bpos, self._A, self._b,
+                                           S, self.X, self.Y, self.Binv, self.Abb)
             else:
                 bad += _jacobian_loop(self._tab, data, cells, lay.lpos, lay.bpos, self._A,
                                       self._b, S, self.X, self.Y, self.Binv, self.Abb)
