@@ -87,23 +87,13 @@ def condense_cell_numpy(A: np.ndarray, lpos: np.ndarray, bpos: np.ndarray):
     return S, X, Y, Binv, Abb
 
 
-@numba.njit
-def _jacobian_loop(tab, data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
-    """Element matrices of ``cells`` condensed: S[n] of the n-th cell, X[c], Y[c], Binv[c],
-    Abb[c] of cell c. Returns the number of cells with a singular bubble block."""
-    bad = 0
-    for n in range(cells.size):
-        c = cells[n]
-        tab(data, c, A, b)
-        if not _condense_cell(A, lpos, bpos, S[n], X[c], Y[c], Binv[c], Abb[c]):
-            bad += 1
-    return bad
-
-
 @numba.njit(cache=True)
 def _jacobian_loop_ffcx(data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
-    """:func:`_jacobian_loop` of the FFCx kernels, called directly (cached on disk; the
-    kernels are first-class functions in ``data``: one compilation for every form)."""
+    """Element matrices of ``cells`` from the FFCx kernels, condensed: S[n] of the n-th cell,
+    X[c], Y[c], Binv[c], Abb[c] of cell c. Returns the number of cells with a singular bubble
+    block. (Cached on disk: the kernels are first-class functions in ``data``, one
+    compilation for every form; a loop taking the tabulator as an argument could not be
+    cached, hence one loop per source.)"""
     bad = 0
     for n in range(cells.size):
         c = cells[n]
@@ -115,8 +105,7 @@ def _jacobian_loop_ffcx(data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
 
 @numba.njit(cache=True)
 def _jacobian_loop_nh(data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
-    """:func:`_jacobian_loop` of the hand-written Norton–Hoff kernel, called directly (cached
-    on disk: a loop taking the kernel as an argument is compiled again in every process)."""
+    """:func:`_jacobian_loop_ffcx` of the hand-written Norton–Hoff kernel."""
     bad = 0
     for n in range(cells.size):
         c = cells[n]
@@ -285,6 +274,9 @@ class CondensedJacobian:
             tensors = FFCxElementTensors(lay, problem.a, problem.L)
         self.tensors = tensors
         self._tab = getattr(tensors, "tab_jacobian", tensors.tab)
+        if self._tab not in (_nh_tab, _ffcx_tab_jacobian):
+            raise ValueError("tensors: FFCxElementTensors or NortonHoffElementTensors expected, "
+                             f"got {type(tensors).__name__}")
         self._fast = None
         if fast_tensors is not None:
             try:
@@ -465,15 +457,9 @@ class CondensedJacobian:
         for c0 in range(0, lay.num_cells, self.chunk):
             cells = np.arange(c0, min(c0 + self.chunk, lay.num_cells), dtype=np.int32)
             S = np.empty((cells.size, nl, nl))
-            if self._tab is _nh_tab:
-                bad += _jacobian_loop_nh(data, cells, lay.lpos, lay.bpos, self._A, self._b,
-                                         S, self.X, self.Y, self.Binv, self.Abb)
-            elif self._tab is _ffcx_tab_jacobian:
-                bad += _jacobian_loop_ffcx(data, cells, lay.lpos, lay.bpos, self._A, self._b,
-                                           S, self.X, self.Y, self.Binv, self.Abb)
-            else:
-                bad += _jacobian_loop(self._tab, data, cells, lay.lpos, lay.bpos, self._A,
-                                      self._b, S, self.X, self.Y, self.Binv, self.Abb)
+            loop = _jacobian_loop_nh if self._tab is _nh_tab else _jacobian_loop_ffcx
+            bad += loop(data, cells, lay.lpos, lay.bpos, self._A, self._b, S, self.X, self.Y,
+                        self.Binv, self.Abb)
             bc = bc_marker[lay.w_l[cells]]
             hit = np.flatnonzero(bc.any(axis=1))
             if hit.size:   # Dirichlet rows and columns zeroed (kept in the pattern)

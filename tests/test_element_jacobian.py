@@ -146,6 +146,13 @@ def test_product_equals_assembled_jacobian(iterate):
     assert _product_error(iterate) <= 1e-10
 
 
+def test_unknown_tensor_source_refused(iterate):
+    class Source:
+        tab = staticmethod(lambda data, c, A, b: None)
+    with pytest.raises(ValueError, match="FFCxElementTensors or NortonHoffElementTensors"):
+        CondensedJacobian(iterate.problem, tensors=Source())
+
+
 def test_ffcx_loop_compiled_once_for_every_form():
     """The FFCx kernels are numba first-class functions of one type: the loop over the cells
     is compiled once for the forms of both materials (before: once per form, 2–3 s at every
