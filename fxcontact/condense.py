@@ -575,7 +575,9 @@ class CondensedPC:
         try:
             F = self.ksp.getPC().getFactorMatrix()
             cols = self._condensed_rhs_many(xs)
-            self._write_solutions(xs, factor_solve_many(F, self._rl, cols, self.comm), ys)
+            for x, yc, y in zip(xs, factor_solve_many(F, self._rl, cols, self.comm), ys):
+                self._yl.getArray(readonly=False)[:] = yc
+                self._write_solution(x, y)
             self.inner_solves += len(xs)
         finally:
             self.times["apply"] += time.perf_counter() - t0
@@ -588,12 +590,6 @@ class CondensedPC:
             self._condensed_rhs(x)
             cols.append(self._rl.getArray(readonly=True).copy())
         return cols
-
-    def _write_solutions(self, xs, ycs, ys):
-        """``ys[j]`` from the condensed solutions ``ycs[j]`` (owned entries) and ``xs[j]``."""
-        for x, yc, y in zip(xs, ycs, ys):
-            self._yl.getArray(readonly=False)[:] = yc
-            self._write_solution(x, y)
 
     def _write_solution(self, x, y):
         """The full solution y from the condensed one (``_yl``) and the right-hand side x."""
