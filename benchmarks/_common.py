@@ -26,11 +26,6 @@ def load_demo(name: str):
     return load_file(name, os.path.join(ROOT, "demos", f"{name}.py"))
 
 
-def load_tool_meshes():
-    """Import the tool-mesh script ``meshes/tool_meshes.py``."""
-    return load_file("tool_meshes", os.path.join(ROOT, "meshes", "tool_meshes.py"))
-
-
 def best_time(fn, repeat: int = 3) -> float:
     """Best wall time of ``repeat`` calls of ``fn()``."""
     best = np.inf

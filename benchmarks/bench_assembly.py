@@ -24,7 +24,7 @@ fresh run per variant, each switching one change on after the other:
 * ``before``: dolfinx's compiler flags, the residual always lifted;
 * ``+no-errno``: the kernels compiled with ``-fno-math-errno``;
 * ``+no-zero-lift``: also the residual lifting skipped when it is exactly zero
-  (:attr:`fxcontact.petsc.NonlinearProblem.skip_zero_lifting`): every variant after this one is
+  (:attr:`fxcontact.newton.problem.NonlinearProblem.skip_zero_lifting`): every variant after this one is
   the library's default.
 
 Per Newton iteration: residual and Jacobian evaluations (SNES callbacks), their UFL assembly
@@ -57,7 +57,7 @@ import dolfinx.fem.petsc  # noqa: E402
 import dolfinx.jit  # noqa: E402
 
 import fxcontact as fx  # noqa: E402
-import fxcontact.petsc as fxpetsc  # noqa: E402
+import fxcontact.newton.problem as fxpetsc  # noqa: E402
 import fxcontact.simulation as fxsim  # noqa: E402
 from fxcontact import compat  # noqa: E402
 from fxcontact.processes import DrawingCase, run_drawing  # noqa: E402
@@ -208,11 +208,11 @@ def _best_matrix_time(A, form, best: int) -> float:
 
 
 def primal_dual_figures(mat, space, w, F, ncell: int, best: int):
-    """The primal–dual Jacobian (fxcontact.dual, the default for m < 1) two ways, fxcontact's
+    """The primal–dual Jacobian (fxcontact.element.dual, the default for m < 1) two ways, fxcontact's
     flags, at a random dual stress: UFL's derivative plus the correction form, and the tangent
     written out (DualStress.tangent_form + the pressure terms: what Simulation assembles); the
     consistent Jacobian for reference. Time per cell and the largest relative difference."""
-    from fxcontact.dual import DualStress
+    from fxcontact.element.dual import DualStress
     v, p = ufl.split(w)
     wt, q = ufl.TestFunctions(space.W)
     dw = ufl.TrialFunction(space.W)
@@ -245,7 +245,7 @@ def quadrature_figures(msh, mat, ncell: int, best: int, degrees=(6, 5, 4)):
     quadrature degree (fxcontact's flags, random velocity and dual stress); the degrees are
     timed in turn, ``best`` rounds, the fastest of each kept."""
     import basix
-    from fxcontact.dual import DualStress
+    from fxcontact.element.dual import DualStress
     forms = {}
     for deg in degrees:
         space = fx.MixedSpace(msh, quadrature_degree=deg)

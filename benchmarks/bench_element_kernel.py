@@ -14,19 +14,19 @@ Every figure is the best of ``--repeat`` calls, taken in turn within one run, in
 * ``ffcx J kernel``: FFCx's Jacobian kernel alone, called from numba over the cells (the
   coefficients packed beforehand: ``pack`` is dolfinx's packing of both forms' coefficients);
 * ``ffcx J+F + condense``: FFCx's Jacobian and residual kernels and the condensation of the
-  bubble in the element (:class:`fxcontact.element_condense.FFCxElementTensors`);
+  bubble in the element (:class:`fxcontact.element.tensors.FFCxElementTensors`);
 * ``hand J+F kernel`` and ``hand J+F + condense``: the hand-written Norton–Hoff kernel
-  (:class:`~fxcontact.element_condense.NortonHoffElementTensors`) alone and with the
+  (:class:`~fxcontact.element.tensors.NortonHoffElementTensors`) alone and with the
   condensation;
 * ``assemble condensed (ffcx|hand)``: the whole condensed P1/P1 system, insertion into the
   PETSc matrix (AIJ; ``baij``: a block matrix) and vector included
   (:meth:`CondensedAssembler.assemble`, packing included);
 * today's path: ``assemble W J`` and ``assemble W F`` (dolfinx's assembly of the full MINI
   Jacobian and residual) and ``CondensedPC condense`` (the condensation work of the condensed
-  solver's set-up, :attr:`fxcontact.condense.CondensedPC.times` ``["condense"]``: sub-matrices,
+  solver's set-up, :attr:`fxcontact.element.assembled.CondensedPC.times` ``["condense"]``: sub-matrices,
   block inverses, A_lb A_bb⁻¹ A_bl, the update of S; the inner factorisation excluded), and
   their sum ``today: J + F + condense`` against ``assemble condensed``;
-* ``dual stress update``: :meth:`fxcontact.dual.DualStress.accept` (the Expression evaluation).
+* ``dual stress update``: :meth:`fxcontact.element.dual.DualStress.accept` (the Expression evaluation).
 """
 
 from __future__ import annotations
@@ -48,9 +48,9 @@ import dolfinx.fem.petsc  # noqa: E402
 
 import fxcontact as fx  # noqa: E402
 from fxcontact import compat  # noqa: E402
-from fxcontact import element_condense as ec  # noqa: E402
-from fxcontact.condense import CondensationLayout, CondensedPC  # noqa: E402
-from fxcontact.dual import DualStress  # noqa: E402
+from fxcontact.element import tensors as ec  # noqa: E402
+from fxcontact.element.assembled import CondensationLayout, CondensedPC  # noqa: E402
+from fxcontact.element.dual import DualStress  # noqa: E402
 from _common import best_time  # noqa: E402
 
 PREFIX = "bench_ec_"

@@ -1,6 +1,6 @@
 """Newton iterations of the wire drawing with the MINI bubble condensed after the assembly
-(:class:`fxcontact.condense.CondensedPC`) and in the element matrices
-(:mod:`fxcontact.element_jacobian`), in one run.
+(:class:`fxcontact.element.assembled.CondensedPC`) and in the element matrices
+(:mod:`fxcontact.element.jacobian`), in one run.
 
 Usage (from the repository root)::
 

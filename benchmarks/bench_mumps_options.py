@@ -61,7 +61,7 @@ petsc4py.init(sys.argv[:1])
 from mpi4py import MPI  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-#: the ``condensed-mumps`` preset's inner options (fxcontact.solver.LINEAR_SOLVERS), with the
+#: the ``condensed-mumps`` preset's inner options (fxcontact.newton.solver.LINEAR_SOLVERS), with the
 #: L D Lᵀ factorisation that ``factor_symmetric`` picks for a symmetric S
 PRESET = {"ksp_type": "preonly", "pc_type": "cholesky", "pc_factor_mat_solver_type": "mumps",
           "mat_mumps_icntl_14": 200, "mat_mumps_icntl_24": 1}
@@ -148,7 +148,7 @@ def capture(size: float, increments: int, comm):
     """Run the wire drawing; copy (S, b) at every set-up of the condensed PC. Returns the
     pairs, the vertex order (see :func:`vertex_order`) and the counts of analyses and numerical
     factorisations of the run."""
-    from fxcontact.condense import CondensedPC
+    from fxcontact.element.assembled import CondensedPC
     pairs, seen = [], {"setup": -1, "order": None}
     apply = CondensedPC._apply
 
@@ -338,7 +338,7 @@ def newton_check(size: float, increments: int, change: dict, comm, say):
     """The wire drawing with the ``condensed-mumps`` preset and with ``change`` (options of
     the condensed system without prefix, None removes one): Newton iterations, drawing force
     and linear-solve time per increment."""
-    from fxcontact.solver import LINEAR_SOLVERS
+    from fxcontact.newton.solver import LINEAR_SOLVERS
     out = {}
     preset = LINEAR_SOLVERS["condensed-mumps"]
     changed = {k: v for k, v in {**preset, **{"condensed_" + k: v for k, v in change.items()}

@@ -24,10 +24,10 @@ the library's default is now the primal–dual one):
   relative residual of 1e-3, then β = 1e3), ``max_it`` 100;
 * ``cont0.03+reg1e-3``, ``tr+reg1e-3`` (``max_it`` 100), ``beta1e1+reg1e-3+tr``: combinations;
 * ``pred``: the active-set prediction of the Newton step (``active_set_prediction=True``,
-  :mod:`fxcontact.prediction`), bt, ``max_it`` 100; ``pred+maxit30`` at the default ``max_it``;
+  :mod:`fxcontact.newton.prediction`), bt, ``max_it`` 100; ``pred+maxit30`` at the default ``max_it``;
   ``pred+reg1e-3``, ``pred+beta1e1+reg1e-3``: with the other settings;
 * ``pd``: the primal–dual Norton–Hoff tangent (``material_tangent="primal-dual"``,
-  :mod:`fxcontact.dual`), bt, ``max_it`` 100; ``pred+pd``, ``pred+pd+reg1e-3``: with the
+  :mod:`fxcontact.element.dual`), bt, ``max_it`` 100; ``pred+pd``, ``pred+pd+reg1e-3``: with the
   prediction (and ε̇₀).
 
 Run from the repository root::
@@ -51,7 +51,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from drawing_case import drawing_simulation, mean_strain_rate  # noqa: E402
 
 from fxcontact.simulation import IncrementError  # noqa: E402
-from fxcontact.solver import SolverOptions  # noqa: E402
+from fxcontact.newton.solver import SolverOptions  # noqa: E402
 
 R0, REDUCTION, ALPHA, SPEED = 5.0, 0.15, np.radians(10.0), 10.0
 RATE = mean_strain_rate(R0, REDUCTION, ALPHA, SPEED * (1.0 - REDUCTION))

@@ -41,7 +41,7 @@ from drawing_case import drawing_simulation  # noqa: E402
 
 import dolfinx.geometry  # noqa: E402
 
-from fxcontact.solver import ContactNewtonSolver, SolverOptions  # noqa: E402
+from fxcontact.newton.solver import ContactNewtonSolver, SolverOptions  # noqa: E402
 
 CASE = dict(R0=5.0, reduction=0.15, half_angle_deg=10.0, h=2.5, h_die=1.25, K=445.0,
             m=0.016, speed=10.0)

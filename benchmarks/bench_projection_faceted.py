@@ -19,13 +19,13 @@ import time
 
 import numpy as np
 
-from _common import best_time, load_tool_meshes
+from _common import best_time
 from fxcontact.tools.faceted import FacetedTool, flat_project_ref, nagata_project_ref
 
 
 def cylinder_with(n_tri: int, radius: float = 5.0, length: float = 40.0):
     """Structured cylinder with ≈ n_tri triangles and facets of aspect ≈ 1."""
-    tm = load_tool_meshes()
+    from fxcontact.tools import surfaces as tm
     n_theta = max(6, int(round(math.sqrt(n_tri * math.pi * radius / length))))
     n_axial = max(1, int(round(n_tri / (2 * n_theta))))
     return tm.structured_cylinder(radius, length, n_theta, n_axial)

@@ -121,7 +121,7 @@ def billet_zones(comm, sim, h):
     """The boundary of the simulation's mesh and two zones at the die: h/2 at its edge (points
     on r = 10.5 at the top) and h/2 in a box 1.5 h thick under it."""
     import numpy as np
-    from fxcontact.remesh.boundary import gather_boundary
+    from fxcontact.remesh.surface import gather_boundary
     from fxcontact.remesh.volume import SizeZone
     surface = gather_boundary(sim.mesh, sim.contributors[0].boundary.facet_tags)
     top = comm.allreduce(float(sim.mesh.geometry.x[:, 2].max()), op=MPI.MAX)
@@ -136,7 +136,7 @@ def ring_zones(comm, h=8.0, h_zone=3.9):
     half), size h, and the points of a ring_mill.BiteZones over the 90° arc in front of the gap
     (a grid of spacing h_zone through the wall)."""
     import numpy as np
-    from fxcontact.remesh.boundary import gather_boundary
+    from fxcontact.remesh.surface import gather_boundary
     from fxcontact.remesh.volume import SizeZone
     msh, _, ft = fx.ring(comm, 100.0, 70.0, 40.0, h, sector="upper")
     th = np.linspace(-0.5 * np.pi, 0.1, int(np.ceil((0.5 * np.pi + 0.1) * 100 / h_zone)) + 1)

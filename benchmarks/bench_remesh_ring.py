@@ -15,7 +15,7 @@ turned by the zone's arc less the bite, or when a bite is spanned by fewer than 
 reduction Δh = 1 mm of one revolution, so that the bite has its steady length from the first
 increment) and 5 revolutions.
 
-Measured at each increment (``fxcontact.processes.ring_mill.bite_coverage``, before the
+Measured at each increment (``fxcontact.processes.ring_rolling.mill.bite_coverage``, before the
 increment's remesh check): the elements across the main roll's and the mandrel's bites (the
 contact nodes' arc over the mean edge of the facets between them), the criterion's own measure
 (``elements_across_*`` of the simulation's history); the main roll's force (whole ring), the

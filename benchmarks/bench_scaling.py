@@ -59,7 +59,7 @@ def worker(args):
     from fxcontact.materials import LinearElastic
     from fxcontact.meshing import BLOCK_TAGS
     from fxcontact.simulation import Simulation
-    from fxcontact.solver import SolverOptions
+    from fxcontact.newton.solver import SolverOptions
     from fxcontact.spaces import MixedSpace
 
     demo = load_demo("demo_hertz_sphere")

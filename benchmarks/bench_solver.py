@@ -49,7 +49,7 @@ from _common import best_time, read_csv  # noqa: E402
 from fxcontact.materials import NortonHoff  # noqa: E402
 from fxcontact.meshing import BILLET_TAGS, cylinder_billet  # noqa: E402
 from fxcontact.simulation import Simulation  # noqa: E402
-from fxcontact.solver import SolverOptions  # noqa: E402
+from fxcontact.newton.solver import SolverOptions  # noqa: E402
 from fxcontact.spaces import MixedSpace  # noqa: E402
 
 RESULTS = os.path.join(HERE, "results")
@@ -78,7 +78,7 @@ VARIANTS: Dict[str, tuple] = {
     "fs-amg3d": ("fieldsplit", dict(_HYPRE_3D)),
     # both
     "fs-ew-amg3d": ("fieldsplit", {"snes_ksp_ew": True, **_HYPRE_3D}),
-    # MINI bubble condensed element by element (fxcontact.condense), P1/P1 system by MUMPS
+    # MINI bubble condensed element by element (fxcontact.element.assembled), P1/P1 system by MUMPS
     "cmumps": ("condensed-mumps", {}),
     # condensed, iterative: Schur field split, GAMG (bs 3, rigid-body modes), Schur
     # preconditioned by the condensed pressure block + inverse-viscosity pressure mass

@@ -177,8 +177,8 @@ def drawing_bar(comm, R0: float, die: DrawingDie, upstream: float, nose: float, 
 
 def mean_strain_rate(R0: float, reduction: float, half_angle: float, entry_speed: float) -> float:
     """Mean equivalent strain rate in a conical die (THEORY §14.2) for a reduction of area:
-    :func:`fxcontact.forming.drawing_mean_strain_rate` with R_f = R₀ √(1 − reduction)."""
-    from fxcontact.forming import drawing_mean_strain_rate
+    :func:`fxcontact.theory.forming.drawing_mean_strain_rate` with R_f = R₀ √(1 − reduction)."""
+    from fxcontact.theory.forming import drawing_mean_strain_rate
 
     return drawing_mean_strain_rate(R0, R0 * math.sqrt(1.0 - reduction), half_angle,
                                     entry_speed)

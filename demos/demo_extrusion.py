@@ -27,7 +27,7 @@
 # One quarter of the billet is modelled, with two symmetry planes.
 #
 # **What we compare.** The punch pressure p = F/A₀ against the classical band (THEORY §14.2,
-# `fxcontact.forming.extrusion_theory`): the ideal work σ₀ ln(R₀²/R₁²), a lower bound, and
+# `fxcontact.theory.forming.extrusion_theory`): the ideal work σ₀ ln(R₀²/R₁²), a lower bound, and
 # Avitzur's upper bound of the die (the drawing bound: internal deformation, the two shear
 # surfaces, friction on the cone and the land) plus the container friction 2 m̄ k L_c/R₀, with
 # L_c the billet length still in the container. σ₀ = √3 K (√3 ε̄̇)^m at the die's mean strain

@@ -19,7 +19,7 @@
 # of the arc to a peak there (the friction hill). The strip leaves faster than the roll by
 # the **forward slip**, and it widens (spread) where the bite is short against the width.
 #
-# The classical theories (THEORY §14.3, `fxcontact.rolling`) give the separating force per
+# The classical theories (THEORY §14.3, `fxcontact.theory.flat_rolling`) give the separating force per
 # unit width: the slab (von Kármán/Orowan) method with the same Coulomb–Tresca law as the
 # model, Sims (sticking friction) and Ford–Alexander; the slab's forward slip and neutral
 # angle; Hill's spread formula. A strip bites unaided only if $\mu \ge \tan\alpha$.
@@ -39,7 +39,7 @@ import math
 
 from mpi4py import MPI
 
-from fxcontact import rolling
+from fxcontact.theory import flat_rolling as rolling
 from fxcontact.console import case_parser, parse_case
 from fxcontact.processes import FlatRollingCase, flat_rolling
 

@@ -21,7 +21,7 @@
 # once.
 #
 # Tools: the analytic bore (:class:`~fxcontact.tools.analytic.Cylinder` with ``inside=True``),
-# and the groove meshed by :func:`extruded_cylinder_surface` (``meshes/tool_meshes.py``: a
+# and the groove meshed by :func:`extruded_cylinder_surface` (``fxcontact.tools.surfaces``: a
 # regular polygon inscribed in the circle, extruded along the axis; ``flip=True`` turns its
 # normals towards the axis, out of the tool material), ``coarse_facets`` = 36 (1.05 mm
 # facets) or ``fine_facets`` = 180 around, used **flat** (plane of the closest facet) or
@@ -66,7 +66,7 @@ from fxcontact.contact.nodal import NodalContact
 from fxcontact.materials import LinearElastic
 from fxcontact.meshing import BLOCK_TAGS
 from fxcontact.simulation import Simulation
-from fxcontact.solver import SolverOptions
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Cylinder
 from fxcontact.tools.base import MovedTool, StagedMotion
@@ -74,9 +74,8 @@ from fxcontact.tools.faceted import FacetedTool
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-sys.path.insert(0, os.path.join(os.path.dirname(HERE), "meshes"))
 import demo_ironing as ironing  # noqa: E402  (graded meshes, statistics, tables, plots)
-import tool_meshes  # noqa: E402
+from fxcontact.tools import surfaces as tool_meshes  # noqa: E402
 
 #: analytic bore, then flat and Nagata grooves, coarse and fine, under both schemes
 DEFAULT_VARIANTS = tuple(

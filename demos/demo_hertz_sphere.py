@@ -63,7 +63,7 @@ from fxcontact.io import figure, plot_pressure_profile
 from fxcontact.materials import LinearElastic
 from fxcontact.meshing import BLOCK_TAGS, gmsh_session
 from fxcontact.simulation import Simulation
-from fxcontact.solver import SolverOptions
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Sphere
 from fxcontact.tools.faceted import FacetedTool

@@ -50,7 +50,7 @@
 # the results).
 #
 # **Tools and a fair comparison.** The faceted tools come from the gmsh script
-# ``meshes/tool_meshes.py``: by default (``tool_mesh="extruded"``)
+# ``fxcontact.tools.surfaces``: by default (``tool_mesh="extruded"``)
 # :func:`extruded_cylinder_surface`, an open structured cylinder whose cross-sections are all the
 # same regular polygon *inscribed* in the R = 5 mm circle (vertices on the true cylinder;
 # outward orientation checked here through the gap sign), ``tool_overhang`` longer than the
@@ -111,15 +111,14 @@ from fxcontact.contact.nodal import NodalContact
 from fxcontact.materials import LinearElastic
 from fxcontact.meshing import BLOCK_TAGS
 from fxcontact.simulation import IncrementError, Simulation
-from fxcontact.solver import SolverOptions
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Cylinder
 from fxcontact.tools.base import MovedTool, StagedMotion, Tool
 from fxcontact.tools.faceted import FacetedTool
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(os.path.dirname(HERE), "meshes"))
-import tool_meshes  # noqa: E402  (the gmsh tool-mesh script in meshes/)
+from fxcontact.tools import surfaces as tool_meshes  # noqa: E402
 
 #: Default variants (tool, facets, scheme): the analytic tool and the flat / Nagata tools on
 #: the coarse and the fine mesh, each under the explicit and the implicit scheme.
@@ -217,7 +216,7 @@ def staged_motion(indentation: float, n_indent: int, step: float, dt: float = 1.
 
 def faceted_surface(radius: float, facet_size: float, tool_length: float, center,
                     tool_mesh: str = "extruded", phase: str = "vertex"):
-    """Tool surface (axis y) from ``meshes/tool_meshes.py``, vertices on the true circle.
+    """Tool surface (axis y) from ``fxcontact.tools.surfaces``, vertices on the true circle.
 
     ``"extruded"``: the open structured cylinder with a generator (``phase="vertex"``) or a
     facet middle (``"facet"``) at the bottom; ``"gmsh"``: the unstructured closed one."""

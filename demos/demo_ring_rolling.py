@@ -17,7 +17,7 @@
 # volume constancy turns that thinning into a growing diameter. Two **guide rolls** on the
 # main-roll side keep the growing ring centred on the mill line.
 #
-# Ring-rolling theory (THEORY §14.4, `fxcontact.forming`) says what to expect:
+# Ring-rolling theory (THEORY §14.4, `fxcontact.theory.forming`) says what to expect:
 #
 # * the feed per revolution must lie in a **window**: large enough that the plastic zone
 #   reaches through the wall (Hawkyard, $\Delta h \ge 6.55\cdot10^{-3}B^2\Sigma$ with

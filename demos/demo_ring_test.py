@@ -16,7 +16,7 @@
 # the hole shrinks. The change of the inner diameter against the height reduction, for a range
 # of m̄, is the classical calibration chart of the ring test; here the FE curves are put next to
 # Avitzur's upper-bound curves (THEORY §14.5,
-# :func:`fxcontact.forming.ring_compression_upper_bound`).
+# :func:`fxcontact.theory.forming.ring_compression_upper_bound`).
 #
 # **Model.** One eighth of the ring (:func:`fxcontact.meshing.ring`, ``sector="eighth"``): a
 # quarter in plan (symmetry planes x = 0 and y = 0) and the upper half in height (the mid-plane
@@ -76,11 +76,11 @@ from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import NodalContact
-from fxcontact.forming import flow_stress, ring_compression_upper_bound
+from fxcontact.theory.forming import flow_stress, ring_compression_upper_bound
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import RING_TAGS, ring
 from fxcontact.simulation import Simulation
-from fxcontact.solver import SolverOptions
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Plane
 

@@ -66,11 +66,11 @@ from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Coulomb, Tresca
 from fxcontact.contact.nodal import NodalContact
-from fxcontact.forming import flow_stress, upsetting_slab_coulomb, upsetting_upper_bound
+from fxcontact.theory.forming import flow_stress, upsetting_slab_coulomb, upsetting_upper_bound
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import BILLET_TAGS, cylinder_billet
 from fxcontact.simulation import Simulation
-from fxcontact.solver import SolverOptions
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Plane
 

@@ -27,7 +27,7 @@
 # **What we compare.** The mean die pressure p̄ = F/A_h, with A_h = V/h the end face of the
 # homogeneous billet of the same volume (diameter d_h from volume constancy, barrelling aside),
 # over σ₀ = √3 K (√3 ε̄̇)^m at the mean strain rate ε̄̇ = v/h, against the band (THEORY §14.5,
-# `fxcontact.forming`): above σ₀ on the actual die contact (π r_c²/A_h: the barrelled billet
+# `fxcontact.theory.forming`): above σ₀ on the actual die contact (π r_c²/A_h: the barrelled billet
 # touches the die on less than A_h) and below the upper bound 1 + m̄ d_h/(3√3 h) (for Tresca
 # friction the slab method gives the same number). The run also reports the die contact
 # radius, the radius of the original end face and the free-surface radius; the measured

@@ -28,7 +28,7 @@
 # pulled along +z, its back face is free (no back tension).
 #
 # **What we compare.** The steady drawing stress σ_d = F/A₁ against the classical band of
-# THEORY §14.2 (`fxcontact.forming`): the ideal work σ₀ ln(A₀/A₁), a lower bound, and
+# THEORY §14.2 (`fxcontact.theory.forming`): the ideal work σ₀ ln(A₀/A₁), a lower bound, and
 # Avitzur's upper bound; σ₀ = √3 K (√3 ε̄̇)^m at the die's mean strain rate. The measured
 # figures (thesis size, the main demo's size, the test size) are in `docs/validation.md`.
 #
@@ -87,7 +87,7 @@ from fxcontact.processes.die import DIE_MESHES, DIES
 # the same drawing force to 0.1 %.
 #
 # **Newton.** Backtracking line search with the primal–dual Norton–Hoff tangent
-# (`fxcontact.dual`) and the active-set prediction of the Newton step (THEORY §3.6), the
+# (`fxcontact.element.dual`) and the active-set prediction of the Newton step (THEORY §3.6), the
 # library's defaults for m < 1.
 #
 # **Steady state.** After one element of pull, the mean drawing force over the last 3 mm of

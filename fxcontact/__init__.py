@@ -17,9 +17,9 @@ Public API (name, its submodule, what it is):
 
 # The public API, imported explicitly (a new name: its import here and its line in _API)
 from fxcontact.simulation import VOLUME_CORRECTIONS, IncrementResult, Simulation
-from fxcontact.retry import IncrementError, MeshInversionError
-from fxcontact.outputs import OutputError
-from fxcontact.checkpoint import CheckpointError, PerVertex, latest_checkpoint
+from fxcontact.newton.retry import IncrementError, MeshInversionError
+from fxcontact.io.outputs import OutputError
+from fxcontact.io.checkpoint import CheckpointError, PerVertex, latest_checkpoint
 from fxcontact.mesh_health import simplex_measures
 from fxcontact.symmetry import SymmetryPlanes
 from fxcontact.spaces import MixedSpace, facets_with_tags
@@ -28,7 +28,7 @@ from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import FORMULATIONS, FRICTION_MODES, SCHEMES, NodalContact
 from fxcontact.contact.penalty import Penalty, penalty_from_beta
 from fxcontact.contact.friction import Coulomb, Frictionless, Norton, ShearLimit, Tresca
-from fxcontact.springs import NodalSprings
+from fxcontact.contact.springs import NodalSprings
 from fxcontact.protocols import Contributor, Controller
 from fxcontact.tools.base import MovedTool, Projection, RigidMotion, StagedMotion, Tool
 from fxcontact.tools.analytic import Cone, Cylinder, Plane, Sphere
@@ -42,44 +42,56 @@ from fxcontact.meshing import (BILLET_TAGS, BLOCK_TAGS, DRAWING_BAR_TAGS, RING_T
 from fxcontact.power import (PlasticDissipation, on_configuration, penalty_power,
                              plastic_dissipation)
 from fxcontact.steady import steady_window
-from fxcontact.forming import (avitzur_f, drawing_ideal_stress, drawing_mean_strain_rate,
+from fxcontact.theory.forming import (avitzur_f, drawing_ideal_stress, drawing_mean_strain_rate,
                                drawing_optimal_angle, drawing_sachs_stress, drawing_theory,
                                drawing_upper_bound, flow_stress, ring_compression_upper_bound,
                                ring_rolling_feed_window, ring_rolling_force,
                                upsetting_slab_coulomb, upsetting_upper_bound)
-from fxcontact.mill import ControlledMotion, IdleRotation, RingAxisUpdate, RingCentring
-from fxcontact.solver import (LINE_SEARCHES, MATERIAL_TANGENTS, ContactNewtonSolver, NewtonSolver,
+from fxcontact.idle import IdleRotation
+from fxcontact.tools.base import ControlledMotion
+from fxcontact.kinematics import RingAxisUpdate
+from fxcontact.newton.solver import (LINE_SEARCHES, MATERIAL_TANGENTS, ContactNewtonSolver, NewtonSolver,
                               SolveInfo, SolverOptions)
-from fxcontact.dual import DualStress
-from fxcontact.petsc import (ContactProblem, ContributorError, NodalNonlinearProblem, NodalTerms,
+from fxcontact.element.dual import DualStress
+from fxcontact.newton.problem import (ContactProblem, ContributorError, NodalNonlinearProblem, NodalTerms,
                              NonlinearProblem)
 from fxcontact.io import figure, plot_pressure_profile, render_png
 from fxcontact.console import add_verbosity_arguments, configure_logging
 
+from fxcontact import _legacy
+
 __version__ = "0.1.0"
+
+_legacy.install()      # the former module names (fxcontact.solver, ...), with a warning
+
+
+def __getattr__(name):
+    """Former top-level names that moved (``fxcontact.RingCentring``), with a warning."""
+    return _legacy.moved_name(name)
+
 
 # One line per public name: name -> (submodule, one-line description), for help(fxcontact)
 _API = {
     # time stepping and spaces
     "Simulation": ("simulation", "increment loop: BCs, contributors, cut-back, outputs (§1.5)"),
-    "IncrementError": ("retry", "raised when an increment fails after its cut-backs"),
+    "IncrementError": ("newton.retry", "raised when an increment fails after its cut-backs"),
     "IncrementResult": ("simulation", "outcome of one accepted increment (history row + info)"),
-    "MeshInversionError": ("retry", "raised when an element would turn inside out even "
+    "MeshInversionError": ("newton.retry", "raised when an element would turn inside out even "
                            "after the cut-backs"),
-    "OutputError": ("outputs", "raised when writing the history or the VTK series fails"),
-    "CheckpointError": ("checkpoint", "a checkpoint that is missing, incomplete, of another "
+    "OutputError": ("io.outputs", "raised when writing the history or the VTK series fails"),
+    "CheckpointError": ("io.checkpoint", "a checkpoint that is missing, incomplete, of another "
                         "version, mesh or set-up"),
-    "PerVertex": ("checkpoint", "per-vertex contributor state saved in a checkpoint"),
-    "latest_checkpoint": ("checkpoint", "the newest complete checkpoint in a directory"),
+    "PerVertex": ("io.checkpoint", "per-vertex contributor state saved in a checkpoint"),
+    "latest_checkpoint": ("io.checkpoint", "the newest complete checkpoint in a directory"),
     "simplex_measures": ("mesh_health", "signed volume and shape quality of simplices"),
     "VOLUME_CORRECTIONS": ("simulation", "corrections of the accumulated volume error (§1.5)"),
     "SymmetryPlanes": ("symmetry", "symmetry planes of any orientation, imposed exactly (§1.6)"),
     "MixedSpace": ("spaces", "MINI (or Taylor-Hood) velocity-pressure space, vertex maps (§1.3)"),
     "facets_with_tags": ("spaces", "facet indices carrying given tags"),
     # materials
-    "Material": ("materials", "base class of the constitutive laws"),
-    "NortonHoff": ("materials", "incompressible Norton-Hoff viscoplasticity (§1.1)"),
-    "LinearElastic": ("materials", "incremental linear elasticity, mixed pressure (§1.4)"),
+    "Material": ("materials.laws", "base class of the constitutive laws"),
+    "NortonHoff": ("materials.laws", "incompressible Norton-Hoff viscoplasticity (§1.1)"),
+    "LinearElastic": ("materials.laws", "incremental linear elasticity, mixed pressure (§1.4)"),
     # contact
     "ContactBoundary": ("contact.boundary", "contact nodes and their lumped areas S_n (§1.3)"),
     "NodalContact": ("contact.nodal", "nodal penalty contact, four schemes (§2-§3)"),
@@ -95,7 +107,7 @@ _API = {
                    "nodal rate, a given rate or a given k"),
     "Penalty": ("contact.penalty", "the penalty of a contact: rho, beta or a gap stiffness "
                 "(§2.5)"),
-    "NodalSprings": ("springs", "nodal springs/dashpots: the smallest nodal contributor"),
+    "NodalSprings": ("contact.springs", "nodal springs/dashpots: the smallest nodal contributor"),
     "Contributor": ("protocols", "what add_contributor takes: evaluate(w, jacobian), stable()"),
     "Controller": ("protocols", "what add_controller takes: optional hooks only"),
     # tools and their motions
@@ -142,51 +154,50 @@ _API = {
     "RING_TAGS": ("meshing", "facet tags of ring"),
     "structured_ring": ("meshing", "structured ring (n_theta x n_r x n_z), ring rolling"),
     # forming theory (validation references, pure numpy/scipy)
-    "flow_stress": ("forming", "flow stress of the Norton-Hoff law at a strain rate (§14.1)"),
-    "upsetting_upper_bound": ("forming", "upsetting mean die pressure, Tresca upper bound "
+    "flow_stress": ("theory.forming", "flow stress of the Norton-Hoff law at a strain rate (§14.1)"),
+    "upsetting_upper_bound": ("theory.forming", "upsetting mean die pressure, Tresca upper bound "
                               "(§14.5)"),
-    "upsetting_slab_coulomb": ("forming", "upsetting mean die pressure, Coulomb slab (§14.5)"),
-    "ring_compression_upper_bound": ("forming", "Avitzur's ring-compression calibration curve "
+    "upsetting_slab_coulomb": ("theory.forming", "upsetting mean die pressure, Coulomb slab (§14.5)"),
+    "ring_compression_upper_bound": ("theory.forming", "Avitzur's ring-compression calibration curve "
                                      "and die pressure (§14.5)"),
-    # ring-rolling mill (controllers of the tools, fxcontact.mill)
-    "ControlledMotion": ("mill", "tool motion with rates set per increment by a controller"),
-    "IdleRotation": ("mill", "idle tool: rotation speed from zero torque about its axis"),
-    "RingCentring": ("mill", "guide rolls following a growing ring, centre on the mill line"),
-    "RingAxisUpdate": ("mill", "cylindrical update about the ring's current centre (§5)"),
-    "ring_rolling_feed_window": ("forming", "ring rolling: feed per revolution window "
+    # controlled and idle tools (fxcontact.idle), the ring's moving axis
+    "ControlledMotion": ("tools.base", "tool motion with rates set per increment by a controller"),
+    "IdleRotation": ("idle", "idle tool: rotation speed from zero torque about its axis"),
+    "RingAxisUpdate": ("kinematics", "cylindrical update about the ring's current centre (§5)"),
+    "ring_rolling_feed_window": ("theory.forming", "ring rolling: feed per revolution window "
                                  "(penetration, bite-in) (§14.4)"),
-    "ring_rolling_force": ("forming", "ring rolling: roll force 2kHLQ (§14.4)"),
-    "drawing_ideal_stress": ("forming", "drawing: ideal work sigma0 ln(A0/A1), a lower bound "
+    "ring_rolling_force": ("theory.forming", "ring rolling: roll force 2kHLQ (§14.4)"),
+    "drawing_ideal_stress": ("theory.forming", "drawing: ideal work sigma0 ln(A0/A1), a lower bound "
                              "(§14.2)"),
-    "drawing_sachs_stress": ("forming", "drawing stress, Sachs slab with Coulomb friction "
+    "drawing_sachs_stress": ("theory.forming", "drawing stress, Sachs slab with Coulomb friction "
                              "(§14.2)"),
-    "avitzur_f": ("forming", "Avitzur's factor f(alpha) of the drawing upper bound (§14.2)"),
-    "drawing_upper_bound": ("forming", "Avitzur's upper bound of the drawing stress (Tresca, "
+    "avitzur_f": ("theory.forming", "Avitzur's factor f(alpha) of the drawing upper bound (§14.2)"),
+    "drawing_upper_bound": ("theory.forming", "Avitzur's upper bound of the drawing stress (Tresca, "
                             "land) (§14.2)"),
-    "drawing_mean_strain_rate": ("forming", "mean strain rate in a conical drawing die "
+    "drawing_mean_strain_rate": ("theory.forming", "mean strain rate in a conical drawing die "
                                  "(§14.2)"),
-    "drawing_optimal_angle": ("forming", "die semi-angle minimising Avitzur's bound (§14.2)"),
-    "drawing_theory": ("forming", "drawing-stress band of a Norton-Hoff material (§14.2)"),
+    "drawing_optimal_angle": ("theory.forming", "die semi-angle minimising Avitzur's bound (§14.2)"),
+    "drawing_theory": ("theory.forming", "drawing-stress band of a Norton-Hoff material (§14.2)"),
     # solver and assembly
-    "SolverOptions": ("solver", "Newton and linear solver settings"),
-    "ContactNewtonSolver": ("solver", "SNES Newton with a stable-active-set test (§3.6)"),
-    "NewtonSolver": ("solver", "former name of ContactNewtonSolver (the same class)"),
-    "SolveInfo": ("solver", "outcome of a Newton solve"),
-    "LINE_SEARCHES": ("solver", "globalisations of Newton: PETSc line searches and "
+    "SolverOptions": ("newton.solver", "Newton and linear solver settings"),
+    "ContactNewtonSolver": ("newton.solver", "SNES Newton with a stable-active-set test (§3.6)"),
+    "NewtonSolver": ("newton.solver", "former name of ContactNewtonSolver (the same class)"),
+    "SolveInfo": ("newton.solver", "outcome of a Newton solve"),
+    "LINE_SEARCHES": ("newton.solver", "globalisations of Newton: PETSc line searches and "
                       "'trust-region'"),
-    "MATERIAL_TANGENTS": ("solver", "Norton-Hoff tangents of Newton: 'auto', 'consistent', "
+    "MATERIAL_TANGENTS": ("newton.solver", "Norton-Hoff tangents of Newton: 'auto', 'consistent', "
                           "'primal-dual'"),
-    "DualStress": ("dual", "dual stress of the primal-dual Norton-Hoff Newton (§3.6)"),
-    "NodalNonlinearProblem": ("petsc", "UFL residual/Jacobian plus nodal terms, MPI-safe"),
-    "NonlinearProblem": ("petsc", "former name of NodalNonlinearProblem (the same class)"),
-    "ContactProblem": ("petsc", "dolfinx's NonlinearProblem plus nodal contact: your own "
+    "DualStress": ("element.dual", "dual stress of the primal-dual Norton-Hoff Newton (§3.6)"),
+    "NodalNonlinearProblem": ("newton.problem", "UFL residual/Jacobian plus nodal terms, MPI-safe"),
+    "NonlinearProblem": ("newton.problem", "former name of NodalNonlinearProblem (the same class)"),
+    "ContactProblem": ("newton.problem", "dolfinx's NonlinearProblem plus nodal contact: your own "
                        "dolfinx NewtonSolver or SNES"),
-    "NodalTerms": ("petsc", "per-vertex residual entries and 3x3 Jacobian blocks"),
-    "ContributorError": ("petsc", "error raised by a nodal contributor on any rank"),
+    "NodalTerms": ("newton.problem", "per-vertex residual entries and 3x3 Jacobian blocks"),
+    "ContributorError": ("newton.problem", "error raised by a nodal contributor on any rank"),
     # outputs and console
-    "render_png": ("io", "offscreen picture of the mesh coloured by a cell field"),
-    "figure": ("io", "a matplotlib figure saved to a PNG when its with-block ends"),
-    "plot_pressure_profile": ("io", "nodal contact pressures against Hertz's elliptic profile"),
+    "render_png": ("io.series", "offscreen picture of the mesh coloured by a cell field"),
+    "figure": ("io.series", "a matplotlib figure saved to a PNG when its with-block ends"),
+    "plot_pressure_profile": ("io.series", "nodal contact pressures against Hertz's elliptic profile"),
     "configure_logging": ("console", "console of a script: rank 0, --verbose/--quiet"),
     "add_verbosity_arguments": ("console", "add --verbose/--quiet to an argparse parser"),
 }

@@ -185,7 +185,7 @@ def _walk(obj, depth: float, text: bool):
       gather);
     * objects: ``describe`` (a checkpoint's set-up signature, compared with a later run) takes a
       dataclass's fields and any other object by its type only (its attributes may hold the
-      run's state, e.g. the rates a :class:`~fxcontact.mill.ControlledMotion` was set to), a
+      run's state, e.g. the rates a :class:`~fxcontact.idle.ControlledMotion` was set to), a
       function by its name; ``digest`` (compared between ranks in one run) takes the public
       attributes of any object, nested up to ``depth``, and leaves functions out.
     """

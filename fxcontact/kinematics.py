@@ -20,7 +20,7 @@ condition and the mesh motion use the **same** map (THEORY §5, last property).
 
 Backends: ``backend="numba"`` (default) runs one ``@numba.njit(cache=True)`` loop over the nodes;
 ``backend="numpy"`` runs ``_cylindrical_numpy``, a vectorised reference implementation, for
-testing only. (``fxcontact.cylindrical`` is the former name of the maps' module, kept as an
+testing only. (``fxcontact.kinematics`` is the former name of the maps' module, kept as an
 alias.)
 """
 

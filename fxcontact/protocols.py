@@ -2,13 +2,13 @@
 :class:`typing.Protocol` classes.
 
 A **contributor** (``Simulation.add_contributor``: :class:`~fxcontact.contact.NodalContact`,
-:class:`~fxcontact.springs.NodalSprings`, your own) must be a :class:`Contributor`: it adds
+:class:`~fxcontact.contact.springs.NodalSprings`, your own) must be a :class:`Contributor`: it adds
 per-vertex residual entries and 3×3 Jacobian blocks. A **controller**
-(``Simulation.add_controller``: the ring mill's :mod:`fxcontact.mill`) sets the tools' motions
+(``Simulation.add_controller``: the ring mill's :mod:`fxcontact.idle`) sets the tools' motions
 between increments and has no required method. Every other method is optional; each optional
 hook is a small protocol of its own (all are ``runtime_checkable``), which the simulation, its
 outputs and checkpoints check with ``isinstance`` before they call it (the Newton solver,
-:mod:`fxcontact.solver`, looks the :class:`SolverHooks` methods up by name):
+:mod:`fxcontact.newton.solver`, looks the :class:`SolverHooks` methods up by name):
 
 * :class:`Contributor` — ``evaluate``, ``stable``: required of every contributor;
 * :class:`BeginsIncrement`, :class:`EndsIncrement`, :class:`HasDiagnostics` — contributors and
@@ -38,8 +38,8 @@ from typing import TYPE_CHECKING, Callable, Dict, List, Protocol, runtime_checka
 if TYPE_CHECKING:   # pragma: no cover
     import numpy as np
 
-    from fxcontact.petsc import NodalTerms
-    from fxcontact.solver import SolveInfo
+    from fxcontact.newton.problem import NodalTerms
+    from fxcontact.newton.solver import SolveInfo
 
 __all__ = ["Contributor", "Controller", "BeginsIncrement", "EndsIncrement", "HasDiagnostics",
            "HasOutputFields", "UpdatesOutputFields", "SavesState", "RestoresState",
@@ -101,7 +101,7 @@ class UpdatesOutputFields(Protocol):
 @runtime_checkable
 class SavesState(Protocol):
     def checkpoint_state(self) -> dict:
-        """The state a resumed run needs (:mod:`fxcontact.checkpoint`)."""
+        """The state a resumed run needs (:mod:`fxcontact.io.checkpoint`)."""
 
 
 @runtime_checkable
@@ -141,7 +141,7 @@ class SolvesIncrement(Protocol):
 
 @runtime_checkable
 class SolverHooks(Protocol):
-    """What the Newton solver (:mod:`fxcontact.solver`) calls on a contributor that has it."""
+    """What the Newton solver (:mod:`fxcontact.newton.solver`) calls on a contributor that has it."""
 
     def begin_solve(self) -> None:
         """At the start of each Newton solve."""
@@ -167,10 +167,10 @@ def force_scale(contributors) -> float:
 
 
 def warn_unscaled_ftol(contributors, ftol: float) -> bool:
-    """Warn (logger ``fxcontact.solver``) when ``ftol`` is set and no contributor reports
+    """Warn (logger ``fxcontact.newton.solver``) when ``ftol`` is set and no contributor reports
     ``force_norm()``; returns whether it warned."""
     if ftol > 0 and not any(hasattr(c, "force_norm") for c in contributors):
-        logging.getLogger("fxcontact.solver").warning(
+        logging.getLogger("fxcontact.newton.solver").warning(
             "ftol = %g has no effect: no contributor reports force_norm() (the nodal contact "
             "does); Newton stops on rtol, atol and stol only", ftol)
         return True

@@ -8,14 +8,14 @@ most ``max_cutbacks`` times, then :class:`IncrementError` names the time; everyt
 stays on disk. A converged increment whose geometry update would invert a cell is treated as a
 failed one (:class:`MeshInversionError` if it persists); the mesh quality is a history column.
 Checkpoints (every n increments and at a failed increment) let a killed run be resumed
-(:meth:`Simulation.resume`, :mod:`fxcontact.checkpoint`).
+(:meth:`Simulation.resume`, :mod:`fxcontact.io.checkpoint`).
 
 :class:`Simulation` keeps the set-up (conditions, contributors, forms), one increment (``step``:
 predictor, Newton, commit) and ``run``; it composes one object per other concern, each in its
-own module: :class:`~fxcontact.retry.RetryLadder` (fall-backs and cut-backs),
-:class:`~fxcontact.outputs.Outputs` (CSV history, VTK series),
+own module: :class:`~fxcontact.newton.retry.RetryLadder` (fall-backs and cut-backs),
+:class:`~fxcontact.io.outputs.Outputs` (CSV history, VTK series),
 :class:`~fxcontact.mesh_health.MeshHealth` (initial mesh, quality, inversion) and
-:class:`~fxcontact.checkpoint.Checkpoints`. The contracts of contributors and controllers are the
+:class:`~fxcontact.io.checkpoint.Checkpoints`. The contracts of contributors and controllers are the
 protocols of :mod:`fxcontact.protocols`.
 """
 
@@ -37,19 +37,19 @@ import dolfinx.fem
 import dolfinx.fem.petsc
 
 from fxcontact import compat, console
-from fxcontact.checkpoint import Checkpoints, plain_state as _plain_state
+from fxcontact.io.checkpoint import Checkpoints, plain_state as _plain_state
 from fxcontact.collective import check_together, digest, digest_parameters, together
-from fxcontact.forms import (equivalent_strain_rate_ufl, primal_dual_jacobian,
+from fxcontact.materials.forms import (equivalent_strain_rate_ufl, primal_dual_jacobian,
                              shear_viscosity_ufl, volumetric_augment_ufl)
-from fxcontact.forms import standard_norton_hoff as _standard_norton_hoff  # noqa: F401
-from fxcontact.forms import uses_dual_stress as _uses_dual_stress
+from fxcontact.materials.forms import standard_norton_hoff as _standard_norton_hoff  # noqa: F401
+from fxcontact.materials.forms import uses_dual_stress as _uses_dual_stress
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import Material
 from fxcontact.mesh_health import MeshHealth
-from fxcontact.outputs import (OutputError, Outputs, format_iteration_split,
+from fxcontact.io.outputs import (OutputError, Outputs, format_iteration_split,
                                format_wall_split, output_dir_problem,
                                wall_split)
-from fxcontact.petsc import ContributorError, NodalNonlinearProblem, add_nodal_residual
+from fxcontact.newton.problem import ContributorError, NodalNonlinearProblem, add_nodal_residual
 from fxcontact.protocols import (BeginsIncrement, Contributor, EndsIncrement, HasDiagnostics,
                                  HasSummary, SolvesIncrement)
 from fxcontact.registration import (VelocityCondition as _BC, bc_label as _bc_label,
@@ -59,8 +59,8 @@ from fxcontact.registration import (VelocityCondition as _BC, bc_label as _bc_la
                                     time_value as _time_value)
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.selection import FacetSelection, remembered
-from fxcontact.retry import IncrementError, MeshInversionError, RetryLadder
-from fxcontact.solver import ContactNewtonSolver, SolveInfo, SolverOptions
+from fxcontact.newton.retry import IncrementError, MeshInversionError, RetryLadder
+from fxcontact.newton.solver import ContactNewtonSolver, SolveInfo, SolverOptions
 from fxcontact.spaces import (MixedSpace, checked_facets, facets_with_tags, set_function_value,
                               velocity_bc)
 
@@ -114,7 +114,7 @@ class Simulation:
             (``V/V⁰ − 1``) and ``volume_restore_rate`` (``−V ln(V/V⁰)/dt``, which ``div_v``,
             the integral of ``div v``, equals to the solver tolerance).
         overwrite: a new run (not :meth:`resume`-d) in an ``output_dir`` that holds checkpoints
-            of a run of the same ``name`` stops with a :class:`~fxcontact.checkpoint.
+            of a run of the same ``name`` stops with a :class:`~fxcontact.io.checkpoint.
             CheckpointError` before writing anything (its outputs would mix with that run's);
             ``overwrite=True`` removes those checkpoints (with a warning) and starts afresh.
     """
@@ -167,7 +167,7 @@ class Simulation:
         self.checkpoint_keep = int(checkpoint_keep)
         self.check_inversion = bool(check_inversion)
         self.controllers: List = []
-        #: the remeshes so far (:class:`~fxcontact.remesh.simulation.RemeshRecord`)
+        #: the remeshes so far (:class:`~fxcontact.remesh.remeshing.RemeshRecord`)
         self.remeshes: List = []
         self._remeshing = None
         self._bind_space(space)   # checks the initial mesh (on every rank)
@@ -286,7 +286,7 @@ class Simulation:
         return contributor
 
     def add_controller(self, controller):
-        """Register a controller of the tools (:mod:`fxcontact.mill`): an object with optional
+        """Register a controller of the tools (:mod:`fxcontact.idle`): an object with optional
         ``begin_increment(sim, t, dt, x_t)`` (called at the start of each increment, before the
         contributors), ``solve(sim, begin)`` (replaces the increment's Newton solve: it may
         solve several times, calling ``begin()`` to restart the contributors; at most one
@@ -295,7 +295,7 @@ class Simulation:
         Checkpoints: a controller that keeps a state between increments (rates it has set, a
         measured centre…) saves it with ``checkpoint_state() -> dict`` (plain numbers, lists,
         dicts, numpy arrays) and gets it back with ``restore_state(dict)``; the kinematics
-        (e.g. :class:`~fxcontact.mill.RingAxisUpdate`) may have the same two methods. A
+        (e.g. :class:`~fxcontact.idle.RingAxisUpdate`) may have the same two methods. A
         checkpoint is resumed only with the same controllers (number, types, order)."""
         self._check_not_built()
         with together(self.comm, "add_controller()", controller=digest_parameters(controller)):
@@ -380,10 +380,10 @@ class Simulation:
         #: the dual stress of the primal–dual Newton (``material_tangent``), or None
         self.dual = None
         if _uses_dual_stress(self.material, self.solver_options.material_tangent):
-            from fxcontact.dual import DualStress
+            from fxcontact.element.dual import DualStress
             self.dual = DualStress(self.material, sp.W, sp.quadrature_degree)
             self.dual.use_kernel(sp)
-            log.debug("Newton with the primal-dual Norton-Hoff tangent (fxcontact.dual)")
+            log.debug("Newton with the primal-dual Norton-Hoff tangent (fxcontact.element.dual)")
             J = primal_dual_jacobian(self.material, self.dual, F, extras, self.w, v, wt, q, sp.dx)
         self.problem = NodalNonlinearProblem(F, self.w, [b.bc for b in self._bcs], J=J,
                                              contributors=self.contributors, constraints=cons,
@@ -428,10 +428,10 @@ class Simulation:
 
     def _use_hand_kernel(self, problem, material, dual):
         """Give ``problem`` the hand-written Norton–Hoff kernel of its condensed Jacobian if
-        ``material`` is NortonHoff's own law (fxcontact.element_jacobian checks it against the
+        ``material`` is NortonHoff's own law (fxcontact.element.jacobian checks it against the
         problem's own Jacobian before using it)."""
         if _standard_norton_hoff(material):
-            from fxcontact.element_condense import NortonHoffElementTensors
+            from fxcontact.element.tensors import NortonHoffElementTensors
             problem.element_tensors = lambda layout: NortonHoffElementTensors(
                 layout, self.space, material, self.w, dual)
 
@@ -662,15 +662,15 @@ class Simulation:
                       rescue: bool = True):
         """Remesh automatically when one of the ``criteria`` fires after an increment, and
         (``rescue``) before an increment whose cut-backs all invert a cell is given up; the
-        arguments: :class:`~fxcontact.remesh.simulation.Remeshing`."""
-        from fxcontact.remesh.simulation import Remeshing
+        arguments: :class:`~fxcontact.remesh.remeshing.Remeshing`."""
+        from fxcontact.remesh.remeshing import Remeshing
         self._remeshing = Remeshing(self, criteria, size, zones, feature_angle, rescue)
 
     def remesh(self, size: Optional[float] = None, zones=None, reason: str = "on demand"):
         """Mesh the current body again and carry the state, the conditions and the
-        contributors over (collective; :func:`~fxcontact.remesh.simulation.remesh_simulation`).
-        Returns the :class:`~fxcontact.remesh.simulation.RemeshRecord`."""
-        from fxcontact.remesh.simulation import remesh_simulation
+        contributors over (collective; :func:`~fxcontact.remesh.remeshing.remesh_simulation`).
+        Returns the :class:`~fxcontact.remesh.remeshing.RemeshRecord`."""
+        from fxcontact.remesh.remeshing import remesh_simulation
         return remesh_simulation(self, size=size, zones=zones, reason=reason)
 
     def _record(self, row):
@@ -683,7 +683,7 @@ class Simulation:
 
     def output_functions(self) -> list:
         """The functions of each VTK step (:meth:`Outputs.functions
-        <fxcontact.outputs.Outputs.functions>`)."""
+        <fxcontact.io.outputs.Outputs.functions>`)."""
         return self._outputs.functions()
 
     def run(self, t_end: float, dt: float, max_cutbacks: int = 5,
@@ -778,7 +778,7 @@ class Simulation:
         of checkpoints (the newest is taken); default: the newest one of this run in
         ``output_dir/checkpoints``. The CSV history and the VTK series are continued (rows and
         steps after the checkpoint, from a run that was killed, are dropped). Works on any
-        number of ranks. Raises :class:`~fxcontact.checkpoint.CheckpointError` (a ValueError)
+        number of ranks. Raises :class:`~fxcontact.io.checkpoint.CheckpointError` (a ValueError)
         for a missing checkpoint, another format or package version, another mesh, another
         set-up or other controllers (:meth:`add_controller`), and for a corrupted checkpoint (a
         truncated or altered file, e.g. a disk that failed): ``resume()`` does not fall back to

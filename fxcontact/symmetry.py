@@ -37,7 +37,7 @@ import dolfinx
 import dolfinx.fem
 
 from fxcontact import compat
-from fxcontact.petsc import same_nonzero_pattern
+from fxcontact.newton.problem import same_nonzero_pattern
 
 __all__ = ["SymmetryPlanes"]
 
@@ -52,7 +52,7 @@ class SymmetryPlanes:
     """The inclined symmetry planes of a problem (``v·n = 0`` on each), imposed exactly.
 
     Built by :meth:`fxcontact.simulation.Simulation.add_symmetry_plane`; usable with
-    :class:`~fxcontact.petsc.NodalNonlinearProblem` directly (``constraints=[planes]``): call
+    :class:`~fxcontact.newton.problem.NodalNonlinearProblem` directly (``constraints=[planes]``): call
     :meth:`add` for each plane, then the problem calls :meth:`setup` with its Dirichlet marker.
 
     Args:

@@ -36,7 +36,7 @@ def _release_solver_options():
     yield
     from petsc4py import PETSc
 
-    from fxcontact import solver
+    from fxcontact.newton import solver
     opts = PETSc.Options()
     for prefix in [p for p in solver._WRITTEN_OPTIONS if not p.startswith("fxc_")]:
         for key in solver._WRITTEN_OPTIONS.pop(prefix):

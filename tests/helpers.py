@@ -108,14 +108,6 @@ def run_script(path, args=(), nranks=1, timeout=HANG_TIMEOUT):
     return p.returncode, out
 
 
-def load_tool_meshes():
-    """Import the tool-mesh script ``meshes/tool_meshes.py`` as a module."""
-    from pathlib import Path
-
-    return _load_file("tool_meshes", Path(__file__).resolve().parents[1] / "meshes" /
-                      "tool_meshes.py")
-
-
 def shared_tmpdir(prefix):
     """A temporary directory made on rank 0 and known to every rank."""
     import tempfile

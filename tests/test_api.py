@@ -34,11 +34,36 @@ def test_api_is_imported_explicitly():
                 for a in node.names}
     assert set(fx._API) <= imported, set(fx._API) - imported
     assert set(fx.__all__) == {"__version__", *fx._API}
-    assert not hasattr(fx, "__getattr__")
+    # the only look-up: former top-level names that moved out, with a warning
+    assert set(fx._legacy.MOVED_NAMES).isdisjoint(fx.__all__)
     assert fx.NonlinearProblem is fx.NodalNonlinearProblem
     assert fx.NewtonSolver is fx.ContactNewtonSolver
     assert fx.NodalNonlinearProblem.__name__ == "NodalNonlinearProblem"
     assert fx.ContactNewtonSolver.__name__ == "ContactNewtonSolver"
+
+
+def test_former_names_warn_and_resolve():
+    """The module names of the flat layout and the top-level names that moved out still work
+    for one release, each with a DeprecationWarning that names the new place; ``import
+    fxcontact`` loads no process."""
+    import importlib
+    import subprocess
+    import sys
+
+    code = ("import sys, fxcontact; "
+            "print(any(m.startswith('fxcontact.processes') for m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False", out.stdout + out.stderr
+    from fxcontact import _legacy
+    for old, new in _legacy.MOVED.items():
+        sys.modules.pop(old, None)
+        with pytest.warns(DeprecationWarning, match=new[0].replace(".", r"\.")):
+            mod = importlib.import_module(old)
+        for name in getattr(importlib.import_module(new[0]), "__all__", []):
+            assert getattr(mod, name) is getattr(importlib.import_module(new[0]), name)
+    for name, where in _legacy.MOVED_NAMES.items():
+        with pytest.warns(DeprecationWarning, match=name):
+            assert getattr(fx, name) is getattr(importlib.import_module(where), name)
 
 
 def test_star_import_and_help():
@@ -57,7 +82,8 @@ def test_contributors_and_controllers_satisfy_their_protocols():
     """The library's contributors are ``Contributor``s with the hooks the simulation calls;
     the bordered idle rotation's stand-in for the contact (a ``__getattr__`` proxy) declares
     the protocol's methods itself; the ring-mill controllers' optional hooks are protocols too."""
-    from fxcontact import mill, protocols as pr
+    from fxcontact import idle as mill, protocols as pr
+    from fxcontact.processes.ring_rolling import RingCentring
 
     for cls in (fx.NodalContact, fx.NodalSprings, mill._EliminatedContact):
         assert issubclass(cls, pr.Contributor), cls
@@ -66,7 +92,7 @@ def test_contributors_and_controllers_satisfy_their_protocols():
                   pr.HasSetupSignature, pr.HasSummary, pr.SolverHooks):
         assert issubclass(fx.NodalContact, proto), proto
     assert issubclass(fx.IdleRotation, pr.SolvesIncrement)
-    assert not issubclass(fx.RingCentring, pr.SolvesIncrement)
-    for cls in (fx.IdleRotation, fx.RingCentring, fx.RingAxisUpdate):
+    assert not issubclass(RingCentring, pr.SolvesIncrement)
+    for cls in (fx.IdleRotation, RingCentring, fx.RingAxisUpdate):
         assert issubclass(cls, pr.SavesState) and issubclass(cls, pr.RestoresState), cls
     assert not isinstance(object(), pr.Contributor)

@@ -4,7 +4,7 @@
   give element tensors bitwise equal to dolfinx's flags (Norton–Hoff residual and tangent on
   MINI);
 * the residual lifting skipped when it is exactly zero
-  (:attr:`fxcontact.petsc.NonlinearProblem.skip_zero_lifting`) gives the same Newton residual
+  (:attr:`fxcontact.newton.problem.NonlinearProblem.skip_zero_lifting`) gives the same Newton residual
   norms and solution, on a solve that starts away from the Dirichlet values (the first residual
   must lift) and on contact increments with symmetry planes;
 * ``SolveInfo.times``: assembly + contact + linear solve + other = total for every linear
@@ -27,8 +27,8 @@ import dolfinx.jit
 
 import fxcontact as fx
 from fxcontact import compat
-from fxcontact.petsc import NonlinearProblem
-from fxcontact.solver import NewtonSolver, SolverOptions
+from fxcontact.newton.problem import NonlinearProblem
+from fxcontact.newton.solver import NewtonSolver, SolverOptions
 from fxcontact.spaces import velocity_bc
 from helpers import assert_newton_counts_match, box_mesh, vertex_velocities_by_position
 from test_condense import MATERIALS, pressed_block

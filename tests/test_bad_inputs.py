@@ -21,8 +21,8 @@ import dolfinx
 import ufl
 
 import fxcontact as fx
-import fxcontact.element_condense as ec
-from fxcontact.checkpoint import CheckpointError, latest_checkpoint, list_checkpoints
+import fxcontact.element.tensors as ec
+from fxcontact.io.checkpoint import CheckpointError, latest_checkpoint, list_checkpoints
 from fxcontact.io import HistoryWriter, SeriesWriter, read_pvd
 from fxcontact.simulation import IncrementError, OutputError
 
@@ -265,7 +265,7 @@ CASES = [
                  r"\(2, \d+\) for x of shape \(3, \d+\), expected \(3, \d+\)"),
     ("simulation-output_dir-is-a-file", _output_dir_is_a_file, ValueError,
      r"output_dir '.*results' is a file, not a directory: give a directory path"),
-    # condensation of the bubble in the element (fxcontact.element_condense)
+    # condensation of the bubble in the element (fxcontact.element.tensors)
     ("condense-not-mini", lambda c: ec.P1P1Layout(
         fx.MixedSpace(c["msh"], element="taylor-hood").W), ValueError,
      "needs a MINI space.*MixedSpace\\(msh, 'mini'\\)"),
@@ -545,7 +545,7 @@ def test_disk_full_vtk(cube, out, monkeypatch):
 
 
 def test_disk_full_checkpoint(cube, out, monkeypatch):
-    import fxcontact.checkpoint as ck
+    import fxcontact.io.checkpoint as ck
     savez = np.savez
     calls = []
 
@@ -774,7 +774,7 @@ def test_force_tolerance_without_contact_warns(cube, out, caplog):
     norm (no contact): a warning, once per solver, says it has no effect, and Newton
     converges on rtol."""
     s = _pressed(cube, out, solver_options=fx.SolverOptions(ftol=1e-3))
-    with caplog.at_level("WARNING", logger="fxcontact.solver"):
+    with caplog.at_level("WARNING", logger="fxcontact.newton.solver"):
         s.run(0.2, 0.1)
     assert "ftol = 0.001 has no effect: no contributor reports force_norm()" in caplog.text
     assert caplog.text.count("has no effect") == 1

@@ -1,4 +1,4 @@
-"""Static condensation of the MINI bubble (fxcontact.condense) and the condensed solvers.
+"""Static condensation of the MINI bubble (fxcontact.element.assembled) and the condensed solvers.
 
 The condensed Newton step is an exact block elimination: solved by MUMPS it must equal the
 uncondensed MUMPS step to round-off, on a problem where every term that could break the cell
@@ -16,8 +16,8 @@ from petsc4py import PETSc
 import dolfinx
 
 import fxcontact as fx
-from fxcontact.condense import CondensationLayout
-from fxcontact.solver import NewtonSolver, SolverOptions
+from fxcontact.element.assembled import CondensationLayout
+from fxcontact.newton.solver import NewtonSolver, SolverOptions
 from helpers import gather_by_position, vertex_velocities_by_position
 
 ANGLE = np.radians(30.0)
@@ -200,7 +200,7 @@ def test_auto_choice(monkeypatch):
     """linear_solver="auto" (default): MUMPS for small problems and for spaces without
     interior dofs, the condensed direct then iterative solver above the thresholds; an
     explicit choice is kept."""
-    import fxcontact.solver as solver_mod
+    import fxcontact.newton.solver as solver_mod
 
     comm = MPI.COMM_WORLD
     msh = dolfinx.mesh.create_box(comm, [[0, 0, 0], [1, 1, 1]], [2, 2, 2],
@@ -247,7 +247,7 @@ def test_auto_iterative_failure_falls_back_to_direct(monkeypatch):
     """When ``"auto"`` chose the iterative solver and its inner solve fails, the increment is
     retried at the same dt with condensed MUMPS (no cut-back) and the direct solver is kept;
     an explicit ``"condensed-amg"`` is never replaced."""
-    import fxcontact.solver as solver_mod
+    import fxcontact.newton.solver as solver_mod
     monkeypatch.setattr(solver_mod, "AUTO_CONDENSED_MIN_DOFS", 0)
     monkeypatch.setattr(solver_mod, "AUTO_ITERATIVE_MIN_DOFS", 0)
     sim = pressed_block(MATERIALS["norton-hoff"](), n=3, solver="auto", prefix="tfb_",

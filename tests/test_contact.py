@@ -160,7 +160,7 @@ def test_penalty_given_as_one_object():
 
 def test_node_on_tool_axis_is_a_clear_error():
     """A contact node on a roll's axis is deep inside the roll: error, never NaN."""
-    from fxcontact.petsc import ContributorError
+    from fxcontact.newton.problem import ContributorError
     b = _FakeBoundary(2)
     roll = Cylinder((0, 0, 0), (0, 1, 0), 1.0, name="roll")
     c = NodalContact(b, roll, scheme="implicit", penalty=1.0, max_initial_penetration=10.0)
@@ -338,9 +338,9 @@ def test_nagata_fallbacks_reported_per_increment():
     the flat facet: the contact diagnostics report the count at the last evaluation and the sum
     over every evaluation of the increment (reset at the next increment), never silently."""
     from fxcontact.tools.faceted import FacetedTool
-    from helpers import load_tool_meshes
+    from fxcontact.tools import surfaces
 
-    V, T = load_tool_meshes().icosphere(2, radius=2.0, center=(0.0, 0.0, 2.5))
+    V, T = surfaces.icosphere(2, radius=2.0, center=(0.0, 0.0, 2.5))
     n = 40
     rng = np.random.default_rng(4)
     x = np.c_[rng.uniform(-1.0, 1.0, (n, 2)), rng.uniform(0.0, 0.4, n)]

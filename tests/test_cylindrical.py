@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from fxcontact.cylindrical import cartesian_update, cylindrical_update, gap_derivatives
+from fxcontact.kinematics import cartesian_update, cylindrical_update, gap_derivatives
 from fxcontact.tools.analytic import Cone, Cylinder, Sphere
 
 BACKENDS = ("numba", "numpy")

@@ -1,4 +1,4 @@
-"""Primal–dual Newton for the Norton–Hoff law (fxcontact.dual): the dual update and tangent
+"""Primal–dual Newton for the Norton–Hoff law (fxcontact.element.dual): the dual update and tangent
 against their numpy twins and the linearisation of the dual relation, the Jacobian equal to
 the consistent one when the dual stress is the primal one, and the m = 0.016 drawing through a
 smooth die (benchmarks/drawing_case.py) against the consistent Newton: same solution, fewer
@@ -33,7 +33,7 @@ def _random_rates(rng, n, scale=1.0):
 
 def _dual_relation(mat, eps, s):
     """G(s, ε̇) = z^(1−m) s − 2K dev ε̇, zero for the primal stress."""
-    from fxcontact.materials import _dev_np
+    from fxcontact.materials.laws import _dev_np
     return mat._z(eps)[:, None, None] ** (1.0 - mat.m) * s - 2.0 * mat.K * _dev_np(eps)
 
 
@@ -105,7 +105,7 @@ def _unit_cube_space():
 def test_dual_stress_expressions_match_the_numpy_twin():
     """DualStress.begin and .accept on linear velocity fields (constant strain rates) give the
     numpy primal stress and dual update at every quadrature point."""
-    from fxcontact.dual import DualStress
+    from fxcontact.element.dual import DualStress
     sp = _unit_cube_space()
     mat = _material()
     ds = DualStress(mat, sp.W, sp.quadrature_degree)
@@ -143,7 +143,7 @@ def test_primal_dual_jacobian_equals_the_consistent_one_at_the_primal_stress():
     import ufl
 
     from fxcontact import compat
-    from fxcontact.dual import DualStress
+    from fxcontact.element.dual import DualStress
     sp = _unit_cube_space()
     mat = _material()
     w = dolfinx.fem.Function(sp.W)
@@ -184,7 +184,7 @@ def test_primal_dual_jacobian_equals_the_consistent_one_at_the_primal_stress():
 
 
 def _drawing(material_tangent, n_inc=3, line_search="bt"):
-    from fxcontact.solver import SolverOptions
+    from fxcontact.newton.solver import SolverOptions
     sim, _, _ = drawing.drawing_simulation(MPI.COMM_WORLD, solver_options=SolverOptions(
         max_it=100, line_search=line_search, line_search_fallback=None,
         material_tangent=material_tangent), **CASE)
@@ -217,14 +217,14 @@ def test_auto_material_tangent():
     otherwise; a bad value and a material without the dual law are refused clearly."""
     from fxcontact.materials import LinearElastic
     from fxcontact.simulation import _uses_dual_stress
-    from fxcontact.solver import SolverOptions
+    from fxcontact.newton.solver import SolverOptions
     assert _uses_dual_stress(_material(), "auto")
     assert not _uses_dual_stress(_material(m=1.0), "auto")
     assert not _uses_dual_stress(_material(), "consistent")
     assert not _uses_dual_stress(LinearElastic(E=1.0, nu=0.3), "auto")
     with pytest.raises(ValueError, match="material tangent"):
         SolverOptions(material_tangent="dual")
-    from fxcontact.dual import DualStress
+    from fxcontact.element.dual import DualStress
     sp = _unit_cube_space()
     with pytest.raises(ValueError, match="Norton-Hoff"):
         DualStress(LinearElastic(E=1.0, nu=0.3), sp.W, sp.quadrature_degree)
@@ -272,8 +272,8 @@ def _ufl_and_kernel_duals(m):
     stresses, by the UFL expressions and by the numba kernel."""
     import dolfinx
     from fxcontact import MixedSpace
-    from fxcontact.dual import DualStress
-    from fxcontact.element_condense import P1P1Layout
+    from fxcontact.element.dual import DualStress
+    from fxcontact.element.tensors import P1P1Layout
     from helpers import box_mesh
     sp = MixedSpace(box_mesh(MPI.COMM_WORLD, n=(3, 3, 3), perturb=0.25))
     mat = _material(m=m, reg=1e-2)
@@ -287,11 +287,11 @@ def _ufl_and_kernel_duals(m):
 
 @pytest.mark.parametrize("m", [0.016, 0.3])
 def test_dual_kernel_equals_the_expressions_and_the_numpy_twin(m):
-    """The numba dual update (fxcontact.dual_kernel) against dolfinx's evaluation of the UFL
+    """The numba dual update (fxcontact.element.dual_kernel) against dolfinx's evaluation of the UFL
     expressions, on a distorted mesh with a nonlinear velocity field and bubbles, over a
     primal start and three updates (each with another field), and against its numpy twin; the
     cap of the update is reached on some points."""
-    from fxcontact.dual_kernel import dual_update_numpy
+    from fxcontact.element.dual_kernel import dual_update_numpy
     from test_element_condense import set_state
     mat, lay, w, ref, fast = _ufl_and_kernel_duals(m)
     kern = fast.kernel
@@ -332,7 +332,7 @@ def test_dual_kernel_kept_coefficients_follow_state_and_geometry():
     update when that update starts from the same state on the same geometry. It must not read it
     after the mesh moved or from another starting state: each update equals the UFL
     expressions, and the kept values are used only where they apply."""
-    from fxcontact.dual_kernel import dual_update_numpy
+    from fxcontact.element.dual_kernel import dual_update_numpy
     from test_element_condense import set_state
     mat, lay, w, ref, fast = _ufl_and_kernel_duals(0.016)
     kern = fast.kernel

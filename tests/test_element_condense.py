@@ -1,7 +1,7 @@
-"""Static condensation of the MINI bubble in the element kernel (fxcontact.element_condense).
+"""Static condensation of the MINI bubble in the element kernel (fxcontact.element.tensors).
 
 The condensed P1/P1 matrix and right-hand side assembled from condensed element tensors must
-equal the algebraic condensation of the assembled MINI system (fxcontact.condense) to round-off,
+equal the algebraic condensation of the assembled MINI system (fxcontact.element.assembled) to round-off,
 and the recovered bubble plus the vertex solution must solve the full system, on a Norton–Hoff
 state that is not trivial: a sheared velocity field with bubbles, m = 0.15 and m = 0.016, and a
 primal–dual tangent whose dual stress differs from the primal one (one dual update along a
@@ -20,9 +20,9 @@ import dolfinx.fem.petsc
 
 import fxcontact as fx
 from fxcontact import compat
-from fxcontact.condense import CondensationLayout, CondensedPC
-from fxcontact.dual import DualStress
-from fxcontact.element_condense import (CondensedAssembler, FFCxElementTensors,
+from fxcontact.element.assembled import CondensationLayout, CondensedPC
+from fxcontact.element.dual import DualStress
+from fxcontact.element.tensors import (CondensedAssembler, FFCxElementTensors,
                                         NortonHoffElementTensors, P1P1Layout,
                                         norton_hoff_forms, norton_hoff_tensors_numpy)
 from helpers import box_mesh

@@ -1,5 +1,5 @@
 """The Newton matrix with the MINI bubble condensed element by element
-(fxcontact.element_jacobian) against the plain MINI system.
+(fxcontact.element.jacobian) against the plain MINI system.
 
 * the numba cell kernels equal their numpy twins;
 * at a perturbed iterate with active contact (with and without Tresca friction), inclined
@@ -17,9 +17,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import fxcontact as fx
-from fxcontact import element_jacobian as ej
-from fxcontact.element_jacobian import CondensedJacobian, condense_cell_numpy
-from fxcontact.solver import NewtonSolver, SolverOptions
+from fxcontact.element import jacobian as ej
+from fxcontact.element.jacobian import CondensedJacobian, condense_cell_numpy
+from fxcontact.newton.solver import NewtonSolver, SolverOptions
 from helpers import assert_newton_counts_match, vertex_velocities_by_position
 from test_condense import MATERIALS, pressed_block
 
@@ -42,7 +42,7 @@ def test_cell_condensation_equals_numpy():
 def test_bubble_inverse_and_schur_equal_numpy(k):
     """The cell kernels' A_bb⁻¹ (cofactors for three bubble unknowns, Gauss–Jordan otherwise)
     and Schur complement against numpy; a singular or non-finite block is reported."""
-    from fxcontact.cell_kernels import _bubble_inverse, _schur
+    from fxcontact.element.cell import _bubble_inverse, _schur
     rng = np.random.default_rng(k)
     n = 12 + k
     A = rng.normal(size=(n, n)) + n * np.eye(n)
@@ -280,7 +280,7 @@ def test_facet_term_keeps_the_algebraic_condensation(caplog):
     for solver in ("condensed-mumps", "mumps"):
         sim = pressed_block(MATERIALS["norton-hoff"](), solver=solver, prefix=f"tej_ds_{solver}_")
         sim.extra_residual = traction
-        with caplog.at_level(logging.INFO, logger="fxcontact.solver"):
+        with caplog.at_level(logging.INFO, logger="fxcontact.newton.solver"):
             sim.run(0.1, 0.1)
         runs[solver] = vertex_velocities_by_position(sim)
         if solver == "condensed-mumps":

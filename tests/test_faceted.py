@@ -19,10 +19,9 @@ from fxcontact.tools.faceted import (
 )
 from fxcontact.tools.nagata import domain_samples, patch_points
 
-from helpers import load_tool_meshes
 
 
-tm = load_tool_meshes()
+from fxcontact.tools import surfaces as tm  # noqa: E402
 
 
 def sphere_sdf(X, R=1.0):

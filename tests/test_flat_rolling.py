@@ -1,7 +1,7 @@
 """Flat rolling to steady state (fxcontact.processes.flat_rolling) at a reduced size: coarse mesh
 (7.5 mm along the strip, 2 elements through the half-thickness, 3 across the half-width), a
 short strip, 1.5 mm of roll travel per increment. Checked against the classical theories of
-THEORY §14.3 computed by the process (fxcontact.rolling): roll force per unit width in the band of
+THEORY §14.3 computed by the process (fxcontact.theory.flat_rolling): roll force per unit width in the band of
 slab (same Coulomb–Tresca law) / Sims / Ford–Alexander within 15 %, forward slip positive and
 within × 1.5 of the slab's, neutral point inside the arc, spread positive and compared with
 Hill's, power balance within 3 %, volume and element quality; refusal to enter with μ ≪ tan α;

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from fxcontact.forming import (flow_stress, ring_compression_upper_bound, ring_neutral_radius,
+from fxcontact.theory.forming import (flow_stress, ring_compression_upper_bound, ring_neutral_radius,
                                ring_power, ring_power_quadrature, upsetting_slab_coulomb,
                                upsetting_upper_bound)
 
@@ -125,7 +125,7 @@ def test_ring_bad_input():
 def test_ring_power_slope_by_finite_differences():
     """The analytic slope dJ/d(R_n²) used to polish the minimiser, against central differences
     of the closed-form J (R_n below and inside the ring, several friction factors)."""
-    from fxcontact.forming import _ring_power_slope
+    from fxcontact.theory.forming import _ring_power_slope
 
     Ri, Ro, T = 15.0, 30.0, 20.0
     for mbar in (0.0, 0.4, 1.0):
@@ -140,7 +140,7 @@ def test_ring_power_slope_by_finite_differences():
 def test_ring_rolling_worked_example():
     """THEORY §14.4 example: R1 = 150, R2 = 40, R = 100, r = 60, H = 40 mm, μ = 0.3,
     σ₀ = 100 MPa: window 0.26–4.24 mm/rev, L = 8.94 mm at 1 mm/rev, F ≈ 70 kN."""
-    from fxcontact.forming import (ring_rolling_contact_length, ring_rolling_feed_window,
+    from fxcontact.theory.forming import (ring_rolling_contact_length, ring_rolling_feed_window,
                                    ring_rolling_force)
     w = ring_rolling_feed_window(150.0, 40.0, 100.0, 60.0, mu=0.3)
     assert w["min"] == pytest.approx(0.26, abs=0.005)
@@ -155,7 +155,7 @@ def test_ring_rolling_geometry_checks():
     """L is the chord of the two arcs (outer on the main roll, inner on the mandrel) meeting
     with the wall reduced by Δh: L² (1/(2R1) + 1/(2R) + 1/(2R2) − 1/(2r)) = Δh to first order;
     the feed speed makes Δh per ring revolution; D_m from the volume of a rectangular ring."""
-    from fxcontact.forming import (ring_rolling_contact_length, ring_rolling_feed_speed,
+    from fxcontact.theory.forming import (ring_rolling_contact_length, ring_rolling_feed_speed,
                                    ring_rolling_mean_diameter, ring_rolling_force)
     R1, R2, R, r = 300.0, 60.0, 250.0, 180.0
     for dh in (0.1, 1.0, 3.0):
@@ -178,7 +178,7 @@ def test_ring_rolling_geometry_checks():
 def test_drawing_worked_example():
     """THEORY §14.2's worked example: σ₀ = 300 MPa, D 10 → 8.944 mm (20 % area), α = 8°:
     ideal 66.9, Avitzur m̄ = 0: 99.3, m̄ = 0.1: 126.8 MPa (values quoted to 0.1 MPa)."""
-    from fxcontact.forming import drawing_ideal_stress, drawing_upper_bound
+    from fxcontact.theory.forming import drawing_ideal_stress, drawing_upper_bound
     a = math.radians(8.0)
     assert drawing_ideal_stress(300.0, 5.0, 4.472) == pytest.approx(66.9, abs=0.1)
     assert drawing_upper_bound(300.0, 5.0, 4.472, a) == pytest.approx(99.3, abs=0.1)
@@ -189,7 +189,7 @@ def test_avitzur_f_limits_and_bound_limits():
     """f(α) → 1 as α → 0 (series branch continuous with the closed form), f > 1 and increasing;
     the frictionless bound tends to the ideal work as α → 0 (redundant work ~ α), and stays
     above it; the land adds 2m̄/√3 L/R_f σ₀."""
-    from fxcontact.forming import avitzur_f, drawing_ideal_stress, drawing_upper_bound
+    from fxcontact.theory.forming import avitzur_f, drawing_ideal_stress, drawing_upper_bound
     assert avitzur_f(0.0) == 1.0
     lo, hi = avitzur_f(1e-2 * (1 - 1e-9)), avitzur_f(1e-2 * (1 + 1e-9))
     assert abs(lo - hi) < 1e-11 and abs(lo - 1.0) < 1e-5
@@ -212,7 +212,7 @@ def test_avitzur_f_limits_and_bound_limits():
 def test_sachs_against_slab_ode():
     """Sachs' closed form equals the slab equation dσ/dD = 2(Bσ − (1 + B)σ₀)/D integrated
     numerically from D₀ (σ = 0) down to D_f; μ = 0 gives the ideal work."""
-    from fxcontact.forming import drawing_ideal_stress, drawing_sachs_stress
+    from fxcontact.theory.forming import drawing_ideal_stress, drawing_sachs_stress
     R0, Rf, s0 = 10.0, 7.5, 250.0
     for mu, a in ((0.05, 0.15), (0.1, 0.2), (0.2, 0.1)):
         B = mu / math.tan(a)
@@ -228,7 +228,7 @@ def test_sachs_against_slab_ode():
 def test_drawing_mean_strain_rate_is_ln_over_transit_time():
     """The mean rate is ln(A₀/A_f) over the transit time through the cone of the homogeneous
     field v(z) = v₀ (R₀/R(z))² (transit time by quadrature)."""
-    from fxcontact.forming import drawing_mean_strain_rate
+    from fxcontact.theory.forming import drawing_mean_strain_rate
     R0, Rf, v0 = 10.0, 7.5, 56.25
     for a in np.radians([5.0, 10.0, 20.0]):
         t, _ = integrate.quad(lambda z: (R0 - z * math.tan(a)) ** 2 / (v0 * R0 ** 2), 0.0,
@@ -241,7 +241,7 @@ def test_drawing_optimal_angle_and_theory_band():
     """The optimum minimises the bound (neighbouring angles give more) and is close to the
     classical √(1.5 m̄ ln(R₀/R_f)); no optimum without friction; the band of a Norton–Hoff
     material uses σ₀ = √3 K (√3 ε̇)^m at the mean rate."""
-    from fxcontact.forming import (drawing_mean_strain_rate, drawing_optimal_angle,
+    from fxcontact.theory.forming import (drawing_mean_strain_rate, drawing_optimal_angle,
                                    drawing_theory, drawing_upper_bound)
     for mbar in (0.05, 0.1, 0.3):
         a = drawing_optimal_angle(10.0, 7.5, mbar)
@@ -263,7 +263,7 @@ def test_extrusion_theory():
     """Extrusion: the die terms are drawing's at the punch speed (p A₀ v₀ = σ_d A_f v_f), the
     container friction is the Tresca stress m̄ k on the wall 2π R₀ L_c over the punch area, and
     k defaults to σ₀/√3; bad friction and lengths are refused."""
-    from fxcontact.forming import (drawing_ideal_stress, drawing_mean_strain_rate,
+    from fxcontact.theory.forming import (drawing_ideal_stress, drawing_mean_strain_rate,
                                    drawing_upper_bound, extrusion_container_friction,
                                    extrusion_theory)
     a = math.radians(20.0)
@@ -293,9 +293,10 @@ def test_extrusion_theory():
 
 
 def test_every_process_theory_importable_from_forming():
-    """The flat-rolling band is reachable from ``fxcontact.forming`` too (one place for the
-    processes' theory), the same function as ``fxcontact.rolling``'s."""
-    from fxcontact import forming, rolling
+    """The flat-rolling band is reachable from ``fxcontact.theory.forming`` too (one place for the
+    processes' theory), the same function as ``fxcontact.theory.flat_rolling``'s."""
+    from fxcontact.theory import forming
+    from fxcontact.theory import flat_rolling as rolling
 
     assert forming.flat_rolling_theory is rolling.theory_band
     assert "flat_rolling_theory" in forming.__all__

@@ -10,7 +10,7 @@ from fxcontact.contact.friction import (LAW_COULOMB, LAW_NORTON, LAW_TRESCA, Cou
                                         Frictionless, Norton, ShearLimit, Tresca,
                                         friction_kernel, friction_kernel_numpy)
 from fxcontact.contact.nodal import NodalContact
-from fxcontact.forming import flow_stress
+from fxcontact.theory.forming import flow_stress
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic, NortonHoff
 from fxcontact.tools.analytic import Cylinder, Plane, Sphere

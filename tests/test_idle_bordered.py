@@ -1,4 +1,4 @@
-"""Idle tools solved inside Newton (fxcontact.mill.IdleRotation, method="bordered"): finite
+"""Idle tools solved inside Newton (fxcontact.idle.IdleRotation, method="bordered"): finite
 differences of the border terms ∂R/∂ω, ∂T/∂v, ∂T/∂ω (every friction law, numba = numpy), the
 local elimination of ω (zero torque on every idle tool), the Woodbury-corrected linear solve
 against a dense solve, and the ring-rolling case: the bordered and the outer methods give the
@@ -16,9 +16,9 @@ from fxcontact.contact.friction import Coulomb, Norton, Tresca
 from fxcontact.contact.nodal import NodalContact
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic
-from fxcontact.mill import ControlledMotion, IdleRotation
+from fxcontact.idle import ControlledMotion, IdleRotation
 from fxcontact.processes import RingRollingCase, ring_rolling
-from fxcontact.solver import BorderedPC, _BorderedOperator
+from fxcontact.newton.solver import BorderedPC, _BorderedOperator
 from fxcontact.tools.analytic import Cylinder, Plane
 from fxcontact.tools.base import MovedTool
 
@@ -305,7 +305,7 @@ def test_ring_three_idle_tools(monkeypatch):
     borders), the guide rolls pressed on the ring: one Newton solve, every torque zero to
     round-off, and each idle roll turns at the body's rolling speed (surface slip of the order
     of the slip regularisation v₀ = 1e-3 of the roll speed, not a free-wheeling mismatch)."""
-    from fxcontact import mill
+    from fxcontact import idle as mill
     made = []
 
     class Captured(mill.IdleRotation):

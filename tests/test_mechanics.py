@@ -11,7 +11,7 @@ import dolfinx
 
 from fxcontact.materials import LinearElastic, NortonHoff
 from fxcontact.simulation import Simulation
-from fxcontact.solver import SolverOptions
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace, facets_with_tags
 
 from helpers import assert_newton_counts_match, box_mesh, gather_by_position
@@ -121,7 +121,7 @@ def test_fieldsplit_matches_mumps_and_options_do_not_leak():
     """The Schur field split (preset, or a dict with pc_type=fieldsplit) gives the MUMPS
     solution (Krylov rtol 1e-10 -> velocities within 1e-7), and a later MUMPS solver under the
     same prefix does not inherit the field-split options."""
-    from fxcontact.solver import LINEAR_SOLVERS
+    from fxcontact.newton.solver import LINEAR_SOLVERS
     from petsc4py import PETSc
 
     comm = MPI.COMM_WORLD
@@ -254,7 +254,7 @@ class _UnsettledAboveDt:
         self.dt = dt
 
     def evaluate(self, w, jacobian):
-        from fxcontact.petsc import NodalTerms
+        from fxcontact.newton.problem import NodalTerms
         return NodalTerms.empty(3)
 
     def stable(self):
@@ -373,7 +373,7 @@ class _State:
 def _cycle_detector():
     from types import SimpleNamespace
 
-    from fxcontact.solver import ContactNewtonSolver
+    from fxcontact.newton.solver import ContactNewtonSolver
 
     fake = SimpleNamespace(_states=[], CYCLE_PERIODS=ContactNewtonSolver.CYCLE_PERIODS,
                            CYCLE_RTOL=ContactNewtonSolver.CYCLE_RTOL)
@@ -441,7 +441,7 @@ class _LinearSolverFailsOnce:
                 PETSc.Options().delValue(self.KEY)
 
     def evaluate(self, w, jacobian):
-        from fxcontact.petsc import NodalTerms
+        from fxcontact.newton.problem import NodalTerms
         if self.mode in ("nan", "nan_residual") and self.attempts == 1:
             sp = self.sim.space
             dofs = sp.vertex_dofs[np.all(sp.vertex_dofs < sp.num_owned_dofs, axis=1)]
@@ -512,7 +512,7 @@ def test_trust_region_retest_of_the_same_iterate_is_not_a_cycle():
 
     from petsc4py import PETSc
 
-    from fxcontact.solver import ContactNewtonSolver, SolverOptions
+    from fxcontact.newton.solver import ContactNewtonSolver, SolverOptions
 
     def solver():
         c = _State()

@@ -13,7 +13,7 @@ from fxcontact.materials import NortonHoff
 from fxcontact import compat
 from fxcontact.mesh_health import overlapping_facets, simplex_measures
 from fxcontact.simulation import MeshInversionError, Simulation
-from fxcontact.solver import SolverOptions
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 
 from helpers import box_mesh

@@ -9,9 +9,8 @@ import dolfinx.fem
 
 from fxcontact.meshing import RING_TAGS, block, cylinder_billet, gmsh_session, ring
 
-from helpers import load_tool_meshes
 
-tool_meshes = load_tool_meshes()
+from fxcontact.tools import surfaces as tool_meshes  # noqa: E402
 
 
 def _ncells(msh):

@@ -25,10 +25,9 @@ from fxcontact.tools.nagata import (
 )
 from fxcontact.tools.normals import LOCAL_EDGES, edge_topology, facet_vertex_normals
 
-from helpers import load_tool_meshes
 
 
-tm = load_tool_meshes()
+from fxcontact.tools import surfaces as tm  # noqa: E402
 
 
 def _patches(V, T, normals="nvv", crease_angle=math.radians(50)):

@@ -17,7 +17,7 @@ from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.materials import NortonHoff
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace, velocity_bc
-from fxcontact.springs import NodalSprings, spring_kernel, spring_kernel_numpy
+from fxcontact.contact.springs import NodalSprings, spring_kernel, spring_kernel_numpy
 
 from helpers import box_mesh
 

@@ -19,10 +19,9 @@ from fxcontact.tools.normals import (
     vertex_normals,
 )
 
-from helpers import load_tool_meshes
 
 
-tm = load_tool_meshes()
+from fxcontact.tools import surfaces as tm  # noqa: E402
 
 
 def _cube_vertex_kind(V, half=0.5):

@@ -1,4 +1,4 @@
-"""Active-set prediction of the Newton step (fxcontact.prediction): the Woodbury-corrected step
+"""Active-set prediction of the Newton step (fxcontact.newton.prediction): the Woodbury-corrected step
 against a dense solve of the predicted branch's system, and the m = 0.016 drawing through a
 smooth die (benchmarks/drawing_case.py) against the plain backtracking Newton."""
 
@@ -20,7 +20,7 @@ DT = 0.025
 
 
 def _sim(regularization=1e-6, **opts):
-    from fxcontact.solver import SolverOptions
+    from fxcontact.newton.solver import SolverOptions
     sim, _, contact = drawing.drawing_simulation(MPI.COMM_WORLD, solver_options=SolverOptions(
         max_it=100, line_search="bt", line_search_fallback=None,
         **{"material_tangent": "consistent", **opts}),
@@ -29,7 +29,7 @@ def _sim(regularization=1e-6, **opts):
 
 
 def test_bad_prediction_options():
-    from fxcontact.solver import SolverOptions
+    from fxcontact.newton.solver import SolverOptions
     with pytest.raises(ValueError, match="active_set_prediction"):
         SolverOptions(active_set_prediction="yes")
     with pytest.raises(ValueError, match="active_set_prediction"):
@@ -46,7 +46,7 @@ def test_corrected_step_solves_the_predicted_branch():
     condition limits it: the direct solve of J itself agrees with the dense one to ~1e-8).
     Measured (the first three corrected steps): 2, 7, 9 nodes, differences 5e-9 to 7e-9,
     corrections 0.05 to 0.73 of the step."""
-    import fxcontact.prediction as P
+    import fxcontact.newton.prediction as P
 
     import math
     rate = drawing.mean_strain_rate(5.0, 0.15, math.radians(10.0), 10.0 * 0.85)
@@ -142,7 +142,7 @@ def test_prediction_skipped_above_max_nodes_same_solution():
 def test_auto_prediction_follows_the_linear_solver():
     """``"auto"`` (the default): on with the direct solvers (extra solves are back-substitutions),
     off with the iterative ones (each would be a Krylov solve); True/False force it."""
-    from fxcontact.solver import SolverOptions
+    from fxcontact.newton.solver import SolverOptions
     on = {ls: SolverOptions(linear_solver=ls).predicts_active_set
           for ls in ("mumps", "condensed-mumps", "condensed-amg", "condensed-amg-robust",
                      "fieldsplit")}
@@ -170,7 +170,7 @@ def test_column_changes_the_vector_state_on_every_rank():
     see its state change, or a rank that did not write keeps the cached norm of ``set(0)`` and
     skips the reduction of the next norm: with a Krylov solver (``reuse_factorisation``) the
     ranks hung in the first column solve on 2 ranks (the wire-drawing demo)."""
-    from fxcontact.prediction import ActiveSetPrediction
+    from fxcontact.newton.prediction import ActiveSetPrediction
     sim, contact = _sim(active_set_prediction=True)
     sim.step(DT)
     comm = MPI.COMM_WORLD
@@ -197,10 +197,10 @@ def test_column_changes_the_vector_state_on_every_rank():
     ids=["mumps", "condensed", "condensed-algebraic", "condensed-reuse"])
 def test_batched_column_solves_equal_single_solves(opts):
     """The columns of a prediction round solved together (one MUMPS solve with several
-    right-hand sides, :func:`fxcontact.multisolve.pc_apply_many`) equal one ``ksp.solve`` each,
+    right-hand sides, :func:`fxcontact.newton.linalg.pc_apply_many`) equal one ``ksp.solve`` each,
     to 1e-9 relative, on the first increment of the drawing; the batch is used (a kept
     factorisation is never batched: its columns go through the Krylov solve)."""
-    import fxcontact.prediction as P
+    import fxcontact.newton.prediction as P
     sim, _ = _sim(active_set_prediction=True, **opts)
     seen = []
     orig = P.ActiveSetPrediction._solve_columns
@@ -233,7 +233,7 @@ def test_batched_columns_checked_against_the_operator():
     batch is applied, its check against the operator fails, and every column is solved by the
     Krylov method, as without the batch (1 and 2 ranks)."""
     from petsc4py import PETSc
-    from fxcontact.prediction import ActiveSetPrediction
+    from fxcontact.newton.prediction import ActiveSetPrediction
     comm = MPI.COMM_WORLD
     n = 60
 

@@ -13,7 +13,7 @@ import fxcontact as fx
 from fxcontact import compat
 from fxcontact.mesh_health import simplex_measures
 from fxcontact.remesh import criteria
-from fxcontact.remesh.boundary import gather_boundary
+from fxcontact.remesh.surface import gather_boundary
 from fxcontact.remesh.transfer import (PointLocation, _physical, _quadrature,
                                        cell_vertex_coordinates, cellwise_integral,
                                        interpolate_from, transfer_cellwise)
@@ -466,7 +466,7 @@ def test_coverage_limits_after_a_remesh():
     remesh (no contact, 0, never); after a remesh the first measure of each zone is kept, and a
     zone that the new mesh spans by fewer elements than the limit (a bite smaller than the zone
     resolves) calls again only when it has become twice as coarse; a new remesh forgets it."""
-    from fxcontact.remesh.simulation import Remeshing
+    from fxcontact.remesh.remeshing import Remeshing
     assert criteria.coverage_reasons({"a": 2.0, "b": 0.0, "c": 4.0}, 3.0) == \
         ["contact 'a' spanned by 2 < 3 elements"]
     assert criteria.coverage_reasons({"a": 2.0, "c": 1.0}, {"c": 3.0}) == \

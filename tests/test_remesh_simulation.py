@@ -161,7 +161,7 @@ def test_contributor_without_remesh_refused():
 
     class Still:
         def evaluate(self, w, jacobian):
-            from fxcontact.petsc import NodalTerms
+            from fxcontact.newton.problem import NodalTerms
             return NodalTerms.empty(3)
 
         def stable(self):

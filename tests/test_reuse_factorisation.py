@@ -8,7 +8,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import fxcontact as fx
-from fxcontact.solver import SolverOptions
+from fxcontact.newton.solver import SolverOptions
 from helpers import vertex_velocities_by_position
 from test_condense import pressed_block
 
@@ -110,7 +110,7 @@ def test_ranks_disagreeing_in_a_newton_step_raise_on_every_rank(monkeypatch):
     stops the Newton solve with RanksDisagree on every rank, not a failed increment retried
     with a smaller dt (a divergent decision is a bug, which would hang the run)."""
     from fxcontact.collective import RanksDisagree
-    from fxcontact.solver import ContactNewtonSolver
+    from fxcontact.newton.solver import ContactNewtonSolver
     sim = pressed_block(fx.NortonHoff(K=1.0, m=0.1, regularization=1e-3), n=2,
                         solver="condensed-mumps", prefix="trf_disagree_")
     sim.solver_options.reuse_factorisation = True
@@ -154,7 +154,7 @@ def test_ring_idle_tool_bordered_with_reuse(monkeypatch):
     kept factorisation is not on by default. The figures: ``-s``."""
     from dataclasses import replace
 
-    from fxcontact.prediction import ActiveSetPrediction
+    from fxcontact.newton.prediction import ActiveSetPrediction
     from fxcontact.processes import RingRollingCase, ring_rolling
     comm = MPI.COMM_WORLD
     one = RingRollingCase.case2(idle_method="bordered").quick()

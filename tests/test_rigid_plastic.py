@@ -42,7 +42,7 @@ def _run(max_it, max_cutbacks, line_search="bt", line_search_fallback="basic",
          material_tangent="consistent", **kw):
     """The test drawing; by default with the consistent Norton–Hoff tangent (the library's
     default is the primal–dual one, tests/test_dual.py), which these tests compare options on."""
-    from fxcontact.solver import SolverOptions
+    from fxcontact.newton.solver import SolverOptions
 
     sim, _, _ = drawing.drawing_simulation(MPI.COMM_WORLD, solver_options=SolverOptions(
         max_it=max_it, line_search=line_search, line_search_fallback=line_search_fallback,
@@ -197,7 +197,7 @@ def test_drawing_m0016_penalty_continuation_same_solution_fewer_iterations():
 
 @pytest.mark.parametrize("bad", [0.0, 1.0, -0.1, 2.0, float("nan"), "0.1"])
 def test_penalty_continuation_bad_factor(bad):
-    from fxcontact.solver import SolverOptions
+    from fxcontact.newton.solver import SolverOptions
 
     with pytest.raises(ValueError, match="penalty_continuation"):
         SolverOptions(penalty_continuation=bad)

@@ -1,6 +1,6 @@
 """Checkpoints of a ring-rolling run (fxcontact.processes.ring_rolling): the mill's controllers
-(guide rolls placed by :class:`~fxcontact.processes.ring_mill.RingCentring`, the idle
-mandrel's ω, the cones of :class:`~fxcontact.processes.ring_mill.AxialRolls`, the controlled
+(guide rolls placed by :class:`~fxcontact.processes.ring_rolling.mill.RingCentring`, the idle
+mandrel's ω, the cones of :class:`~fxcontact.processes.ring_rolling.mill.AxialRolls`, the controlled
 tool motions, the ring's centre of the cylindrical update) are saved and restored,
 so a resumed run equals the uninterrupted one; a checkpoint is refused, with a clear
 ValueError, by a simulation with other controllers."""
@@ -16,8 +16,8 @@ import pytest
 from mpi4py import MPI
 
 import fxcontact as fx
-from fxcontact.checkpoint import CheckpointError, list_checkpoints
-from fxcontact.mill import ControlledMotion, IdleRotation, RingAxisUpdate
+from fxcontact.io.checkpoint import CheckpointError, list_checkpoints
+from fxcontact.idle import ControlledMotion, IdleRotation, RingAxisUpdate
 from fxcontact.processes import ring_rolling
 from fxcontact.simulation import _plain_state
 

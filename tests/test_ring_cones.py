@@ -1,5 +1,5 @@
 """Axial cone rolls of ring rolling (fxcontact.processes.ring_rolling, cones=True;
-fxcontact.processes.ring_mill.AxialRolls) on a short coarse run of the thesis's case 1: the
+fxcontact.processes.ring_rolling.mill.AxialRolls) on a short coarse run of the thesis's case 1: the
 cone bears on the top face and holds its height, its apex follows the ring's centre on the mill line, its gap
 opens at the prescribed speed, its idle ω is the rolling speed of the face, its axial force is
 of the order of ring-rolling theory; volume kept, no inverted element, 1 and 2 ranks agree."""
@@ -98,7 +98,7 @@ def test_axial_rolls_bad_inputs():
     from types import SimpleNamespace
 
     import fxcontact as fx
-    from fxcontact.mill import AxialRolls, ControlledMotion
+    from fxcontact.idle import AxialRolls, ControlledMotion
 
     def cone(name):
         return fx.MovedTool(fx.Cone((0, 0, 1), (-1, 0, 1), 0.5, name=name),

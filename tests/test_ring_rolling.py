@@ -1,4 +1,4 @@
-"""Ring rolling (fxcontact.processes.ring_rolling, fxcontact.mill): controlled tool motion, the idle
+"""Ring rolling (fxcontact.processes.ring_rolling, fxcontact.idle): controlled tool motion, the idle
 mandrel (zero torque about its axis), centring by guide rolls, the cylindrical update's volume
 and the volume-constancy growth, on a short coarse run (two increments of the thesis's case 2);
 the ring-rolling theory itself is tested in test_forming.py."""
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fxcontact.mill import ControlledMotion
+from fxcontact.idle import ControlledMotion
 from fxcontact.processes import RingRollingCase, ring_rolling
 
 from helpers import run_readme_block, shared_tmpdir

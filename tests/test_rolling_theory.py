@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from fxcontact import rolling
+from fxcontact.theory import flat_rolling as rolling
 
 R, H0, H1, S0 = 300.0, 25.0, 18.0, 100.0
 

@@ -14,7 +14,7 @@ from fxcontact.contact.nodal import NodalContact
 from fxcontact.materials import LinearElastic
 from fxcontact.meshing import BLOCK_TAGS, block
 from fxcontact.simulation import Simulation
-from fxcontact.solver import NULL_PIVOT_HINT, SolverOptions
+from fxcontact.newton.solver import NULL_PIVOT_HINT, SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Plane
 
@@ -49,7 +49,7 @@ def test_free_body_is_reported(linear_solver, caplog):
     must find them, and the warning is checked against the last iteration's count (it is given
     when the converged solution's factorisation has null pivots)."""
     sim = _pressed_block(-0.01, linear_solver)
-    with caplog.at_level(logging.WARNING, logger="fxcontact.solver"):
+    with caplog.at_level(logging.WARNING, logger="fxcontact.newton.solver"):
         info = sim.step(1.0, max_cutbacks=0).info
     assert info.converged
     assert len(info.null_pivots) == info.iterations
@@ -69,7 +69,7 @@ def test_free_body_is_reported(linear_solver, caplog):
 @pytest.mark.parametrize("linear_solver", ["mumps", "condensed-mumps"])
 def test_held_body_has_no_null_pivot(linear_solver, caplog):
     sim = _pressed_block([0.0, 0.0, -0.01], linear_solver)
-    with caplog.at_level(logging.WARNING, logger="fxcontact.solver"):
+    with caplog.at_level(logging.WARNING, logger="fxcontact.newton.solver"):
         info = sim.step(1.0, max_cutbacks=0).info
     assert info.converged and info.null_pivots and all(n == 0 for n in info.null_pivots)
     assert not [r for r in caplog.records if "singular" in r.getMessage()]

@@ -20,7 +20,7 @@ import dolfinx.mesh
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import gmsh_session
 from fxcontact.simulation import Simulation
-from fxcontact.solver import SolverOptions
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.symmetry import SymmetryPlanes
 

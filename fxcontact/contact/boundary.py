@@ -237,7 +237,7 @@ class ContactBoundary:
         """(N,) equivalent strain rate of the velocity of the mixed Function ``w`` at the
         contact vertices: volume average over the adjacent cells (lumped P1 projection;
         collective). The forms are compiled at the first call for a ``w``."""
-        from fxcontact.forms import equivalent_strain_rate_ufl
+        from fxcontact.materials.forms import equivalent_strain_rate_ufl
         if getattr(self, "_rate_forms", (None,))[0] is not w:
             Q1 = compat.function_space(self.mesh, ("Lagrange", 1))
             q = ufl.TestFunction(Q1)

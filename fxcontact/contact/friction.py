@@ -92,7 +92,7 @@ class ShearLimit:
       lumped average over its cells). Near a static tool (an extrusion container) the local
       rate, hence k, is well below those at the process's mean rate.
     * :meth:`at_strain_rate`: k of the material at one given equivalent strain rate (e.g. a
-      die's mean rate, :func:`fxcontact.forming.drawing_mean_strain_rate`), at every node.
+      die's mean rate, :func:`fxcontact.theory.forming.drawing_mean_strain_rate`), at every node.
     * :meth:`given` (or a number, ``shear_limit=k``): k [stress] itself; the only choice for a
       body that is not Norton–Hoff.
     """

@@ -58,7 +58,7 @@ from fxcontact.contact.penalty import (DEFAULT_BETA, Penalty, penalty_from_beta,
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import NortonHoff
 from fxcontact.collective import together
-from fxcontact.petsc import ContributorError, NodalTerms
+from fxcontact.newton.problem import ContributorError, NodalTerms
 from fxcontact.tools.base import Tool
 
 __all__ = ["NodalContact", "SCHEMES", "FRICTION_MODES", "FORMULATIONS", "penalty_from_beta"]
@@ -156,7 +156,7 @@ class NodalContact(NodalContactIO):
             dolfinx problem; see the module docstring). In displacement form ``penalty`` and
             ``gap_stiffness`` are both the gap stiffness k [stress/length], and ``beta`` gives
             k = β E*/h_e with ``modulus`` = E*; each load step starts with :meth:`begin_step`
-            (done by :class:`~fxcontact.petsc.ContactProblem`).
+            (done by :class:`~fxcontact.newton.problem.ContactProblem`).
         modulus: reference modulus E* [stress] of a displacement-form ``beta``.
 
     Friction (THEORY §9) acts on the nodes in contact, against the velocity relative to the
@@ -485,7 +485,7 @@ class NodalContact(NodalContactIO):
     def begin_step(self, t: float, dt: float, u):
         """Start a load step t → t + dt of the displacement formulation from the displacement
         Function ``u`` (its current content is the converged uᵗ of the previous step, or the
-        initial state). Collective. Called by :class:`~fxcontact.petsc.ContactProblem`."""
+        initial state). Collective. Called by :class:`~fxcontact.newton.problem.ContactProblem`."""
         if self.formulation != "displacement":
             raise ValueError("begin_step is for formulation='displacement'; the velocity form "
                              "is driven by Simulation (begin_increment)")
@@ -530,7 +530,7 @@ class NodalContact(NodalContactIO):
 
     def scale_penalty(self, factor: float):
         """Multiply the penalty ρ by ``factor`` in the following evaluations (1 restores it);
-        used by the penalty continuation of :class:`~fxcontact.solver.ContactNewtonSolver`."""
+        used by the penalty continuation of :class:`~fxcontact.newton.solver.ContactNewtonSolver`."""
         if not (math.isfinite(factor) and factor > 0):
             raise ValueError(f"penalty scale must be finite and > 0, got {factor!r}")
         self.penalty_scale = float(factor)
@@ -563,7 +563,7 @@ class NodalContact(NodalContactIO):
             g = -pr.normal[:, :d]
             Hh = -dt * pr.hessian[:, :d, :d] if (exact and jacobian) else empty
         else:
-            from fxcontact.cylindrical import gap_derivatives
+            from fxcontact.kinematics import gap_derivatives
             X, J, d2X = self.kin.derivatives(self.x_t, v, dt)
             pr, tool_idx = self._project_all(X, t1, hessian=True)
             h, g, Hh = gap_derivatives(pr, J, d2X if exact else None, dt)
@@ -636,7 +636,7 @@ class NodalContact(NodalContactIO):
 
     def active_set_prediction(self, step: np.ndarray):
         """The nodes whose contact status the Newton step ``step`` would change, for the
-        active-set prediction of :class:`~fxcontact.prediction.ActiveSetPrediction`.
+        active-set prediction of :class:`~fxcontact.newton.prediction.ActiveSetPrediction`.
 
         The penalty force of a node is piecewise linear in the step δ of its values with the
         gradient ``g`` of the last evaluation: ``S ρ [h + g·δ]₊ g``. The Newton system only
@@ -705,7 +705,7 @@ class NodalContact(NodalContactIO):
         """The per-node arguments of the friction kernel (all but the relative velocity ``dv``
         and ``jacobian``) for the gaps ``h``, gap gradients ``g`` and tools ``tool_idx`` of an
         evaluation at the current projection: ``S, law, mu, tau_max, visc, q, pn, dpn, nrm,
-        v0, active, theta`` (also used by :class:`~fxcontact.mill.IdleRotation` to evaluate
+        v0, active, theta`` (also used by :class:`~fxcontact.idle.IdleRotation` to evaluate
         the friction of one tool at another rotation speed)."""
         d = self.gdim
         nrm = np.ascontiguousarray(self._cur_proj.normal[:, :d])

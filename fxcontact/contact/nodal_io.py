@@ -208,13 +208,13 @@ class NodalContactIO:
 
     # ------------------------------------------------------------------ checkpoint
     def checkpoint_state(self) -> dict:
-        """What a resumed run needs (:mod:`fxcontact.checkpoint`): the penalty resolved from β
+        """What a resumed run needs (:mod:`fxcontact.io.checkpoint`): the penalty resolved from β
         at the first increment, the representative strain rate, the slip regularisation and the
         nodal pressures of the last converged increment (explicit friction). The tools are
         immutable and move as functions of time: restoring t restores their positions, except
-        for motions whose rates are set during the run (:class:`fxcontact.mill.ControlledMotion`:
+        for motions whose rates are set during the run (:class:`fxcontact.idle.ControlledMotion`:
         their ``checkpoint_state()`` is saved too, under ``motions``)."""
-        from fxcontact.checkpoint import PerVertex
+        from fxcontact.io.checkpoint import PerVertex
         return {"name": self.name, "scheme": self.scheme,
                 "tools": [t.name for t in self.tools],
                 "motions": [t.motion.checkpoint_state()
@@ -227,7 +227,7 @@ class NodalContactIO:
         """The contact's parameters as given (not those resolved during the run): a checkpoint
         is resumed only with the same (:meth:`Simulation.resume
         <fxcontact.simulation.Simulation.resume>` names the one that differs)."""
-        from fxcontact.checkpoint import describe
+        from fxcontact.io.checkpoint import describe
         tools = []
         for t in self.tools:
             base = getattr(t, "tool", t)   # a MovedTool's tool
@@ -241,7 +241,7 @@ class NodalContactIO:
                 "tools": tools}
 
     def restore_state(self, state: dict):
-        from fxcontact.checkpoint import CheckpointError
+        from fxcontact.io.checkpoint import CheckpointError
         mine = {"name": self.name, "scheme": self.scheme, "tools": [t.name for t in self.tools]}
         theirs = {k: state.get(k) for k in mine}
         if theirs != mine:

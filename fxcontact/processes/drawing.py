@@ -13,7 +13,7 @@ true penetration against the exact die, contact nodes, the power balance, Newton
 wall time, volume change and element quality. Steady state: after ``settle`` mm of pull, the
 mean drawing force over the last ``window`` mm of pull and over the window before agree within
 ``steady_tol`` (:func:`fxcontact.steady.steady_window`). The steady drawing stress is compared
-with the band of :func:`fxcontact.forming.drawing_theory` (ideal work, Sachs, Avitzur).
+with the band of :func:`fxcontact.theory.forming.drawing_theory` (ideal work, Sachs, Avitzur).
 
 Example::
 
@@ -35,7 +35,7 @@ from typing import Optional
 import numpy as np
 from mpi4py import MPI
 
-from fxcontact import forming
+from fxcontact.theory import forming
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Coulomb, Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
@@ -48,7 +48,7 @@ from fxcontact.processes.common import (CaseBase, ProcessResult, gather,
 from fxcontact.processes.die import (DIE_MESHES, DIES, bar_simulation, die_profile_tool, die_radius, die_tool,
                                      nose_layout, true_penetration)
 from fxcontact.simulation import Simulation
-from fxcontact.solver import SolverOptions
+from fxcontact.newton.solver import SolverOptions
 
 __all__ = ["DrawingCase", "DrawingSetup", "DrawingResult", "build", "run"]
 
@@ -170,7 +170,7 @@ class DrawingCase(CaseBase):
         return self.mbar / math.sqrt(3), self.mbar
 
     def theory(self) -> dict:
-        """The band of THEORY §14.2 (:func:`fxcontact.forming.drawing_theory`) with the
+        """The band of THEORY §14.2 (:func:`fxcontact.theory.forming.drawing_theory`) with the
         reference friction (``mu_ref``, ``mbar_ref``)."""
         mu_ref, mbar_ref = self.friction_references()
         th = forming.drawing_theory(self.K, self.m, self.R0, self.R1, math.radians(self.alpha),

@@ -57,7 +57,7 @@ from typing import Optional
 import numpy as np
 from mpi4py import MPI
 
-from fxcontact import forming
+from fxcontact.theory import forming
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
@@ -71,7 +71,7 @@ from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone
 from fxcontact.processes.die import bar_simulation, die_profile_tool, die_radius, nose_layout
 from fxcontact.simulation import Simulation
-from fxcontact.solver import SolverOptions
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.tools.revolved import RevolvedProfile
 
 __all__ = ["ExtrusionCase", "ExtrusionSetup", "ExtrusionResult", "CONTAINERS", "build", "run"]
@@ -192,7 +192,7 @@ class ExtrusionCase(CaseBase):
         return pts, arcs
 
     def theory(self, container_length: float = 0.0) -> dict:
-        """:func:`fxcontact.forming.extrusion_theory` for ``container_length`` L_c of billet
+        """:func:`fxcontact.theory.forming.extrusion_theory` for ``container_length`` L_c of billet
         in the container (k of the container's friction: ``container_shear_limit`` if given,
         else σ₀/√3 at the die's mean rate)."""
         return forming.extrusion_theory(self.K, self.m, self.R0, self.R1,

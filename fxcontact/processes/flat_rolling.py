@@ -15,7 +15,7 @@ Newton may find the strip thrown out of the bite); its power is in the power bal
 numerics; :func:`build` returns the ready :class:`fxcontact.Simulation` with its handles;
 :func:`run` rolls to steady state (:class:`~fxcontact.processes.monitor.SteadyMonitor`) and
 returns a :class:`FlatRollingResult` (steady means, the classical band of
-:func:`fxcontact.rolling.theory_band`, forward slip, spread, power balance, pictures).
+:func:`fxcontact.theory.flat_rolling.theory_band`, forward slip, spread, power balance, pictures).
 """
 
 from __future__ import annotations
@@ -34,7 +34,8 @@ import dolfinx
 import dolfinx.mesh
 
 import fxcontact as fx
-from fxcontact import compat, rolling
+from fxcontact import compat
+from fxcontact.theory import flat_rolling as rolling
 from fxcontact.power import PowerBalance
 from fxcontact.processes.common import gather
 from fxcontact.processes.monitor import (RunNumerics, SteadyMonitor, SteadyRun, StopRules,
@@ -207,7 +208,7 @@ class FlatRollingSetup:
     case: FlatRollingCase
     sim: object                   #: the :class:`fxcontact.Simulation`
     material: object
-    theory: dict                  #: :func:`fxcontact.rolling.theory_band` of the pass
+    theory: dict                  #: :func:`fxcontact.theory.flat_rolling.theory_band` of the pass
     sigma0: float                 #: flow stress at the bite's mean strain rate
     mean_strain_rate: float
     omega: float                  #: the roll's angular velocity

@@ -91,7 +91,7 @@ class RunNumerics:
 
     def solver_options(self):
         """The :class:`fxcontact.SolverOptions` of these numerics."""
-        from fxcontact.solver import SolverOptions
+        from fxcontact.newton.solver import SolverOptions
         return SolverOptions(line_search=self.line_search,
                              active_set_prediction=self.active_set_prediction,
                              penalty_continuation=self.penalty_continuation,

@@ -30,9 +30,9 @@ the current diameter d_h = 2√(V/(πh)) from volume constancy, barrelling aside
 actual die contact of radius r_c (a barrelled billet touches the die on less than A_h: the
 frictionless homogeneous p̄ = σ₀ on A_h is not a lower edge for it, the FE dips below 1 there
 after a remesh), upper edge the upper bound ``1 + m̄ d_h/(3√3 h)``
-(:func:`fxcontact.forming.upsetting_upper_bound`; with Tresca friction the slab method gives
+(:func:`fxcontact.theory.forming.upsetting_upper_bound`; with Tresca friction the slab method gives
 the same number) for Tresca dies, and for Coulomb dies the slab estimate ``2(eˣ − x − 1)/x²``,
-x = 2μR_h/h (:func:`fxcontact.forming.upsetting_slab_coulomb`), or the upper bound of the cap
+x = 2μR_h/h (:func:`fxcontact.theory.forming.upsetting_slab_coulomb`), or the upper bound of the cap
 m̄ if lower. Force, height and strain rate are taken at the start of each increment (the
 configuration its equilibrium is written on). The time step is ``dt`` × h/H₀ (increments of
 the same height strain), after a start-up increment of ``startup`` × dt.
@@ -65,7 +65,7 @@ from mpi4py import MPI
 
 import dolfinx.mesh
 
-from fxcontact import forming
+from fxcontact.theory import forming
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Coulomb, Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
@@ -78,7 +78,7 @@ from fxcontact.processes.common import (CaseBase, ProcessResult, _pyplot, finish
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone
 from fxcontact.simulation import IncrementError, Simulation
-from fxcontact.solver import SolverOptions
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Plane
 

@@ -6,7 +6,7 @@
 * strain increment: the largest increase of the equivalent strain of a cell since the last
   remesh (a cell that deformed by that much has moved its distortion into the results);
 * increments: how many increments have passed since the last remesh
-  (:class:`~fxcontact.remesh.simulation.Remeshing`: a count, not a measure);
+  (:class:`~fxcontact.remesh.remeshing.Remeshing`: a count, not a measure);
 * contact coverage: how many elements span the contact zone of a tool — the zone's width
   (its smallest in-surface extent, from the second moments of the contact nodes' positions:
   2√3 × the standard deviation along the smallest principal direction in the surface, the

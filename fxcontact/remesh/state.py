@@ -12,7 +12,7 @@ What an increment reads from the previous ones (``simulation.py``):
   output) the same way;
 * the volume correction's reference ``_volume_initial`` (the body's volume at t = 0): a number,
   kept as it is, so that ``ln(V/V⁰)`` goes on from the new mesh's volume;
-* the dual stress (:class:`~fxcontact.dual.DualStress`) is not state: ``begin()`` sets it to
+* the dual stress (:class:`~fxcontact.element.dual.DualStress`) is not state: ``begin()`` sets it to
   the primal stress of the predictor at the start of every Newton solve, so the new simulation
   rebuilds it from the transferred velocity;
 * ``t``, ``increment``, ``history``, tools and controllers: unchanged numbers and objects.

@@ -1,7 +1,7 @@
 """A new tetrahedral mesh of a body from its triangulated boundary, made by gmsh on rank 0 and
 distributed (as the workpiece builders of :mod:`fxcontact.meshing` do).
 
-The boundary (:class:`~fxcontact.remesh.boundary.BoundarySurface`) is cut into patches: the
+The boundary (:class:`~fxcontact.remesh.surface.BoundarySurface`) is cut into patches: the
 triangles of one facet tag connected across edges whose dihedral angle is below
 ``feature_angle``. Each patch becomes a gmsh discrete surface, with its boundary curves and
 corners (the sharp edges and the tag boundaries are kept as curves) made in a reproducible order
@@ -41,7 +41,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from fxcontact.mesh_health import simplex_measures
-from fxcontact.remesh.boundary import UNTAGGED, BoundarySurface
+from fxcontact.remesh.surface import UNTAGGED, BoundarySurface
 from fxcontact.remesh.smooth import SmoothBoundary, place_surface_nodes
 from fxcontact.remesh.topology import discrete_model
 
@@ -461,7 +461,7 @@ def volume_mesh(comm, surface: BoundarySurface, h: float, zones: Sequence[SizeZo
     gmsh and distributed over ``comm`` (collective; module docstring).
 
     Args:
-        surface: the boundary (:func:`~fxcontact.remesh.boundary.gather_boundary`).
+        surface: the boundary (:func:`~fxcontact.remesh.surface.gather_boundary`).
         h: element size away from the zones (> 0).
         zones: :class:`SizeZone` s where the mesh is finer (near the tools).
         feature_angle: edges whose dihedral angle exceeds it (degrees) are kept as sharp edges.

@@ -1,6 +1,6 @@
 """The Newton matrix of a MINI problem with its bubble condensed element by element.
 
-:class:`~fxcontact.condense.CondensedPC` eliminates the bubble from the *assembled* MINI
+:class:`~fxcontact.element.assembled.CondensedPC` eliminates the bubble from the *assembled* MINI
 Jacobian (sub-matrices, a block inverse, a matrix product) at every Newton iteration, after the
 full 19-dof element matrices have been assembled into the mixed matrix. Here the element
 matrices are condensed before they are assembled: per cell, with the element unknowns split into
@@ -25,7 +25,7 @@ slope, a Krylov method, the bordered operator — is exact from the same data
 (:class:`CondensedJacobian.mult`). The Newton step equals the algebraic condensation's to
 round-off; what changes is the cost: no 19 × 19 insertion, no sub-matrix algebra.
 
-The element matrices come from :mod:`fxcontact.element_condense`: the FFCx kernel of the
+The element matrices come from :mod:`fxcontact.element.tensors`: the FFCx kernel of the
 problem's own Jacobian form (any form with cell integrals only), or the hand-written Norton–Hoff
 kernel where it is the same (checked on sample cells at the first assembly).
 """
@@ -41,8 +41,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fxcontact.cell_kernels import _bubble_inverse, _schur
-from fxcontact.element_condense import _ffcx_tab_jacobian, _nh_tab
+from fxcontact.element.cell import _bubble_inverse, _schur
+from fxcontact.element.tensors import _ffcx_tab_jacobian, _nh_tab
 
 __all__ = ["CondensedJacobian", "ElementCondensedPC", "condense_cell_numpy",
            "element_condensation_supported"]
@@ -225,7 +225,7 @@ def element_condensation_supported(problem) -> Optional[str]:
     MINI space (gdim + 1 dofs per vertex and cell-interior dofs only) and Jacobian and residual
     forms with cell integrals over the whole mesh only (a facet term, e.g. a traction, keeps the
     algebraic condensation)."""
-    from fxcontact.element_condense import P1P1Layout
+    from fxcontact.element.tensors import P1P1Layout
     try:
         P1P1Layout(problem.w.function_space)
     except (ValueError, RuntimeError) as e:
@@ -244,14 +244,14 @@ def element_condensation_supported(problem) -> Optional[str]:
 
 
 class CondensedJacobian:
-    """The condensed Newton matrix of a MINI :class:`~fxcontact.petsc.NodalNonlinearProblem`,
-    assembled on the P1/P1 layout (:class:`~fxcontact.element_condense.P1P1Layout`: one block
+    """The condensed Newton matrix of a MINI :class:`~fxcontact.newton.problem.NodalNonlinearProblem`,
+    assembled on the P1/P1 layout (:class:`~fxcontact.element.tensors.P1P1Layout`: one block
     of gdim + 1 unknowns per vertex, a BAIJ matrix).
 
     Args:
         problem: the problem (its ``w``, ``a``, ``bcs``, ``bc_marker``, ``constraints``).
-        tensors: an element-tensor source of :mod:`fxcontact.element_condense` whose matrices
-            are the problem's Jacobian (default: :class:`~fxcontact.element_condense.FFCxElementTensors`
+        tensors: an element-tensor source of :mod:`fxcontact.element.tensors` whose matrices
+            are the problem's Jacobian (default: :class:`~fxcontact.element.tensors.FFCxElementTensors`
             of ``problem.a``).
         fast_tensors: optional callable ``(layout) -> source`` of a faster source of the same
             matrices (the hand-written Norton–Hoff kernel): used if it matches ``tensors`` on
@@ -266,7 +266,7 @@ class CondensedJacobian:
     """
 
     def __init__(self, problem, tensors=None, fast_tensors=None, chunk: int = 8192):
-        from fxcontact.element_condense import FFCxElementTensors, P1P1Layout
+        from fxcontact.element.tensors import FFCxElementTensors, P1P1Layout
         self.problem = problem
         W = problem.w.function_space
         self.layout = lay = P1P1Layout(W)
@@ -402,11 +402,11 @@ class CondensedJacobian:
 
     def assemble(self, terms, timers):
         """S' = M (S + K_c) M + E (collective): the condensed element matrices and the nodal
-        contributors' blocks ``terms`` (a list of :class:`~fxcontact.petsc.NodalTerms` of the W
+        contributors' blocks ``terms`` (a list of :class:`~fxcontact.newton.problem.NodalTerms` of the W
         layout) with the Dirichlet rows and columns zeroed, the unit Dirichlet diagonal, then
         the symmetry projection. Raises RuntimeError on every rank for a singular bubble
         block."""
-        from fxcontact.petsc import add_nodal_jacobian
+        from fxcontact.newton.problem import add_nodal_jacobian
         S = self.S
         bc_marker = self.problem.bc_marker
         S.zeroEntries()
@@ -585,10 +585,10 @@ def jacobian_shell(element: CondensedJacobian) -> PETSc.Mat:
 
 
 def _condensed_pc_class():
-    from fxcontact.condense import CondensedPC
+    from fxcontact.element.assembled import CondensedPC
 
     class ElementCondensedPC(CondensedPC):
-        """:class:`~fxcontact.condense.CondensedPC` on the P1/P1 matrix of a
+        """:class:`~fxcontact.element.assembled.CondensedPC` on the P1/P1 matrix of a
         :class:`CondensedJacobian` (no matrix algebra at its set-up), the right-hand side and
         the bubble from the kept cell matrices."""
 

@@ -170,7 +170,7 @@ def assemble_jacobian_with_terms(A: PETSc.Mat, a, bcs, terms, bc_marker, timers,
     """The Jacobian sequence (PLATFORM order): ``zeroEntries``, the nodal blocks, THEN the UFL
     matrix (which inserts the BC diagonal), THEN the final ``assemble()``; ``constraints``
     project the assembled matrix. ``element``: a
-    :class:`~fxcontact.element_jacobian.CondensedJacobian`, which assembles the condensed
+    :class:`~fxcontact.element.jacobian.CondensedJacobian`, which assembles the condensed
     system in its own matrix instead (``A`` is not used)."""
     if element is not None:
         element.assemble(terms, timers)
@@ -207,7 +207,7 @@ class NodalNonlinearProblem:
         schur_weight: optional UFL linear form in the pressure test function, e.g.
             ``(1/η(v)) q dx``: its pressure rows are the lumped, inverse-viscosity-weighted
             pressure mass that the condensed iterative solver uses to precondition the Schur
-            complement (:mod:`fxcontact.condense`); None: not available.
+            complement (:mod:`fxcontact.element.assembled`); None: not available.
         augment: optional UFL bilinear form on the velocity, e.g. ``(2/3) η div(δv) div(w) dx``,
             added (with the Dirichlet rows and columns removed and projected like the
             Jacobian) to the velocity block of the condensed iterative solver's
@@ -254,11 +254,11 @@ class NodalNonlinearProblem:
         #: residual evaluations that skipped / did the lifting (see skip_zero_lifting)
         self.liftings = {"skipped": 0, "done": 0}
         #: objects told of each Newton solve's start, ``begin(x)`` (the initial guess), and
-        #: of each accepted iterate, ``accept(x)``, by :class:`~fxcontact.solver.NewtonSolver`
-        #: (e.g. :class:`~fxcontact.dual.DualStress`)
+        #: of each accepted iterate, ``accept(x)``, by :class:`~fxcontact.newton.solver.NewtonSolver`
+        #: (e.g. :class:`~fxcontact.element.dual.DualStress`)
         self.iterate_hooks: list = []
         #: optional callable ``(layout) -> element-tensor source`` of this problem's Jacobian
-        #: faster than its FFCx kernel (:class:`~fxcontact.element_jacobian.CondensedJacobian`;
+        #: faster than its FFCx kernel (:class:`~fxcontact.element.jacobian.CondensedJacobian`;
         #: e.g. the hand-written Norton–Hoff kernel), or None
         self.element_tensors = None
 
@@ -343,7 +343,7 @@ class NodalNonlinearProblem:
 
     def jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat, element=None):
         """SNES Jacobian callback; ``element``: a
-        :class:`~fxcontact.element_jacobian.CondensedJacobian` of this problem, which assembles
+        :class:`~fxcontact.element.jacobian.CondensedJacobian` of this problem, which assembles
         the condensed system instead of the MINI matrix."""
         self._update(x)
         terms = self._evaluate_contributors(jacobian=True) if self.contributors else []
@@ -655,7 +655,7 @@ class ContactProblem(dolfinx.fem.petsc.NonlinearProblem):
             defaults = {"ksp_type": "cg", "ksp_rtol": rtol, "ksp_max_it": 1000,
                         "pc_type": "gamg", "pc_gamg_use_sa_esteig": False,
                         "mg_levels_ksp_chebyshev_esteig_noisy": True}
-            from fxcontact.condense import rigid_body_modes
+            from fxcontact.element.assembled import rigid_body_modes
             x = V.tabulate_dof_coordinates()[:V.dofmap.index_map.size_local, :bs]
             self._near_null = rigid_body_modes(self.comm, np.ascontiguousarray(x))
         ksp.setErrorIfNotConverged(kind == "iterative" and

@@ -3,14 +3,14 @@
 :class:`~fxcontact.simulation.Simulation` builds its residual from the material's own
 ``residual``; this module gives what the solvers need besides: the equivalent strain rate, the
 secant shear viscosity and the volumetric augmentation of the condensed iterative solver's
-preconditioner, and the Jacobian of the primal–dual Norton–Hoff Newton (:mod:`fxcontact.dual`).
+preconditioner, and the Jacobian of the primal–dual Norton–Hoff Newton (:mod:`fxcontact.element.dual`).
 """
 
 from __future__ import annotations
 
 import ufl
 
-from fxcontact.materials import LinearElastic, NortonHoff
+from fxcontact.materials.laws import LinearElastic, NortonHoff
 
 __all__ = ["equivalent_strain_rate_ufl", "shear_viscosity_ufl", "uses_dual_stress",
            "standard_norton_hoff", "volumetric_augment_ufl", "primal_dual_jacobian"]
@@ -25,7 +25,7 @@ def equivalent_strain_rate_ufl(v, gdim: int):
 
 def shear_viscosity_ufl(material, v, dt):
     """Secant shear viscosity of the velocity tangent (UFL) for the Schur preconditioner of
-    the condensed iterative solver (:mod:`fxcontact.condense`), or None if unknown:
+    the condensed iterative solver (:mod:`fxcontact.element.assembled`), or None if unknown:
     ``K z^(m-1)`` for Norton–Hoff, ``μ dt`` for the velocity form of linear elasticity."""
     if isinstance(material, NortonHoff):
         return material.K * material.z_ufl(ufl.sym(ufl.grad(v))) ** (material.m - 1.0)
@@ -63,7 +63,7 @@ def volumetric_augment_ufl(material, eta, W, wt, dx):
 
 
 def primal_dual_jacobian(material, dual, F, extras, w, v, wt, q, dx):
-    """The Jacobian of the primal–dual Newton (``dual``: the :class:`~fxcontact.dual.
+    """The Jacobian of the primal–dual Newton (``dual``: the :class:`~fxcontact.element.dual.
     DualStress`) for the residual ``F`` = the material's residual + ``extras``, of the unknown
     ``w`` (mixed velocity–pressure Function, ``v`` its velocity) and the test functions
     ``wt``, ``q``.

@@ -1,5 +1,5 @@
 """Settings of the Newton solver (:class:`SolverOptions`) and the linear-solver presets
-(:data:`LINEAR_SOLVERS`); the solver itself is :class:`fxcontact.solver.ContactNewtonSolver`."""
+(:data:`LINEAR_SOLVERS`); the solver itself is :class:`fxcontact.newton.solver.ContactNewtonSolver`."""
 
 from __future__ import annotations
 
@@ -23,13 +23,13 @@ LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
                    "pc_fieldsplit_schur_precondition": "selfp",
                    "fieldsplit_u_ksp_type": "preonly", "fieldsplit_u_pc_type": "hypre",
                    "fieldsplit_p_ksp_type": "preonly", "fieldsplit_p_pc_type": "jacobi"},
-    # MINI bubble condensed element by element (fxcontact.condense.CondensedPC, an exact block
+    # MINI bubble condensed element by element (fxcontact.element.assembled.CondensedPC, an exact block
     # elimination), the P1/P1 system solved by MUMPS under the prefix "condensed_"
     "condensed-mumps": {"ksp_type": "preonly", "pc_type": "python",
                         "condensed_ksp_type": "preonly", "condensed_pc_type": "lu",
                         "condensed_pc_factor_mat_solver_type": "mumps",
                         "condensed_mat_mumps_icntl_14": 200, "condensed_mat_mumps_icntl_24": 1,
-                        # L D Lᵀ when the condensed matrix is symmetric (fxcontact.condense)
+                        # L D Lᵀ when the condensed matrix is symmetric (fxcontact.element.assembled)
                         "condensed_factor_symmetric": 1},
     # condensed P1/P1 system solved iteratively: FGMRES, Schur field split (full
     # factorisation), GAMG on the velocity block (block size gdim, rigid-body near-null space,
@@ -62,7 +62,7 @@ LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
 }
 # the same for the hard cases (nearly rigid-plastic flow with a free dilatation, large
 # viscosity contrasts: the wire drawing at m = 0.016, benchmarks/README.md): the velocity
-# block of the preconditioning matrix augmented by (2/3) η div div (fxcontact.condense), the
+# block of the preconditioning matrix augmented by (2/3) η div div (fxcontact.element.assembled), the
 # Schur complement preconditioned by A11 − A10 diag(A00)⁻¹ A01 (selfp, GAMG), and the velocity
 # block solved by up to 20 GAMG-preconditioned GMRES iterations (relative 1e-2) inside the
 # outer FGMRES; several times the cost of "condensed-amg" where that one converges
@@ -126,12 +126,12 @@ class SolverOptions:
             between stick and slip in the same iteration (tiny accepted steps, or a 2-cycle);
             full Newton steps then converge in a few iterations. Default ``"auto"``:
             ``"basic"`` after a line search, ``"bt"`` after the trust region.
-        linear_solver: ``"auto"`` (default: :func:`~fxcontact.solver.choose_linear_solver`
+        linear_solver: ``"auto"`` (default: :func:`~fxcontact.newton.solver.choose_linear_solver`
             picks a preset from the space and its size when the solver is built), a key of
             :data:`LINEAR_SOLVERS` (``"mumps"``: MUMPS on the whole system;
             ``"condensed-mumps"``: the MINI bubble condensed element by element, MUMPS on the
             P1/P1 system; ``"condensed-amg"``: the condensed system by a Schur field split
-            with algebraic multigrid, :mod:`fxcontact.condense`; ``"condensed-amg-robust"``:
+            with algebraic multigrid, :mod:`fxcontact.element.assembled`; ``"condensed-amg-robust"``:
             the same made to converge on the hard cases — nearly rigid-plastic flow with a
             free dilatation, the wire drawing — at several times the cost; ``"fieldsplit"``)
             or a dict of PETSc options.
@@ -146,7 +146,7 @@ class SolverOptions:
             the predictor. The result is the full-penalty solution either way.
         continuation_rtol: relative residual tolerance of the softened first stage.
         active_set_prediction: correct each Newton step for the contact status changes it
-            predicts (:mod:`fxcontact.prediction`): the step of the linear system of the
+            predicts (:mod:`fxcontact.newton.prediction`): the step of the linear system of the
             predicted penalty branch, by the Woodbury identity, one extra linear solve
             (back-substitution with a direct solver) per node that changes status. Line
             searches only (the trust region has no pre-check in petsc4py 3.18). ``"auto"``
@@ -161,22 +161,22 @@ class SolverOptions:
         material_tangent: ``"auto"`` (default: ``"primal-dual"`` for a Norton–Hoff
             material with m < 1, else ``"consistent"``), ``"consistent"`` or
             ``"primal-dual"``: the Norton–Hoff tangent of the primal–dual Newton
-            (:mod:`fxcontact.dual`: the deviatoric stress kept as a dual variable at the
+            (:mod:`fxcontact.element.dual`: the deviatoric stress kept as a dual variable at the
             quadrature points; same residual, same solution). Read by
             :class:`~fxcontact.simulation.Simulation` (a problem of your own adds
-            :meth:`fxcontact.dual.DualStress.jacobian_correction` to its Jacobian and the
-            :class:`~fxcontact.dual.DualStress` to ``NonlinearProblem.iterate_hooks``).
+            :meth:`fxcontact.element.dual.DualStress.jacobian_correction` to its Jacobian and the
+            :class:`~fxcontact.element.dual.DualStress` to ``NonlinearProblem.iterate_hooks``).
         element_condensation: with a condensed linear solver, condense the bubble in the
-            element matrices before they are assembled (:mod:`fxcontact.element_jacobian`:
+            element matrices before they are assembled (:mod:`fxcontact.element.jacobian`:
             the same Newton step at a fraction of the assembly and condensation cost) instead
-            of condensing the assembled MINI matrix (:class:`~fxcontact.condense.CondensedPC`).
+            of condensing the assembled MINI matrix (:class:`~fxcontact.element.assembled.CondensedPC`).
             ``"auto"`` (default): wherever the Jacobian allows it (cell integrals over the whole
             mesh); True: required (ValueError otherwise); False: the algebraic condensation.
         reuse_factorisation: keep the factorisation of an earlier Newton iteration as the
             preconditioner of a Krylov solve (FGMRES to the relative tolerance
             :data:`REUSE_KRYLOV_RTOL`, an inexact Newton step) of the Newton step with the exact
             Newton matrix. Kept at the iterates where Newton contracts fast with an unchanged
-            contact state (:data:`fxcontact.solver.REUSE_CONTRACTION`; the first Jacobian of a
+            contact state (:data:`fxcontact.newton.solver.REUSE_CONTRACTION`; the first Jacobian of a
             solve is always factorised); factorised again at the next iteration after a step
             that took more than half of ``reuse_max_krylov`` Krylov iterations, and at once
             (the step solved again) when the Krylov solve does not converge within them. The
@@ -331,7 +331,7 @@ class SolverOptions:
     @property
     def uses_condensation(self) -> bool:
         """True if the linear solver condenses the cell-interior (bubble) dofs
-        (:class:`~fxcontact.condense.CondensedPC`: ``pc_type python`` without a
+        (:class:`~fxcontact.element.assembled.CondensedPC`: ``pc_type python`` without a
         ``pc_python_type``)."""
         lin = self._preset_options()
         return lin.get("pc_type") == "python" and "pc_python_type" not in lin

@@ -1,4 +1,5 @@
-"""Ring-rolling mill: tools driven by a controller, idle tools.
+"""Tools driven by a controller, idle tools (any process: the ring mill's mandrel and guide rolls,
+the idle rolls of a rolling stand).
 
 A radial ring-rolling mill (THEORY §5, §12.1, §14.4) has a *driven* main roll (prescribed rpm),
 a mandrel fed towards it whose rotation is *idle* (it turns freely: zero torque about its own
@@ -10,10 +11,11 @@ axis), and guide (centring) rolls that keep the ring on the mill line. This modu
   defined in :mod:`fxcontact.tools.base` with the other motions).
 * :class:`IdleRotation` — the rotation speed ω of an idle tool, found at each increment such that
   the torque of the contact and friction forces about the tool's own axis vanishes.
-* the ring's own pieces, kept importable from here: :class:`RingCentring` (guide rolls
-  following the growing ring) and :class:`AxialRolls` (cone rolls) now in
-  :mod:`fxcontact.processes.ring_mill`, :class:`RingAxisUpdate` (the cylindrical update about
-  the ring's current centre) in :mod:`fxcontact.kinematics`.
+* the ring mill's own controllers, :class:`~fxcontact.processes.ring_rolling.mill.RingCentring`
+  (guide rolls following the growing ring) and
+  :class:`~fxcontact.processes.ring_rolling.mill.AxialRolls` (cone rolls), live with the ring
+  rolling process; the cylindrical update about the ring's current centre,
+  :class:`~fxcontact.kinematics.RingAxisUpdate`, with the other configuration updates.
 
 Every controller (and :class:`ControlledMotion`) saves what changes during a run with
 ``checkpoint_state()`` and gets it back with ``restore_state()`` (checkpoints of
@@ -46,7 +48,7 @@ oscillates. Two methods are implemented (``IdleRotation(..., method=...)``):
   torque equation exactly. The friction kernel gives the blocks ∂r_f/∂Δv (with and without
   the implicit Coulomb ∂p_n/∂v term): u = −K m, g = K_vᵀ m, D = −Σ mᵀ K m with
   m = e × (P − a), in the friction tangent the contact's Jacobian uses. The linear solve is
-  that of the solver's options wrapped by :class:`fxcontact.solver.BorderedPC` (Woodbury:
+  that of the solver's options wrapped by :class:`fxcontact.newton.solver.BorderedPC` (Woodbury:
   one more application of the preconditioner per idle tool, i.e. one more pair of
   triangular solves with MUMPS, no new factorisation; a second Krylov solve with an
   iterative one), the SNES operator being the exact product with the corrected matrix. Several
@@ -87,12 +89,12 @@ from mpi4py import MPI
 from fxcontact.contact.friction import LAW_NONE
 from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
 
-__all__ = ["ControlledMotion", "IdleRotation", "rolling_speed"]
+__all__ = ["IDLE_METHODS", "ControlledMotion", "IdleRotation", "controlled_motion", "rolling_speed"]
 
 log = logging.getLogger(__name__)
 
 
-def _controlled(tool: Tool) -> ControlledMotion:
+def controlled_motion(tool: Tool) -> ControlledMotion:
     if not isinstance(getattr(tool, "motion", None), ControlledMotion):
         raise ValueError(f"tool '{getattr(tool, 'name', tool)}' must move with a "
                          f"ControlledMotion (use MovedTool(static_tool, ControlledMotion(...)))")
@@ -188,7 +190,7 @@ class _EliminatedContact:
 
 class _Border:
     """The border (U, G, D) of the Newton matrix, filled at the Jacobian evaluations
-    (:meth:`fxcontact.solver.ContactNewtonSolver.set_border`)."""
+    (:meth:`fxcontact.newton.solver.ContactNewtonSolver.set_border`)."""
 
     def __init__(self):
         self.current = None
@@ -237,7 +239,7 @@ class IdleRotation:
                                  f"{[c.name for c in contact.tools]}")
         if len({id(t) for t in tools}) != len(tools):
             raise ValueError(f"an idle tool is given twice: {[t.name for t in tools]}")
-        self.motions = [_controlled(t) for t in tools]
+        self.motions = [controlled_motion(t) for t in tools]
         if not (math.isfinite(torque_rtol) and torque_rtol > 0):
             raise ValueError(f"torque_rtol must be > 0, got {torque_rtol!r}")
         if not (isinstance(max_evaluations, int) and max_evaluations >= 2):
@@ -391,7 +393,7 @@ class IdleRotation:
 
     def _collective(self, fn):
         """Run ``fn()`` and raise its ContributorError on every rank if it failed on any."""
-        from fxcontact.petsc import ContributorError
+        from fxcontact.newton.problem import ContributorError
         msg, res = None, None
         try:
             res = fn()
@@ -736,16 +738,3 @@ class IdleRotation:
         for m, ms in zip(self.motions, state["motions"]):
             m.restore_state(ms)
 
-
-#: the ring's own pieces moved out (kept importable from here): the cylindrical update about the
-#: ring's centre (fxcontact.kinematics), the guide and axial rolls (fxcontact.processes.ring_mill)
-_MOVED = {"RingAxisUpdate": "fxcontact.kinematics",
-          "RingCentring": "fxcontact.processes.ring_mill",
-          "AxialRolls": "fxcontact.processes.ring_mill"}
-
-
-def __getattr__(name):
-    if name in _MOVED:
-        from importlib import import_module
-        return getattr(import_module(_MOVED[name]), name)
-    raise AttributeError(f"module 'fxcontact.mill' has no attribute {name!r}")

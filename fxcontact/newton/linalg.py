@@ -3,7 +3,7 @@
 and preconditioners that can do the same (``apply_many(xs, ys) -> bool``: the condensed
 preconditioner, the bordered one).
 
-Used by the active-set prediction (:mod:`fxcontact.prediction`), whose Woodbury correction
+Used by the active-set prediction (:mod:`fxcontact.newton.prediction`), whose Woodbury correction
 needs one solve per contact node that changes status.
 """
 

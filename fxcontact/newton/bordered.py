@@ -1,6 +1,6 @@
-"""Bordered Newton systems (:meth:`fxcontact.solver.ContactNewtonSolver.set_border`): a
+"""Bordered Newton systems (:meth:`fxcontact.newton.solver.ContactNewtonSolver.set_border`): a
 contributor may eliminate k scalar unknowns locally at each residual evaluation (the rotation
-speeds of idle tools, :class:`~fxcontact.mill.IdleRotation`); the Newton matrix is then the
+speeds of idle tools, :class:`~fxcontact.idle.IdleRotation`); the Newton matrix is then the
 assembled J plus a rank-k term, J̃ = J − U D⁻¹ G (U = ∂R/∂ω, G = ∂T/∂v, D = ∂T/∂ω, k×k). The
 SNES Jacobian becomes a shell J̃ (its product is exact, so the line search's slope and any Krylov
 method see J̃), the linear solver's own preconditioner P ≈ J⁻¹ (MUMPS, the condensed PC, a field
@@ -16,7 +16,7 @@ from typing import List
 import numpy as np
 from petsc4py import PETSc
 
-from fxcontact.multisolve import pc_apply_many
+from fxcontact.newton.linalg import pc_apply_many
 
 __all__ = ["BorderedPC"]
 
@@ -77,7 +77,7 @@ class BorderedPC:
 
     def apply_many(self, xs, ys) -> bool:
         """:meth:`apply` to several vectors, the inner preconditioner applied to all of them at
-        once where it can be (:func:`~fxcontact.multisolve.pc_apply_many`); returns False
+        once where it can be (:func:`~fxcontact.newton.linalg.pc_apply_many`); returns False
         (nothing done) where it cannot."""
         if not pc_apply_many(self.inner, xs, ys):
             return False

@@ -15,7 +15,7 @@ m = 0.016"). The prediction solves the Newton system *of the predicted branch* i
    ``o ∇h``;
 3. ``y = (J + U C Uᵀ)⁻¹ (F + U o)`` by the Woodbury identity, with one solve ``Z = J⁻¹U`` per
    selected node, C = diag(dc) (with a MUMPS factorisation, the columns of a round in one
-   solve with several right-hand sides, :mod:`fxcontact.multisolve`):
+   solve with several right-hand sides, :mod:`fxcontact.newton.linalg`):
    ``w = y₀ + Z o``, ``y = w − Z (I + C UᵀZ)⁻¹ C Uᵀ w``;
 4. repeat from 2 with the new step until the predicted set is unchanged (at most ``rounds``
    times; the solves of nodes already selected are reused).
@@ -27,7 +27,7 @@ and free nodes far from the tool (:meth:`NodalContact.active_set_prediction
 <fxcontact.contact.nodal.NodalContact.active_set_prediction>`). The line search then checks the
 corrected step on the true residual as usual. The converged solution is unchanged (the
 prediction only changes the search direction); the cost is one linear solve per selected node
-(a back-substitution with a direct solver: :class:`~fxcontact.solver.SolverOptions` turns it on
+(a back-substitution with a direct solver: :class:`~fxcontact.newton.solver.SolverOptions` turns it on
 by default only then).
 """
 
@@ -41,7 +41,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fxcontact.multisolve import pc_apply_many
+from fxcontact.newton.linalg import pc_apply_many
 
 __all__ = ["ActiveSetPrediction", "woodbury_step_numpy"]
 
@@ -59,7 +59,7 @@ class ActiveSetPrediction:
     """Corrects a Newton step for the contact status changes it predicts (module docstring).
 
     Args:
-        problem: the :class:`~fxcontact.petsc.NodalNonlinearProblem` (its contributors with
+        problem: the :class:`~fxcontact.newton.problem.NodalNonlinearProblem` (its contributors with
             ``active_set_prediction``, Dirichlet marker and constraints).
         comm: the communicator.
         rounds: maximum number of prediction rounds per Newton step.
@@ -111,7 +111,7 @@ class ActiveSetPrediction:
 
     def _solve_columns(self, ksp: PETSc.KSP, us: List[PETSc.Vec]) -> List[PETSc.Vec]:
         """``J⁻¹ u`` for the columns ``us`` (collective). With a direct solver, all in one
-        solve with several right-hand sides (:func:`~fxcontact.multisolve.pc_apply_many`).
+        solve with several right-hand sides (:func:`~fxcontact.newton.linalg.pc_apply_many`).
         Under a Krylov method the sum of the columns is checked against ``ksp``'s tolerances
         (one product with J: the columns sit at different nodes, their sum does not cancel);
         if it fails (e.g. a kept factorisation), every column is solved by ``ksp`` as

@@ -16,7 +16,7 @@ inside a callback) the SNES with its KSP/PC and work vectors is rebuilt
 numeric phase is skipped at every later set-up), and every cut-back attempt would fail at
 iteration 0.
 
-**Bordered systems** (:meth:`NewtonSolver.set_border`, :mod:`fxcontact.bordered`): a
+**Bordered systems** (:meth:`NewtonSolver.set_border`, :mod:`fxcontact.newton.bordered`): a
 contributor may eliminate k scalar unknowns locally at each residual evaluation (the rotation
 speeds of idle tools); the Newton matrix is then J plus a rank-k term, preconditioned by the
 Woodbury formula.
@@ -36,11 +36,11 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fxcontact.bordered import BorderedPC, _BorderedOperator
+from fxcontact.newton.bordered import BorderedPC, _BorderedOperator
 from fxcontact.collective import RanksDisagree, check_decision
-from fxcontact.petsc import NonlinearProblem, mumps_null_pivots
+from fxcontact.newton.problem import NonlinearProblem, mumps_null_pivots
 from fxcontact.protocols import force_scale, warn_unscaled_ftol
-from fxcontact.solver_options import (LINE_SEARCHES, LINEAR_SOLVERS, MATERIAL_TANGENTS,
+from fxcontact.newton.options import (LINE_SEARCHES, LINEAR_SOLVERS, MATERIAL_TANGENTS,
                                       SolverOptions, _globalization_options)
 
 __all__ = ["ContactNewtonSolver", "NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS",
@@ -131,7 +131,7 @@ class ContactNewtonSolver:
     (Named apart from dolfinx's ``NewtonSolver``; ``NewtonSolver`` stays an alias.)
 
     Args:
-        problem: the :class:`~fxcontact.petsc.NonlinearProblem`.
+        problem: the :class:`~fxcontact.newton.problem.NonlinearProblem`.
         options: :class:`SolverOptions`.
         fieldsplit_is: optional (velocity IS, pressure IS) for the field-split preconditioner.
     """
@@ -162,14 +162,14 @@ class ContactNewtonSolver:
         self._layout = None
         self._condensed_pc = None
         #: the Jacobian's bubble condensed element by element
-        #: (:class:`~fxcontact.element_jacobian.CondensedJacobian`, ``element_condensation``),
+        #: (:class:`~fxcontact.element.jacobian.CondensedJacobian`, ``element_condensation``),
         #: or None
         self.element = None
         #: border of the Newton matrix (:meth:`set_border`), or None
         self.border = None
         self._J_shell = self._J_element = None
         if self.options.uses_condensation:
-            from fxcontact.condense import CondensationLayout
+            from fxcontact.element.assembled import CondensationLayout
             self._layout = CondensationLayout(problem.w.function_space)
         self._enable_element_condensation()
         #: the assembled Newton matrix (None with the element condensation: its own matrix)
@@ -204,7 +204,7 @@ class ContactNewtonSolver:
     def _enable_element_condensation(self):
         """The element condensation of the Jacobian when the options ask for it (sets
         :attr:`element`; collective)."""
-        from fxcontact.element_jacobian import CondensedJacobian, element_condensation_supported
+        from fxcontact.element.jacobian import CondensedJacobian, element_condensation_supported
         self.element = None
         want = self.options.element_condensation
         if not (self.options.uses_condensation and want is not False):
@@ -254,7 +254,7 @@ class ContactNewtonSolver:
         if self.element is not None:
             # the condensed system in the element's matrix; the product with the Newton matrix
             # (line search slope, Krylov, border) from the kept cell matrices
-            from fxcontact.element_jacobian import jacobian_shell
+            from fxcontact.element.jacobian import jacobian_shell
             op = P = self._J_element = jacobian_shell(self.element)
         if self.border is not None:
             m, n = op.getSizes()
@@ -289,11 +289,11 @@ class ContactNewtonSolver:
                                   ("p", self._fieldsplit_is[1]))
         ksp.setFromOptions()
         if self._layout is not None:
-            from fxcontact.condense import CondensedPC
+            from fxcontact.element.assembled import CondensedPC
             if self._condensed_pc is not None:
                 self._condensed_pc.destroy()
             if self.element is not None:
-                from fxcontact.element_jacobian import ElementCondensedPC
+                from fxcontact.element.jacobian import ElementCondensedPC
                 self._condensed_pc = ElementCondensedPC(
                     self.options.prefix + "condensed_", self.element,
                     getattr(self.problem, "schur_weight", None), problem=self.problem)
@@ -557,7 +557,7 @@ class ContactNewtonSolver:
         """Create (or drop) the active-set prediction for the current options."""
         if self.options.predicts_active_set:
             if self.prediction is None:
-                from fxcontact.prediction import ActiveSetPrediction
+                from fxcontact.newton.prediction import ActiveSetPrediction
                 self.prediction = ActiveSetPrediction(
                     self.problem, self.comm, max_nodes=self.options.prediction_max_nodes)
         else:

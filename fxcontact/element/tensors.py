@@ -1,7 +1,7 @@
 """Static condensation of the MINI bubble inside the element kernel: the P1+/P1 Newton system
 assembled directly as a P1/P1 one (gdim + 1 unknowns per vertex).
 
-:mod:`fxcontact.condense` assembles the full MINI Jacobian on the mixed space W and eliminates
+:mod:`fxcontact.element.assembled` assembles the full MINI Jacobian on the mixed space W and eliminates
 the bubble algebraically inside the linear solve (sub-matrices, matrix products). Here the
 elimination is done cell by cell on the element tensors, before any global assembly. With the
 element unknowns ordered as l (the vertex velocities and pressures) and b (the bubble),
@@ -18,7 +18,7 @@ The element tensors come from either
 * :class:`FFCxElementTensors`: the FFCx kernels of any MINI form pair (Jacobian, residual) with
   cell integrals only, called from numba through cffi; or
 * :class:`NortonHoffElementTensors`: a hand-written numba kernel of the Norton–Hoff residual
-  and its primal–dual tangent (:class:`~fxcontact.dual.DualStress`; the consistent tangent
+  and its primal–dual tangent (:class:`~fxcontact.element.dual.DualStress`; the consistent tangent
   without a dual stress) on affine tetrahedra, at the quadrature points and with the basis
   tabulation FFCx uses, with a plain-numpy twin (:func:`norton_hoff_tensors_numpy`).
 
@@ -44,7 +44,7 @@ import dolfinx
 import dolfinx.fem.petsc
 
 from fxcontact import compat
-from fxcontact.cell_kernels import _bubble_inverse, _schur, _tet_geometry
+from fxcontact.element.cell import _bubble_inverse, _schur, _tet_geometry
 from fxcontact.materials import NortonHoff
 
 __all__ = ["P1P1Layout", "CondensedAssembler", "FFCxElementTensors",
@@ -324,7 +324,7 @@ def norton_hoff_forms(space, material: NortonHoff, w, dual=None, pressure_source
     """(Jacobian, residual) UFL forms of the Norton–Hoff law on ``space`` at the state ``w``:
     the residual ``material.residual`` (plus ``−q g dx`` with a ``pressure_source`` g, the
     volume correction of :class:`~fxcontact.simulation.Simulation`) and the primal–dual
-    tangent of ``dual`` (:class:`~fxcontact.dual.DualStress`; the consistent Jacobian without)
+    tangent of ``dual`` (:class:`~fxcontact.element.dual.DualStress`; the consistent Jacobian without)
     — the forms whose element tensors :class:`NortonHoffElementTensors` computes by hand."""
     W = space.W
     v, p = ufl.split(w)
@@ -649,7 +649,7 @@ class NortonHoffElementTensors:
             redefines the stress, z, the exponent or the residual is refused: use
             :class:`FFCxElementTensors` with its forms).
         w: the state (a Function on W).
-        dual: the :class:`~fxcontact.dual.DualStress` whose stress enters the tangent, or None
+        dual: the :class:`~fxcontact.element.dual.DualStress` whose stress enters the tangent, or None
             for the consistent tangent.
         pressure_source: the constant g of the term ``−q g dx`` of the residual (attribute,
             may change between assemblies).

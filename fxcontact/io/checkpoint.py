@@ -447,8 +447,8 @@ class Checkpoints:
 
     def _restore_mesh(self, path: str, man: dict, arrays: dict):
         """A checkpoint written after a remesh: the simulation, set up on the initial mesh,
-        is bound to the checkpoint's mesh (:func:`fxcontact.remesh.simulation.restore_mesh`)."""
-        from fxcontact.remesh.simulation import RemeshRecord, restore_mesh
+        is bound to the checkpoint's mesh (:func:`fxcontact.remesh.remeshing.restore_mesh`)."""
+        from fxcontact.remesh.remeshing import RemeshRecord, restore_mesh
         sim = self.sim
         fp = mesh_fingerprint(sim.mesh, sim._x_ref)
         if man.get("mesh_origin") != fp:
@@ -501,7 +501,7 @@ class Checkpoints:
         See :meth:`Simulation.write_checkpoint
         <fxcontact.simulation.Simulation.write_checkpoint>`."""
         from fxcontact import __version__
-        from fxcontact.outputs import OutputError
+        from fxcontact.io.outputs import OutputError
         sim = self.sim
         sim._build()
         keys = self._keys_of_arrays()
@@ -514,7 +514,7 @@ class Checkpoints:
         if sim._remeshing is not None:
             arrays["strain_ref"] = sim._remeshing.strain_ref[:ncown]
         if sim.remeshes:   # the mesh itself: the set-up of a resumed run has the initial one
-            from fxcontact.remesh.simulation import checkpoint_arrays
+            from fxcontact.remesh.remeshing import checkpoint_arrays
             arrays.update(checkpoint_arrays(sim))
         if sim.u is not None:
             uW = np.zeros(len(sim.w.x.array))

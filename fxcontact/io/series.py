@@ -194,7 +194,7 @@ def render_png(msh, path: str, cell_values: Optional[np.ndarray] = None,
                show_edges: bool = True, clim=None) -> bool:
     """Render the mesh (coloured by a cell field) offscreen to a PNG. Collective; rank 0 writes.
 
-    The picture is made by pyvista in a separate process (:mod:`fxcontact._render`): in a process
+    The picture is made by pyvista in a separate process (:mod:`fxcontact.io._render`): in a process
     that has loaded dolfinx, the VTK wheel's text rendering (scalar bar, titles) crashes on a
     library clash, so the gathered mesh is handed over as a ``.vtu`` file.
 
@@ -242,7 +242,7 @@ def render_png(msh, path: str, cell_values: Optional[np.ndarray] = None,
         for k in list(env):  # the child is not an MPI process
             if k.startswith(("OMPI_COMM", "PMIX_", "OMPI_MCA_ess", "OMPI_MCA_orte")):
                 env.pop(k)
-        # the script by its path, not ``-m fxcontact._render``: that would import the package
+        # the script by its path, not ``-m fxcontact.io._render``: that would import the package
         # first, and with it dolfinx
         script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "_render.py")
         r = subprocess.run([sys.executable, script, spec], env=env,

@@ -121,7 +121,7 @@ class NortonHoff(Material):
         their Jacobian is the same form of the trial functions (δv, δp)."""
         return -p * ufl.div(w) * dx - q * ufl.div(v) * dx
 
-    # -- primal–dual Newton (fxcontact.dual) -------------------------------------------------
+    # -- primal–dual Newton (fxcontact.element.dual) -------------------------------------------------
     def dual_tangent_correction_ufl(self, eps, s_dual, deps, eps_w):
         """Primal–dual tangent minus the consistent one, as the UFL integrand of a bilinear
         form (``deps`` the trial strain rate, ``eps_w`` the test one; THEORY §1.1).

@@ -51,8 +51,8 @@ from petsc4py import PETSc
 import dolfinx.fem.petsc
 
 from fxcontact import compat
-from fxcontact.multisolve import direct_mumps, factor_solve_many
-from fxcontact.petsc import same_nonzero_pattern
+from fxcontact.newton.linalg import direct_mumps, factor_solve_many
+from fxcontact.newton.problem import same_nonzero_pattern
 
 __all__ = ["CondensationLayout", "CondensedPC", "rigid_body_modes"]
 
@@ -251,7 +251,7 @@ class CondensedPC:
         schur_weight: optional compiled linear form on the mixed space whose pressure rows
             give the lumped, inverse-viscosity-weighted pressure mass (see the module
             docstring); used only when the inner PC is a field split.
-        problem: optional :class:`~fxcontact.petsc.NonlinearProblem` whose ``augment`` form
+        problem: optional :class:`~fxcontact.newton.problem.NonlinearProblem` whose ``augment`` form
             (the volumetric term of the velocity block, compiled on first use) is used with a
             field split: its retained (vertex) block, with the problem's Dirichlet rows and
             columns removed and projected on its constraints, is added to the inner

@@ -1,7 +1,7 @@
 """The outputs of a :class:`~fxcontact.simulation.Simulation`: CSV history, VTK series, run summary.
 
 :class:`Outputs` opens the writers of :mod:`fxcontact.io` at the first increment (after the
-checkpoints of :mod:`fxcontact.checkpoint` have claimed the output directory), writes a CSV row
+checkpoints of :mod:`fxcontact.io.checkpoint` have claimed the output directory), writes a CSV row
 and, every ``output_every`` increments, a VTK step per accepted increment, continues both after
 a second ``run()`` or a ``resume()``, and turns a failed write (a full disk) into an
 :class:`OutputError` on every rank. :func:`wall_split` and :func:`format_wall_split` give the
@@ -166,7 +166,7 @@ class Outputs:
     # ------------------------------------------------------------------ files
     def open(self):
         """Open the writers (collective): a first opening claims the output directory
-        (:meth:`~fxcontact.checkpoint.Checkpoints.before_first_outputs`) and writes the initial
+        (:meth:`~fxcontact.io.checkpoint.Checkpoints.before_first_outputs`) and writes the initial
         state; a resumed run, or a run whose outputs an earlier ``run()`` closed, continues the
         files."""
         from fxcontact.io import HistoryWriter, SeriesWriter

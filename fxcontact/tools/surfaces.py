@@ -18,7 +18,7 @@ Every function returns ``(vertices (N, 3) float64, triangles (M, 3) int64)`` ori
 counter-clockwise about the outward normal, as :class:`fxcontact.tools.faceted.FacetedTool`
 expects. :func:`write_surface` writes ``.msh`` (gmsh 2.2 format), ``.stl`` or ``.obj`` files.
 
-Command line: ``python meshes/tool_meshes.py OUTDIR [--length L] [--fine H] [--structured]``
+Command line: ``python -m fxcontact.tools.surfaces OUTDIR [--length L] [--fine H] [--structured]``
 writes the coarse (1.7 mm) and fine cylinder R = 5 mm tool meshes as .msh and .stl into
 ``OUTDIR`` (``--structured``: also the open extruded ones).
 """

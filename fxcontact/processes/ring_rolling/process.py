@@ -6,7 +6,7 @@ main roll's axis is at x = R + R₁ (driven, turning clockwise at ``rpm``), the 
 x = r − R₂ + v_f t (fed at ``feed_speed``, idle: its ω is found at each increment from zero
 torque about its axis, :class:`fxcontact.IdleRotation`); both start ``initial_bite`` into the
 ring. Two frictionless guide rolls at ± ``guide_angle`` from the mill line on the main-roll side
-follow the growing ring (:class:`~fxcontact.processes.ring_mill.RingCentring`). Forces and
+follow the growing ring (:class:`~fxcontact.processes.ring_rolling.mill.RingCentring`). Forces and
 torques are those of the whole ring (twice the half model's). The configuration update is cylindrical about the
 ring's centroid (:class:`~fxcontact.kinematics.RingAxisUpdate`, THEORY §5) or cartesian.
 
@@ -28,7 +28,7 @@ depend on K: K scales the forces and torques only.
 kinematics and the numerics; :func:`build` returns the ready :class:`fxcontact.Simulation` with
 its handles (:class:`RingRollingSetup`); :func:`run` rolls the ring for ``revolutions`` and
 returns a :class:`RingRollingResult` (forces, torques, mandrel speed, diameter growth against
-volume constancy, the theory of :mod:`fxcontact.forming` (feed window, contact length, 2kHLQ),
+volume constancy, the theory of :mod:`fxcontact.theory.forming` (feed window, contact length, 2kHLQ),
 volume, quality, pictures, ``report()``).
 """
 
@@ -47,12 +47,14 @@ import numpy as np
 from mpi4py import MPI
 
 import fxcontact as fx
-from fxcontact import compat, forming
+from fxcontact import compat
+from fxcontact.theory import forming
 from fxcontact.kinematics import RingAxisUpdate
-from fxcontact.mill import IDLE_METHODS, ControlledMotion, IdleRotation
+from fxcontact.idle import IDLE_METHODS, ControlledMotion, IdleRotation
 from fxcontact.power import PowerBalance, delivered_power
 from fxcontact.processes.monitor import RunNumerics, SteadyRun, contact_lines, is_number
-from fxcontact.processes.ring_mill import (AxialRolls, RingCentring, cone_row, friction_law,
+from fxcontact.processes.ring_rolling import pictures as ring_pictures
+from fxcontact.processes.ring_rolling.mill import (AxialRolls, RingCentring, cone_row, friction_law,
                                           friction_spec, set_ring_remeshing)
 
 __all__ = ["RingRollingCase", "RingRollingSetup", "RingRollingResult", "build", "run",
@@ -241,9 +243,9 @@ class RingRollingSetup:
     outer: object                   #: ContactBoundary of the outer surface
     inner: object                   #: ... of the bore
     top: object                     #: ... of the top face
-    centring: object                #: :class:`~fxcontact.processes.ring_mill.RingCentring`
+    centring: object                #: :class:`~fxcontact.processes.ring_rolling.mill.RingCentring`
     idle: object                    #: :class:`fxcontact.IdleRotation`
-    axial: object = None            #: :class:`~fxcontact.processes.ring_mill.AxialRolls` (cones)
+    axial: object = None            #: :class:`~fxcontact.processes.ring_rolling.mill.AxialRolls` (cones)
     update: object = None           #: :class:`~fxcontact.kinematics.RingAxisUpdate` or None
     theory: dict = field(default_factory=dict)   #: feed window, L, rate, σ₀, 2kHLQ
     dt: float = math.nan
@@ -269,7 +271,7 @@ class RingRollingSetup:
 
 
 def theory(case: RingRollingCase) -> dict:
-    """The ring-rolling theory of the pass (:mod:`fxcontact.forming`, THEORY §14.4): the feed
+    """The ring-rolling theory of the pass (:mod:`fxcontact.theory.forming`, THEORY §14.4): the feed
     per revolution and its window, the bite's contact length, its strain rate, σ₀ there and the
     2kHLQ radial force estimate."""
     v_s = case.omega_main * case.R1
@@ -735,7 +737,6 @@ def run(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
     and the curves to ``{name}_top.png``, ``{name}_curves.png``; ``vtk_every``,
     ``checkpoint_every`` and ``resume`` as in :func:`build` (a resumed run's rows and pictures
     hold the resumed part; ``sim_history`` holds all)."""
-    from fxcontact.processes import ring_pictures
     comm = comm or MPI.COMM_WORLD
     s = build(case, comm, output_dir, vtk_every, checkpoint_every, resume, name)
     sim, th = s.sim, s.theory

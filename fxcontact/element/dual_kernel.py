@@ -1,12 +1,12 @@
-"""The dual-stress update of the primal–dual Newton (:mod:`fxcontact.dual`) as a numba loop over
+"""The dual-stress update of the primal–dual Newton (:mod:`fxcontact.element.dual`) as a numba loop over
 the cells, for the Norton–Hoff law on the MINI space of affine tetrahedra.
 
-:class:`~fxcontact.dual.DualStress` sets the dual stress at the quadrature points from UFL
+:class:`~fxcontact.element.dual.DualStress` sets the dual stress at the quadrature points from UFL
 expressions evaluated by dolfinx (``Expression.eval``: a generated kernel per cell plus the
 packing of the coefficients and a copy of the result). On the wire drawing (m = 0.016,
 quadrature degree 6) that costs about as much per cell as the element matrix itself. Here the
 same formulas are evaluated with the basis split of the hand-written element kernel
-(:class:`~fxcontact.element_condense._KernelTables`: hat functions with constant gradients plus
+(:class:`~fxcontact.element.tensors._KernelTables`: hat functions with constant gradients plus
 the bubble), written straight into the dual stress array:
 
 * primal: s = 2K z^(m−1) e, e = dev ε̇(v), z = (2 e:e + 3 ε̇₀²)^(1/2);
@@ -27,7 +27,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from fxcontact.cell_kernels import _tet_geometry
+from fxcontact.element.cell import _tet_geometry
 
 __all__ = ["DualUpdateKernel", "dual_update_numpy", "kernel_applies"]
 
@@ -191,7 +191,7 @@ def kernel_applies(material, space) -> bool:
 
 
 class DualUpdateKernel:
-    """The dual stress updates of a :class:`~fxcontact.dual.DualStress` by the numba loop.
+    """The dual stress updates of a :class:`~fxcontact.element.dual.DualStress` by the numba loop.
 
     Args:
         dual: the DualStress (its material, space W, quadrature space Q).
@@ -200,7 +200,7 @@ class DualUpdateKernel:
 
     def __init__(self, dual, space):
         from fxcontact import compat
-        from fxcontact.element_condense import _KernelTables
+        from fxcontact.element.tensors import _KernelTables
         self.dual = dual
         t = _KernelTables(space)
         self.g1, self.gb, self.share = t.g1, t.gb, t.share

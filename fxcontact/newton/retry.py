@@ -7,7 +7,7 @@
 
    * the linear solver that ``linear_solver="auto"`` chose iteratively (condensed-amg) failed:
      the direct condensed solver from now on (``ContactNewtonSolver.fall_back_to_direct``);
-   * the primal–dual Norton–Hoff tangent failed (:mod:`fxcontact.dual`): the consistent tangent
+   * the primal–dual Norton–Hoff tangent failed (:mod:`fxcontact.element.dual`): the consistent tangent
      for the attempts at this dt;
    * the line search failed: ``SolverOptions.line_search_fallback`` for one attempt;
 

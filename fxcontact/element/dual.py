@@ -104,15 +104,15 @@ class DualStress:
         return self.material.dual_tangent_ufl(
             ufl.sym(ufl.grad(v)), self.s, ufl.sym(ufl.grad(dv)), ufl.sym(ufl.grad(wt))) * dx
 
-    #: the numba update (:mod:`fxcontact.dual_kernel`), or None: the UFL expressions
+    #: the numba update (:mod:`fxcontact.element.dual_kernel`), or None: the UFL expressions
     kernel = None
 
     def use_kernel(self, space) -> bool:
-        """Update the dual stress by the numba loop of :mod:`fxcontact.dual_kernel` (the same
+        """Update the dual stress by the numba loop of :mod:`fxcontact.element.dual_kernel` (the same
         values, a fraction of the cost) where it applies: NortonHoff's own law on the MINI space
         of affine tetrahedra (``space``: the :class:`~fxcontact.spaces.MixedSpace`). Returns
         whether it is used."""
-        from fxcontact.dual_kernel import DualUpdateKernel, kernel_applies
+        from fxcontact.element.dual_kernel import DualUpdateKernel, kernel_applies
         if self.kernel is None and kernel_applies(self.material, space):
             self.kernel = DualUpdateKernel(self, space)
         return self.kernel is not None

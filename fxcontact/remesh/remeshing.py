@@ -6,7 +6,7 @@ criterion fires, and before giving up on an increment whose cut-backs all invert
 A remesh (:func:`remesh_simulation`):
 
 1. gathers the boundary of the current body with its facet tags on rank 0
-   (:func:`~fxcontact.remesh.boundary.gather_boundary`) and meshes it again with gmsh, graded by
+   (:func:`~fxcontact.remesh.surface.gather_boundary`) and meshes it again with gmsh, graded by
    the :class:`~fxcontact.remesh.volume.SizeZone` s, and distributes the new mesh
    (:func:`~fxcontact.remesh.volume.volume_mesh`);
 2. transfers the state (:func:`~fxcontact.remesh.state.transfer_simulation_state`: the last
@@ -268,7 +268,7 @@ def remesh_simulation(sim, size: Optional[float] = None,
     docstring). ``size``, ``zones``, ``feature_angle``: default those of
     :meth:`~fxcontact.simulation.Simulation.set_remeshing`, else the mean edge length of the
     current mesh, no zones and 40°."""
-    from fxcontact.remesh.boundary import gather_boundary
+    from fxcontact.remesh.surface import gather_boundary
     from fxcontact.remesh.state import transfer_simulation_state
     from fxcontact.remesh.volume import volume_mesh
     from fxcontact.spaces import MixedSpace
@@ -334,7 +334,7 @@ def rebind(sim, space, facet_tags, state=None, build: bool = True):
     facet calls on the facets of the same tags in ``facet_tags``, the contributors
     (``remesh(space, facet_tags)``), mesh health, outputs and checkpoint keys; then, if
     ``build``, the forms and the solver with the volume correction's reference kept."""
-    from fxcontact.outputs import Outputs
+    from fxcontact.io.outputs import Outputs
     old_calls = list(getattr(sim, "_facet_calls", []))
     sim._checkpoints.remeshed()
     opened = sim._outputs.opened
@@ -381,7 +381,7 @@ def checkpoint_arrays(sim) -> dict:
     their input index), the owned cells as input indices of their nodes, the facet tags keyed
     by the sorted input indices of their vertices."""
     from fxcontact import compat
-    from fxcontact.checkpoint import vertex_keys
+    from fxcontact.io.checkpoint import vertex_keys
     msh = sim.mesh
     tdim = msh.topology.dim
     nx = msh.geometry.index_map().size_local
@@ -401,7 +401,7 @@ def restore_mesh(sim, arrays: dict):
     remesh holds (:func:`checkpoint_arrays`), without building it (collective)."""
     import ufl
     import dolfinx.mesh
-    from fxcontact.checkpoint import _as_records, vertex_keys
+    from fxcontact.io.checkpoint import _as_records, vertex_keys
     from fxcontact.spaces import MixedSpace
     comm = sim.comm
     gdim = sim.mesh.geometry.dim

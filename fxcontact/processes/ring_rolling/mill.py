@@ -15,8 +15,8 @@
 
 They are registered with :meth:`fxcontact.Simulation.add_controller`, save what changes with
 ``checkpoint_state()`` and get it back with ``restore_state()``. The tool motions they drive
-(:class:`fxcontact.tools.base.ControlledMotion`) and idle tools (:class:`fxcontact.mill.IdleRotation`)
-are not specific to rings and stay in :mod:`fxcontact.mill` (which still exports these two
+(:class:`fxcontact.tools.base.ControlledMotion`) and idle tools (:class:`fxcontact.idle.IdleRotation`)
+are not specific to rings and stay in :mod:`fxcontact.idle` (which still exports these two
 names as aliases).
 """
 
@@ -28,10 +28,10 @@ from typing import Dict, Optional, Sequence
 import numpy as np
 from mpi4py import MPI
 
-from fxcontact import forming
+from fxcontact.theory import forming
 from fxcontact.contact.friction import LAW_NONE, Coulomb, Frictionless, Norton
 from fxcontact.kinematics import RingAxisUpdate
-from fxcontact.mill import _controlled, rolling_speed
+from fxcontact.idle import controlled_motion, rolling_speed
 from fxcontact.processes.monitor import is_number
 from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
 
@@ -109,7 +109,7 @@ class RingCentring:
                  update: Optional[RingAxisUpdate] = None):
         self.outer = outer
         self.guides = list(guides)
-        self.motions = [_controlled(g) for g in self.guides]
+        self.motions = [controlled_motion(g) for g in self.guides]
         if not (len(radii) == len(angles) == len(self.guides)):
             raise ValueError(f"give one radius and one angle per guide roll "
                              f"({len(self.guides)} rolls, {len(radii)} radii, "
@@ -239,7 +239,7 @@ class AxialRolls:
         self.speeds = [float(v) for v in axial_speeds]
         if not all(math.isfinite(v) for v in self.speeds):
             raise ValueError(f"axial speeds must be finite, got {axial_speeds!r}")
-        self.motions = [_controlled(c) for c in self.cones]
+        self.motions = [controlled_motion(c) for c in self.cones]
         self.k = []
         for c in self.cones:
             if c not in contact.tools:
@@ -439,7 +439,7 @@ def set_ring_remeshing(sim, centring: RingCentring, case, h_theta: float, start:
     start). The bite's length is the steady one: while the bite grows (the first revolution
     from a small ``initial_bite``) it is spanned by fewer elements."""
     from fxcontact.remesh.criteria import RemeshCriteria
-    from fxcontact.remesh.simulation import mean_edge_length
+    from fxcontact.remesh.remeshing import mean_edge_length
     c = case
     n = c.remesh_min_across
     across = None if n is None else dict.fromkeys(("main_roll", "mandrel"), n)

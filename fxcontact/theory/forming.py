@@ -26,7 +26,7 @@ biases: the FE answer is not expected to equal them but to fall in the band they
   work, Avitzur's die terms — the die part of :func:`drawing_upper_bound` — plus the container
   friction, for a Norton–Hoff material).
 * Flat rolling (§14.3): :func:`flat_rolling_theory` (bite, the slab with Coulomb–Tresca friction,
-  Sims, Ford–Alexander, Hill's spread: :func:`fxcontact.rolling.theory_band`, whose module holds
+  Sims, Ford–Alexander, Hill's spread: :func:`fxcontact.theory.flat_rolling.theory_band`, whose module holds
   the pieces). Every process's classical theory is thus importable from here (bar rolling is
   compared with its pass's geometry: :func:`fxcontact.processes.bar_rolling.pass_geometry`).
 
@@ -42,7 +42,7 @@ from typing import Dict, Sequence
 import numpy as np
 from scipy import integrate, optimize
 
-from fxcontact.rolling import theory_band as flat_rolling_theory
+from fxcontact.theory.flat_rolling import theory_band as flat_rolling_theory
 
 __all__ = ["flow_stress", "upsetting_upper_bound", "upsetting_slab_coulomb", "ring_power",
            "ring_power_quadrature", "ring_neutral_radius", "ring_compression_upper_bound",
