@@ -16,51 +16,88 @@ Public API (name, its submodule, what it is):
 """
 
 # The public API, imported explicitly (a new name: its import here and its line in _API)
-from fxcontact.simulation import VOLUME_CORRECTIONS, IncrementResult, Simulation
-from fxcontact.newton.retry import IncrementError, MeshInversionError
-from fxcontact.io.outputs import OutputError
-from fxcontact.io.checkpoint import CheckpointError, PerVertex, latest_checkpoint
-from fxcontact.mesh_health import simplex_measures
-from fxcontact.symmetry import SymmetryPlanes
-from fxcontact.spaces import MixedSpace, facets_with_tags
-from fxcontact.materials import LinearElastic, Material, NortonHoff
+from fxcontact import _legacy
+from fxcontact._version import __version__  # noqa: E402
+from fxcontact.checkpoint import CheckpointError, PerVertex, latest_checkpoint
+from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.friction import Coulomb, Frictionless, Norton, ShearLimit, Tresca
 from fxcontact.contact.nodal import FORMULATIONS, FRICTION_MODES, SCHEMES, NodalContact
 from fxcontact.contact.penalty import Penalty, penalty_from_beta
-from fxcontact.contact.friction import Coulomb, Frictionless, Norton, ShearLimit, Tresca
 from fxcontact.contact.springs import NodalSprings
-from fxcontact.protocols import Contributor, Controller
-from fxcontact.tools.base import MovedTool, Projection, RigidMotion, StagedMotion, Tool
-from fxcontact.tools.analytic import Cone, Cylinder, Plane, Sphere
-from fxcontact.tools.revolved import (RevolvedProfile, die_profile, faceted_revolved,
-                                      grooved_roll_profile)
-from fxcontact.tools.faceted import FacetedTool, check_surface, read_surface
-from fxcontact.kinematics import CartesianUpdate, CylindricalUpdate
-from fxcontact.meshing import (BILLET_TAGS, BLOCK_TAGS, DRAWING_BAR_TAGS, RING_TAGS, block,
-                               cylinder_billet, drawing_bar, gmsh_session, ring,
-                               sector_plane_normals, structured_ring)
-from fxcontact.power import (PlasticDissipation, on_configuration, penalty_power,
-                             plastic_dissipation)
-from fxcontact.steady import steady_window
-from fxcontact.theory.forming import (avitzur_f, drawing_ideal_stress, drawing_mean_strain_rate,
-                               drawing_optimal_angle, drawing_sachs_stress, drawing_theory,
-                               drawing_upper_bound, flow_stress, ring_compression_upper_bound,
-                               ring_rolling_feed_window, ring_rolling_force,
-                               upsetting_slab_coulomb, upsetting_upper_bound)
-from fxcontact.idle import IdleRotation
-from fxcontact.tools.base import ControlledMotion
-from fxcontact.kinematics import RingAxisUpdate
-from fxcontact.newton.solver import (LINE_SEARCHES, MATERIAL_TANGENTS, ContactNewtonSolver, NewtonSolver,
-                              SolveInfo, SolverOptions)
 from fxcontact.element.dual import DualStress
-from fxcontact.newton.problem import (ContactProblem, ContributorError, NodalNonlinearProblem, NodalTerms,
-                             NonlinearProblem)
+from fxcontact.idle import IdleRotation
 from fxcontact.io import figure, plot_pressure_profile, render_png
-from fxcontact.console import add_verbosity_arguments, configure_logging
-
-from fxcontact import _legacy
-
-__version__ = "0.1.0"
+from fxcontact.io.outputs import OutputError
+from fxcontact.kinematics import CartesianUpdate, CylindricalUpdate, RingAxisUpdate
+from fxcontact.materials import LinearElastic, Material, NortonHoff
+from fxcontact.mesh_health import simplex_measures
+from fxcontact.meshing import (
+    BILLET_TAGS,
+    BLOCK_TAGS,
+    DRAWING_BAR_TAGS,
+    RING_TAGS,
+    block,
+    cylinder_billet,
+    drawing_bar,
+    gmsh_session,
+    ring,
+    sector_plane_normals,
+    structured_ring,
+)
+from fxcontact.newton.problem import (
+    ContactProblem,
+    ContributorError,
+    NodalNonlinearProblem,
+    NodalTerms,
+    NonlinearProblem,
+)
+from fxcontact.newton.retry import IncrementError, MeshInversionError
+from fxcontact.newton.solver import (
+    LINE_SEARCHES,
+    MATERIAL_TANGENTS,
+    ContactNewtonSolver,
+    NewtonSolver,
+    SolveInfo,
+    SolverOptions,
+)
+from fxcontact.power import PlasticDissipation, on_configuration, penalty_power, plastic_dissipation
+from fxcontact.protocols import Contributor, Controller
+from fxcontact.simulation import VOLUME_CORRECTIONS, IncrementResult, Simulation
+from fxcontact.spaces import MixedSpace, facets_with_tags
+from fxcontact.steady import steady_window
+from fxcontact.symmetry import SymmetryPlanes
+from fxcontact.theory.forming import (
+    avitzur_f,
+    drawing_ideal_stress,
+    drawing_mean_strain_rate,
+    drawing_optimal_angle,
+    drawing_sachs_stress,
+    drawing_theory,
+    drawing_upper_bound,
+    flow_stress,
+    ring_compression_upper_bound,
+    ring_rolling_feed_window,
+    ring_rolling_force,
+    upsetting_slab_coulomb,
+    upsetting_upper_bound,
+)
+from fxcontact.tools.analytic import Cone, Cylinder, Plane, Sphere
+from fxcontact.tools.base import (
+    ControlledMotion,
+    MovedTool,
+    Projection,
+    RigidMotion,
+    StagedMotion,
+    Tool,
+)
+from fxcontact.tools.faceted import FacetedTool, check_surface, read_surface
+from fxcontact.tools.revolved import (
+    RevolvedProfile,
+    die_profile,
+    faceted_revolved,
+    grooved_roll_profile,
+)
 
 _legacy.install()      # the former module names (fxcontact.solver, ...), with a warning
 
@@ -79,10 +116,10 @@ _API = {
     "MeshInversionError": ("newton.retry", "raised when an element would turn inside out even "
                            "after the cut-backs"),
     "OutputError": ("io.outputs", "raised when writing the history or the VTK series fails"),
-    "CheckpointError": ("io.checkpoint", "a checkpoint that is missing, incomplete, of another "
+    "CheckpointError": ("checkpoint", "a checkpoint that is missing, incomplete, of another "
                         "version, mesh or set-up"),
-    "PerVertex": ("io.checkpoint", "per-vertex contributor state saved in a checkpoint"),
-    "latest_checkpoint": ("io.checkpoint", "the newest complete checkpoint in a directory"),
+    "PerVertex": ("checkpoint", "per-vertex contributor state saved in a checkpoint"),
+    "latest_checkpoint": ("checkpoint", "the newest complete checkpoint in a directory"),
     "simplex_measures": ("mesh_health", "signed volume and shape quality of simplices"),
     "VOLUME_CORRECTIONS": ("simulation", "corrections of the accumulated volume error (§1.5)"),
     "SymmetryPlanes": ("symmetry", "symmetry planes of any orientation, imposed exactly (§1.6)"),

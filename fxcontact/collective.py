@@ -30,6 +30,8 @@ from typing import Optional
 import numpy as np
 from mpi4py import MPI
 
+from fxcontact.tools.base import Tool
+
 __all__ = ["check_together", "together", "digest", "describe", "digest_parameters",
            "check_decision", "RanksDisagree"]
 
@@ -245,7 +247,6 @@ def digest(obj, depth: int = 3) -> str:
 def digest_parameters(obj) -> str:
     """A contributor, controller or kinematics as compared between ranks: its type, its scalar
     parameters and its tools (:func:`digest`), not its rank-local data."""
-    from fxcontact.tools import Tool
     if not hasattr(obj, "__dict__"):
         return type(obj).__name__
     out = {}

@@ -7,14 +7,13 @@ When the stack moves to a newer dolfinx, this is the module to change: names suc
 
 from __future__ import annotations
 
-import numpy as np
-
 import dolfinx
 import dolfinx.fem
 import dolfinx.fem.petsc
 import dolfinx.la
 import dolfinx.mesh
 import dolfinx.plot
+import numpy as np
 
 __all__ = [
     "DOLFINX_VERSION", "form", "function_space", "collapse", "dofmap_array", "cell_dofs",

@@ -87,7 +87,10 @@ import numpy as np
 from mpi4py import MPI
 
 from fxcontact.contact.friction import LAW_NONE
-from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
+from fxcontact.newton.problem import ContributorError
+from fxcontact.tools.analytic import Cone, Cylinder, Sphere
+from fxcontact.tools.base import ControlledMotion, MovedTool, Tool, unit_vector
+from fxcontact.tools.revolved import RevolvedProfile
 
 __all__ = ["IDLE_METHODS", "ControlledMotion", "IdleRotation", "controlled_motion", "rolling_speed"]
 
@@ -149,9 +152,6 @@ def _revolves_about_own_axis(tool: Tool) -> bool:
     """True if ``tool`` is an analytic surface of revolution (cylinder, cone, sphere, revolved
     profile) whose axis is its motion's rotation axis: turning it about that axis leaves its
     surface in place, so its geometry does not depend on its rotation speed."""
-    from fxcontact.tools.analytic import Cone, Cylinder, Sphere
-    from fxcontact.tools.base import MovedTool
-    from fxcontact.tools.revolved import RevolvedProfile
     base = tool.tool if isinstance(tool, MovedTool) else tool
     e = unit_vector(tool.motion.axis, "tool axis")
     a0 = np.asarray(tool.motion.axis_point, dtype=np.float64)
@@ -393,7 +393,6 @@ class IdleRotation:
 
     def _collective(self, fn):
         """Run ``fn()`` and raise its ContributorError on every rank if it failed on any."""
-        from fxcontact.newton.problem import ContributorError
         msg, res = None, None
         try:
             res = fn()

@@ -12,11 +12,10 @@ from __future__ import annotations
 
 import math
 
+import dolfinx
 import numpy as np
 import ufl
 from mpi4py import MPI
-
-import dolfinx
 
 from fxcontact import compat
 from fxcontact.kinematics import CartesianUpdate

@@ -31,20 +31,18 @@ outputs and checkpoints check with ``isinstance`` before they call it (the Newto
 
 from __future__ import annotations
 
-import logging
-import math
 from typing import TYPE_CHECKING, Callable, Dict, List, Protocol, runtime_checkable
 
 if TYPE_CHECKING:   # pragma: no cover
     import numpy as np
 
+    from fxcontact.newton.options import SolveInfo
     from fxcontact.newton.problem import NodalTerms
-    from fxcontact.newton.solver import SolveInfo
 
 __all__ = ["Contributor", "Controller", "BeginsIncrement", "EndsIncrement", "HasDiagnostics",
            "HasOutputFields", "UpdatesOutputFields", "SavesState", "RestoresState",
            "HasSetupSignature", "HasSummary", "Remeshable", "SolvesIncrement",
-           "SolverHooks", "force_scale", "warn_unscaled_ftol"]
+           "SolverHooks"]
 
 
 @runtime_checkable
@@ -101,7 +99,7 @@ class UpdatesOutputFields(Protocol):
 @runtime_checkable
 class SavesState(Protocol):
     def checkpoint_state(self) -> dict:
-        """The state a resumed run needs (:mod:`fxcontact.io.checkpoint`)."""
+        """The state a resumed run needs (:mod:`fxcontact.checkpoint`)."""
 
 
 @runtime_checkable
@@ -158,20 +156,3 @@ class SolverHooks(Protocol):
     def force_norm(self) -> float:
         """ℓ² norm of the contributor's nodal forces at the last iterate (the scale of
         ``SolverOptions.ftol``)."""
-
-
-def force_scale(contributors) -> float:
-    """ℓ² norm of the contributors' nodal forces (``force_norm()``): ``SolverOptions.ftol``'s
-    scale."""
-    return math.sqrt(sum(c.force_norm() ** 2 for c in contributors if hasattr(c, "force_norm")))
-
-
-def warn_unscaled_ftol(contributors, ftol: float) -> bool:
-    """Warn (logger ``fxcontact.newton.solver``) when ``ftol`` is set and no contributor reports
-    ``force_norm()``; returns whether it warned."""
-    if ftol > 0 and not any(hasattr(c, "force_norm") for c in contributors):
-        logging.getLogger("fxcontact.newton.solver").warning(
-            "ftol = %g has no effect: no contributor reports force_norm() (the nodal contact "
-            "does); Newton stops on rtol, atol and stol only", ftol)
-        return True
-    return False

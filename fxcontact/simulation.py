@@ -8,14 +8,14 @@ most ``max_cutbacks`` times, then :class:`IncrementError` names the time; everyt
 stays on disk. A converged increment whose geometry update would invert a cell is treated as a
 failed one (:class:`MeshInversionError` if it persists); the mesh quality is a history column.
 Checkpoints (every n increments and at a failed increment) let a killed run be resumed
-(:meth:`Simulation.resume`, :mod:`fxcontact.io.checkpoint`).
+(:meth:`Simulation.resume`, :mod:`fxcontact.checkpoint`).
 
 :class:`Simulation` keeps the set-up (conditions, contributors, forms), one increment (``step``:
 predictor, Newton, commit) and ``run``; it composes one object per other concern, each in its
 own module: :class:`~fxcontact.newton.retry.RetryLadder` (fall-backs and cut-backs),
 :class:`~fxcontact.io.outputs.Outputs` (CSV history, VTK series),
 :class:`~fxcontact.mesh_health.MeshHealth` (initial mesh, quality, inversion) and
-:class:`~fxcontact.io.checkpoint.Checkpoints`. The contracts of contributors and controllers are the
+:class:`~fxcontact.checkpoint.Checkpoints`. The contracts of contributors and controllers are the
 protocols of :mod:`fxcontact.protocols`.
 """
 
@@ -27,42 +27,69 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Dict, List, Optional
 
+import dolfinx
+import dolfinx.fem
+import dolfinx.fem.petsc
 import numpy as np
 import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
-
-import dolfinx
-import dolfinx.fem
-import dolfinx.fem.petsc
+from tqdm import tqdm
 
 from fxcontact import compat, console
-from fxcontact.io.checkpoint import Checkpoints, plain_state as _plain_state
+from fxcontact.checkpoint import Checkpoints
 from fxcontact.collective import check_together, digest, digest_parameters, together
-from fxcontact.materials.forms import (equivalent_strain_rate_ufl, primal_dual_jacobian,
-                             shear_viscosity_ufl, volumetric_augment_ufl)
-from fxcontact.materials.forms import standard_norton_hoff as _standard_norton_hoff  # noqa: F401
-from fxcontact.materials.forms import uses_dual_stress as _uses_dual_stress
+from fxcontact.element.dual import DualStress
+from fxcontact.element.tensors import NortonHoffElementTensors
+from fxcontact.io.outputs import (
+    OutputError,
+    Outputs,
+    format_iteration_split,
+    format_wall_split,
+    output_dir_problem,
+    wall_split,
+)
 from fxcontact.kinematics import CartesianUpdate
+from fxcontact.la import add_nodal_residual
 from fxcontact.materials import Material
+from fxcontact.materials.forms import (
+    equivalent_strain_rate_ufl,
+    primal_dual_jacobian,
+    shear_viscosity_ufl,
+    standard_norton_hoff,
+    uses_dual_stress,
+    volumetric_augment_ufl,
+)
 from fxcontact.mesh_health import MeshHealth
-from fxcontact.io.outputs import (OutputError, Outputs, format_iteration_split,
-                               format_wall_split, output_dir_problem,
-                               wall_split)
-from fxcontact.newton.problem import ContributorError, NodalNonlinearProblem, add_nodal_residual
-from fxcontact.protocols import (BeginsIncrement, Contributor, EndsIncrement, HasDiagnostics,
-                                 HasSummary, SolvesIncrement)
-from fxcontact.registration import (VelocityCondition as _BC, bc_label as _bc_label,
-                                    check_added_once as _check_added_once,
-                                    column_labels as _column_labels, label as _label,
-                                    merge_columns as _merge_columns,
-                                    time_value as _time_value)
-from fxcontact.remesh.criteria import RemeshCriteria
-from fxcontact.remesh.selection import FacetSelection, remembered
+from fxcontact.newton.problem import ContributorError, NodalNonlinearProblem
 from fxcontact.newton.retry import IncrementError, MeshInversionError, RetryLadder
 from fxcontact.newton.solver import ContactNewtonSolver, SolveInfo, SolverOptions
-from fxcontact.spaces import (MixedSpace, checked_facets, facets_with_tags, set_function_value,
-                              velocity_bc)
+from fxcontact.protocols import (
+    BeginsIncrement,
+    Contributor,
+    EndsIncrement,
+    HasDiagnostics,
+    HasSummary,
+    SolvesIncrement,
+)
+from fxcontact.registration import VelocityCondition as _BC
+from fxcontact.registration import bc_label as _bc_label
+from fxcontact.registration import check_added_once as _check_added_once
+from fxcontact.registration import column_labels as _column_labels
+from fxcontact.registration import label as _label
+from fxcontact.registration import merge_columns as _merge_columns
+from fxcontact.registration import time_value as _time_value
+from fxcontact.remesh.criteria import RemeshCriteria
+from fxcontact.remesh.remeshing import Remeshing, remesh_simulation
+from fxcontact.remesh.selection import FacetSelection, remembered
+from fxcontact.spaces import (
+    MixedSpace,
+    checked_facets,
+    facets_with_tags,
+    set_function_value,
+    velocity_bc,
+)
+from fxcontact.symmetry import SymmetryPlanes, unit_normal
 
 __all__ = ["Simulation", "IncrementError", "MeshInversionError", "OutputError", "IncrementResult",
            "VOLUME_CORRECTIONS", "wall_split", "format_wall_split",
@@ -114,7 +141,7 @@ class Simulation:
             (``V/V⁰ − 1``) and ``volume_restore_rate`` (``−V ln(V/V⁰)/dt``, which ``div_v``,
             the integral of ``div v``, equals to the solver tolerance).
         overwrite: a new run (not :meth:`resume`-d) in an ``output_dir`` that holds checkpoints
-            of a run of the same ``name`` stops with a :class:`~fxcontact.io.checkpoint.
+            of a run of the same ``name`` stops with a :class:`~fxcontact.checkpoint.
             CheckpointError` before writing anything (its outputs would mix with that run's);
             ``overwrite=True`` removes those checkpoints (with a warning) and starts afresh.
     """
@@ -252,10 +279,9 @@ class Simulation:
         Raises ValueError if the facets do not lie on one plane of normal ``normal``.
         """
         self._check_not_built()
-        from fxcontact.symmetry import SymmetryPlanes, _unit_normal
         facets = checked_facets(self.mesh, facets, "add_symmetry_plane(facets)", exterior=True,
                                 name=name, normal=digest(np.asarray(normal, dtype=float)))
-        n = _unit_normal(normal, self.space.gdim)
+        n = unit_normal(normal, self.space.gdim)
         axis = np.flatnonzero(np.abs(n) > 1e-12)
         if self._symmetry is None:
             self._symmetry = SymmetryPlanes(self.space)
@@ -379,8 +405,7 @@ class Simulation:
         J = None
         #: the dual stress of the primal–dual Newton (``material_tangent``), or None
         self.dual = None
-        if _uses_dual_stress(self.material, self.solver_options.material_tangent):
-            from fxcontact.element.dual import DualStress
+        if uses_dual_stress(self.material, self.solver_options.material_tangent):
             self.dual = DualStress(self.material, sp.W, sp.quadrature_degree)
             self.dual.use_kernel(sp)
             log.debug("Newton with the primal-dual Norton-Hoff tangent (fxcontact.element.dual)")
@@ -430,8 +455,7 @@ class Simulation:
         """Give ``problem`` the hand-written Norton–Hoff kernel of its condensed Jacobian if
         ``material`` is NortonHoff's own law (fxcontact.element.jacobian checks it against the
         problem's own Jacobian before using it)."""
-        if _standard_norton_hoff(material):
-            from fxcontact.element.tensors import NortonHoffElementTensors
+        if standard_norton_hoff(material):
             problem.element_tensors = lambda layout: NortonHoffElementTensors(
                 layout, self.space, material, self.w, dual)
 
@@ -663,14 +687,12 @@ class Simulation:
         """Remesh automatically when one of the ``criteria`` fires after an increment, and
         (``rescue``) before an increment whose cut-backs all invert a cell is given up; the
         arguments: :class:`~fxcontact.remesh.remeshing.Remeshing`."""
-        from fxcontact.remesh.remeshing import Remeshing
         self._remeshing = Remeshing(self, criteria, size, zones, feature_angle, rescue)
 
     def remesh(self, size: Optional[float] = None, zones=None, reason: str = "on demand"):
         """Mesh the current body again and carry the state, the conditions and the
         contributors over (collective; :func:`~fxcontact.remesh.remeshing.remesh_simulation`).
         Returns the :class:`~fxcontact.remesh.remeshing.RemeshRecord`."""
-        from fxcontact.remesh.remeshing import remesh_simulation
         return remesh_simulation(self, size=size, zones=zones, reason=reason)
 
     def _record(self, row):
@@ -707,7 +729,6 @@ class Simulation:
         self._build()
         bar = None
         if self.progress and console.progress_enabled() and self.comm.rank == 0:
-            from tqdm import tqdm
             bar = tqdm(total=t_end - self.t, desc=self.name, unit="s", leave=False,
                        bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s "
                                   "[{elapsed}<{remaining}{postfix}]")
@@ -778,7 +799,7 @@ class Simulation:
         of checkpoints (the newest is taken); default: the newest one of this run in
         ``output_dir/checkpoints``. The CSV history and the VTK series are continued (rows and
         steps after the checkpoint, from a run that was killed, are dropped). Works on any
-        number of ranks. Raises :class:`~fxcontact.io.checkpoint.CheckpointError` (a ValueError)
+        number of ranks. Raises :class:`~fxcontact.checkpoint.CheckpointError` (a ValueError)
         for a missing checkpoint, another format or package version, another mesh, another
         set-up or other controllers (:meth:`add_controller`), and for a corrupted checkpoint (a
         truncated or altered file, e.g. a disk that failed): ``resume()`` does not fall back to

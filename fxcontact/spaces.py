@@ -11,14 +11,14 @@ from __future__ import annotations
 import logging
 from typing import Callable, Optional, Sequence, Union
 
+import dolfinx
+import dolfinx.fem
 import numpy as np
 import ufl
 from mpi4py import MPI
 
-import dolfinx
-import dolfinx.fem
-
 from fxcontact import compat
+from fxcontact.collective import check_together, together
 
 __all__ = ["MixedSpace", "velocity_bc", "facets_with_tags"]
 
@@ -170,7 +170,6 @@ def checked_facets(msh, facets, what: str, exterior: bool = False,
     assembly) raises a ValueError naming ``what`` on every rank. ``error``: an error of the
     caller's own local checks, raised the same way; ``agree``: values of the call that must
     be the same on every rank. Collective."""
-    from fxcontact.collective import check_together, together
     err, arr = error, np.zeros(0, dtype=np.int32)
     try:
         if hasattr(facets, "indices") and hasattr(facets, "values"):
@@ -211,7 +210,6 @@ def facets_with_tags(msh, facet_tags, tags: Union[int, Sequence[int]],
 
     The checks are collective (a tag may live on one rank only), so they never hang under MPI.
     """
-    from fxcontact.collective import check_together
     err, tag_list = None, []
     try:
         tag_list = _tag_list(tags, what)
@@ -274,7 +272,6 @@ def set_function_value(g, value, gdim: Optional[int] = None, what: str = "the va
 
     A value of the wrong shape, or a function that returns the wrong shape or raises, gives a
     ValueError on every rank naming ``what`` and the shapes expected and got (collective)."""
-    from fxcontact.collective import check_together
     err = None
     try:
         _fill(g, value, gdim, what)

@@ -29,17 +29,16 @@ from __future__ import annotations
 import logging
 from typing import Dict, List
 
+import dolfinx
+import dolfinx.fem
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import dolfinx
-import dolfinx.fem
-
 from fxcontact import compat
-from fxcontact.newton.problem import same_nonzero_pattern
+from fxcontact.la import same_nonzero_pattern
 
-__all__ = ["SymmetryPlanes"]
+__all__ = ["SymmetryPlanes", "unit_normal"]
 
 log = logging.getLogger(__name__)
 
@@ -95,7 +94,7 @@ class SymmetryPlanes:
             raise RuntimeError("symmetry planes are already set up")
         if name in self.names:
             raise ValueError(f"a symmetry plane named '{name}' already exists")
-        n = _unit_normal(normal, self.gdim)
+        n = unit_normal(normal, self.gdim)
         msh = self.space.mesh
         fdim = msh.topology.dim - 1
         msh.topology.create_connectivity(fdim, 0)
@@ -333,7 +332,8 @@ class SymmetryPlanes:
         self._P, self._C, self._same = None, {}, {}
 
 
-def _unit_normal(normal, gdim: int) -> np.ndarray:
+def unit_normal(normal, gdim: int) -> np.ndarray:
+    """The unit vector of ``normal`` (length ``gdim``, finite, nonzero); ValueError otherwise."""
     n = np.asarray(normal, dtype=np.float64).reshape(-1)
     if n.shape != (gdim,) or not np.all(np.isfinite(n)):
         raise ValueError(f"normal must be a finite vector of length {gdim}, got {normal!r}")

@@ -115,7 +115,7 @@ def main():
         # SIGKILL this process in the middle of writing checkpoint number N: its rank file is
         # in the temporary directory, the manifest and the rename are not done
         import signal
-        import fxcontact.io.checkpoint as ck
+        import fxcontact.checkpoint as ck
         savez, count = np.savez, []
 
         def savez_and_die(fh, **arrays):

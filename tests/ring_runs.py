@@ -11,7 +11,7 @@ from dataclasses import replace
 
 from mpi4py import MPI
 
-from fxcontact.io.checkpoint import list_checkpoints
+from fxcontact.checkpoint import list_checkpoints
 from fxcontact.processes import RingRollingCase, ring_rolling
 from helpers import shared_tmpdir
 

@@ -22,7 +22,7 @@ import ufl
 
 import fxcontact as fx
 import fxcontact.element.tensors as ec
-from fxcontact.io.checkpoint import CheckpointError, latest_checkpoint, list_checkpoints
+from fxcontact.checkpoint import CheckpointError, latest_checkpoint, list_checkpoints
 from fxcontact.io import HistoryWriter, SeriesWriter, read_pvd
 from fxcontact.simulation import IncrementError, OutputError
 
@@ -545,7 +545,7 @@ def test_disk_full_vtk(cube, out, monkeypatch):
 
 
 def test_disk_full_checkpoint(cube, out, monkeypatch):
-    import fxcontact.io.checkpoint as ck
+    import fxcontact.checkpoint as ck
     savez = np.savez
     calls = []
 

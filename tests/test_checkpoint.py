@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fxcontact.io.checkpoint import CheckpointError, latest_checkpoint, list_checkpoints
+from fxcontact.checkpoint import CheckpointError, latest_checkpoint, list_checkpoints
 from fxcontact.io import read_pvd
 
 from checkpoint_driver import build

@@ -216,7 +216,7 @@ def test_auto_material_tangent():
     """"auto" is the primal–dual tangent for Norton–Hoff with m < 1 and the consistent one
     otherwise; a bad value and a material without the dual law are refused clearly."""
     from fxcontact.materials import LinearElastic
-    from fxcontact.simulation import _uses_dual_stress
+    from fxcontact.materials.forms import uses_dual_stress as _uses_dual_stress
     from fxcontact.newton.solver import SolverOptions
     assert _uses_dual_stress(_material(), "auto")
     assert not _uses_dual_stress(_material(m=1.0), "auto")
@@ -239,7 +239,7 @@ def test_written_out_jacobian_only_for_the_plain_norton_hoff_residual():
     import ufl
 
     from fxcontact.materials import NortonHoff
-    from fxcontact.simulation import _standard_norton_hoff
+    from fxcontact.materials.forms import standard_norton_hoff as _standard_norton_hoff
 
     class OwnStress(NortonHoff):
         def stress_ufl(self, eps):
@@ -287,11 +287,11 @@ def _ufl_and_kernel_duals(m):
 
 @pytest.mark.parametrize("m", [0.016, 0.3])
 def test_dual_kernel_equals_the_expressions_and_the_numpy_twin(m):
-    """The numba dual update (fxcontact.element.dual_kernel) against dolfinx's evaluation of the UFL
+    """The numba dual update (fxcontact.element.dual) against dolfinx's evaluation of the UFL
     expressions, on a distorted mesh with a nonlinear velocity field and bubbles, over a
     primal start and three updates (each with another field), and against its numpy twin; the
     cap of the update is reached on some points."""
-    from fxcontact.element.dual_kernel import dual_update_numpy
+    from fxcontact.element.dual import dual_update_numpy
     from test_element_condense import set_state
     mat, lay, w, ref, fast = _ufl_and_kernel_duals(m)
     kern = fast.kernel
@@ -332,7 +332,7 @@ def test_dual_kernel_kept_coefficients_follow_state_and_geometry():
     update when that update starts from the same state on the same geometry. It must not read it
     after the mesh moved or from another starting state: each update equals the UFL
     expressions, and the kept values are used only where they apply."""
-    from fxcontact.element.dual_kernel import dual_update_numpy
+    from fxcontact.element.dual import dual_update_numpy
     from test_element_condense import set_state
     mat, lay, w, ref, fast = _ufl_and_kernel_duals(0.016)
     kern = fast.kernel

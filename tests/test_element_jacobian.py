@@ -13,15 +13,16 @@
 
 import numpy as np
 import pytest
+from helpers import assert_newton_counts_match, vertex_velocities_by_position
 from mpi4py import MPI
 from petsc4py import PETSc
+from test_condense import MATERIALS, pressed_block
 
 import fxcontact as fx
 from fxcontact.element import jacobian as ej
-from fxcontact.element.jacobian import CondensedJacobian, condense_cell_numpy
+from fxcontact.element.cell import condense_matrix, condense_matrix_numpy
+from fxcontact.element.jacobian import CondensedJacobian
 from fxcontact.newton.solver import NewtonSolver, SolverOptions
-from helpers import assert_newton_counts_match, vertex_velocities_by_position
-from test_condense import MATERIALS, pressed_block
 
 
 def test_cell_condensation_equals_numpy():
@@ -31,11 +32,27 @@ def test_cell_condensation_equals_numpy():
     bpos = np.array([12, 13, 14])
     out = (np.zeros((16, 16)), np.zeros((3, 16)), np.zeros((16, 3)), np.zeros((3, 3)),
            np.zeros((3, 3)))
-    assert ej._condense_cell(A, lpos, bpos, *out)
-    for got, ref in zip(out, condense_cell_numpy(A, lpos, bpos)):
+    assert condense_matrix(A, lpos, bpos, *out)
+    for got, ref in zip(out, condense_matrix_numpy(A, lpos, bpos)):
         assert np.allclose(got, ref, rtol=1e-13, atol=1e-13)
     A[np.ix_(bpos, bpos)] = 0.0                     # singular bubble block: reported
-    assert not ej._condense_cell(A, lpos, bpos, *out)
+    assert not condense_matrix(A, lpos, bpos, *out)
+
+
+def test_cell_system_condensation_equals_numpy():
+    """The condensation of an element system (A, b) of the P1/P1 assembly against its twin."""
+    from fxcontact.element.cell import condense_system, condense_system_numpy
+    rng = np.random.default_rng(1)
+    A = rng.normal(size=(19, 19)) + 19 * np.eye(19)
+    b = rng.normal(size=19)
+    lpos = np.array([[3 * i, 3 * i + 1, 3 * i + 2, 15 + i] for i in range(4)]).ravel()
+    bpos = np.array([12, 13, 14])
+    out = (np.zeros((16, 16)), np.zeros(16), np.zeros((3, 16)), np.zeros(3))
+    assert condense_system(A, b, lpos, bpos, *out)
+    for got, ref in zip(out, condense_system_numpy(A, b, lpos, bpos)):
+        assert np.allclose(got, ref, rtol=1e-12, atol=1e-12)
+    A[np.ix_(bpos, bpos)] = 0.0                     # singular bubble block: reported
+    assert not condense_system(A, b, lpos, bpos, *out)
 
 
 @pytest.mark.parametrize("k", [2, 3])

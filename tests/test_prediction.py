@@ -197,7 +197,7 @@ def test_column_changes_the_vector_state_on_every_rank():
     ids=["mumps", "condensed", "condensed-algebraic", "condensed-reuse"])
 def test_batched_column_solves_equal_single_solves(opts):
     """The columns of a prediction round solved together (one MUMPS solve with several
-    right-hand sides, :func:`fxcontact.newton.linalg.pc_apply_many`) equal one ``ksp.solve`` each,
+    right-hand sides, :func:`fxcontact.la.pc_apply_many`) equal one ``ksp.solve`` each,
     to 1e-9 relative, on the first increment of the drawing; the batch is used (a kept
     factorisation is never batched: its columns go through the Krylov solve)."""
     import fxcontact.newton.prediction as P

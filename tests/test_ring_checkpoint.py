@@ -16,10 +16,10 @@ import pytest
 from mpi4py import MPI
 
 import fxcontact as fx
-from fxcontact.io.checkpoint import CheckpointError, list_checkpoints
+from fxcontact.checkpoint import CheckpointError, list_checkpoints
 from fxcontact.idle import ControlledMotion, IdleRotation, RingAxisUpdate
 from fxcontact.processes import ring_rolling
-from fxcontact.simulation import _plain_state
+from fxcontact.checkpoint import plain_state as _plain_state
 
 from checkpoint_driver import build
 from helpers import shared_tmpdir

@@ -17,18 +17,18 @@ from __future__ import annotations
 import logging
 from typing import Sequence, Union
 
+import dolfinx
+import dolfinx.fem
+import dolfinx.fem.petsc
+import dolfinx.mesh
 import numpy as np
 import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import dolfinx
-import dolfinx.fem
-import dolfinx.fem.petsc
-import dolfinx.mesh
-
 from fxcontact import compat
 from fxcontact.collective import together
+from fxcontact.materials.forms import equivalent_strain_rate_ufl
 from fxcontact.spaces import MixedSpace, facets_with_tags
 
 __all__ = ["ContactBoundary", "p1_trace_check", "vertex_dof_map"]
@@ -237,7 +237,6 @@ class ContactBoundary:
         """(N,) equivalent strain rate of the velocity of the mixed Function ``w`` at the
         contact vertices: volume average over the adjacent cells (lumped P1 projection;
         collective). The forms are compiled at the first call for a ``w``."""
-        from fxcontact.materials.forms import equivalent_strain_rate_ufl
         if getattr(self, "_rate_forms", (None,))[0] is not w:
             Q1 = compat.function_space(self.mesh, ("Lagrange", 1))
             q = ufl.TestFunction(Q1)

@@ -50,6 +50,8 @@ from typing import List, Optional, Union
 import numba
 import numpy as np
 
+from fxcontact.tools.base import Tool
+
 __all__ = ["FrictionLaw", "Frictionless", "Coulomb", "Tresca", "Norton", "ShearLimit",
            "shear_flow_stress", "laws_per_tool", "friction_kernel", "friction_kernel_numpy",
            "LAW_NONE", "LAW_COULOMB", "LAW_TRESCA", "LAW_NORTON"]
@@ -186,7 +188,6 @@ class FrictionLaw:
 def laws_per_tool(friction, tools) -> List[FrictionLaw]:
     """One law per tool from a law, a ``{tool or tool name: law}`` dict (tools left out are
     frictionless) or a sequence aligned with ``tools`` (ValueError otherwise)."""
-    from fxcontact.tools.base import Tool
 
     def check(law, where):
         if not isinstance(law, FrictionLaw):

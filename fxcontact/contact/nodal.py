@@ -48,16 +48,25 @@ from typing import List, Optional
 import numpy as np
 from mpi4py import MPI
 
-
-from fxcontact.contact.boundary import ContactBoundary
-from fxcontact.contact.nodal_io import STICK_FACTOR, NodalContactIO, flip_hint
-from fxcontact.contact.friction import (LAW_NONE, friction_kernel, friction_kernel_numpy,
-                                        laws_per_tool, shear_flow_stress)
-from fxcontact.contact.penalty import (DEFAULT_BETA, Penalty, penalty_from_beta,  # noqa: F401
-                                       penalty_kernel, penalty_kernel_numpy)
-from fxcontact.kinematics import CartesianUpdate
-from fxcontact.materials import NortonHoff
 from fxcontact.collective import together
+from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.friction import (
+    LAW_NONE,
+    friction_kernel,
+    friction_kernel_numpy,
+    laws_per_tool,
+    shear_flow_stress,
+)
+from fxcontact.contact.nodal_io import STICK_FACTOR, NodalContactIO, flip_hint
+from fxcontact.contact.penalty import (  # noqa: F401
+    DEFAULT_BETA,
+    Penalty,
+    penalty_from_beta,
+    penalty_kernel,
+    penalty_kernel_numpy,
+)
+from fxcontact.kinematics import CartesianUpdate, gap_derivatives
+from fxcontact.materials import NortonHoff
 from fxcontact.newton.problem import ContributorError, NodalTerms
 from fxcontact.tools.base import Tool
 
@@ -563,7 +572,6 @@ class NodalContact(NodalContactIO):
             g = -pr.normal[:, :d]
             Hh = -dt * pr.hessian[:, :d, :d] if (exact and jacobian) else empty
         else:
-            from fxcontact.kinematics import gap_derivatives
             X, J, d2X = self.kin.derivatives(self.x_t, v, dt)
             pr, tool_idx = self._project_all(X, t1, hessian=True)
             h, g, Hh = gap_derivatives(pr, J, d2X if exact else None, dt)

@@ -11,13 +11,14 @@ from __future__ import annotations
 
 from typing import Dict
 
+import dolfinx.fem
 import numpy as np
 from mpi4py import MPI
 
-import dolfinx.fem
-
 from fxcontact import compat
+from fxcontact.collective import describe
 from fxcontact.contact.friction import LAW_NONE
+from fxcontact.io.keys import CheckpointError, PerVertex
 from fxcontact.tools.base import unit_vector
 
 __all__ = ["NodalContactIO", "STICK_FACTOR"]
@@ -208,13 +209,12 @@ class NodalContactIO:
 
     # ------------------------------------------------------------------ checkpoint
     def checkpoint_state(self) -> dict:
-        """What a resumed run needs (:mod:`fxcontact.io.checkpoint`): the penalty resolved from β
+        """What a resumed run needs (:mod:`fxcontact.checkpoint`): the penalty resolved from β
         at the first increment, the representative strain rate, the slip regularisation and the
         nodal pressures of the last converged increment (explicit friction). The tools are
         immutable and move as functions of time: restoring t restores their positions, except
         for motions whose rates are set during the run (:class:`fxcontact.idle.ControlledMotion`:
         their ``checkpoint_state()`` is saved too, under ``motions``)."""
-        from fxcontact.io.checkpoint import PerVertex
         return {"name": self.name, "scheme": self.scheme,
                 "tools": [t.name for t in self.tools],
                 "motions": [t.motion.checkpoint_state()
@@ -227,7 +227,6 @@ class NodalContactIO:
         """The contact's parameters as given (not those resolved during the run): a checkpoint
         is resumed only with the same (:meth:`Simulation.resume
         <fxcontact.simulation.Simulation.resume>` names the one that differs)."""
-        from fxcontact.io.checkpoint import describe
         tools = []
         for t in self.tools:
             base = getattr(t, "tool", t)   # a MovedTool's tool
@@ -241,7 +240,6 @@ class NodalContactIO:
                 "tools": tools}
 
     def restore_state(self, state: dict):
-        from fxcontact.io.checkpoint import CheckpointError
         mine = {"name": self.name, "scheme": self.scheme, "tools": [t.name for t in self.tools]}
         theirs = {k: state.get(k) for k in mine}
         if theirs != mine:

@@ -16,6 +16,7 @@ import numba
 import numpy as np
 
 from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.io.keys import CheckpointError
 from fxcontact.newton.problem import NodalTerms
 
 __all__ = ["NodalSprings", "spring_kernel", "spring_kernel_numpy"]
@@ -101,7 +102,6 @@ class NodalSprings:
         return {"stiffness": self.k, "cubic": self.c, "reference_velocity": self.v0}
 
     def restore_state(self, state: dict):
-        from fxcontact.io.checkpoint import CheckpointError
         if not (state["stiffness"] == self.k and state["cubic"] == self.c
                 and np.array_equal(state["reference_velocity"], self.v0)):
             raise CheckpointError(f"the checkpoint's springs (k = {state['stiffness']}, c = "

@@ -44,17 +44,25 @@ import logging
 import time
 from typing import Optional
 
+import dolfinx.fem.petsc
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import dolfinx.fem.petsc
-
 from fxcontact import compat
-from fxcontact.newton.linalg import direct_mumps, factor_solve_many
-from fxcontact.newton.problem import same_nonzero_pattern
+from fxcontact.la import (
+    direct_mumps,
+    factor_solve_many,
+    rigid_body_modes,
+    same_nonzero_pattern,
+)
 
-__all__ = ["CondensationLayout", "CondensedPC", "rigid_body_modes"]
+__all__ = ["SYMMETRY_RTOL", "CondensationLayout", "CondensedPC"]
+
+#: relative asymmetry ‖S x − Sᵀ x‖ / ‖S x‖ of the condensed matrix (random x) below which it
+#: is factorised as L D Lᵀ (``<prefix>factor_symmetric``); the round-off of a symmetric
+#: tangent is ~1e-16, a non-symmetric term (implicit friction) is orders of magnitude above
+SYMMETRY_RTOL = 1e-10
 
 log = logging.getLogger(__name__)
 
@@ -182,46 +190,6 @@ class CondensationLayout:
         msh = self.W.mesh
         geo = compat.entities_to_geometry(msh, 0, self.node_vertices).ravel()
         return msh.geometry.x[geo, : self.gdim].copy()
-
-
-def rigid_body_modes(comm, x: np.ndarray) -> PETSc.NullSpace:
-    """Near-null space of a vector Laplacian/elasticity block with vertex-interlaced dofs at
-    points ``x`` (n, gdim): gdim translations and the gdim(gdim−1)/2 rotations, orthonormalised
-    (collective)."""
-    n, d = x.shape
-    xc = x - comm.allreduce(x.sum(axis=0)) / max(comm.allreduce(n), 1)
-    modes = []
-    for k in range(d):
-        m = np.zeros((n, d))
-        m[:, k] = 1.0
-        modes.append(m)
-    if d == 2:
-        modes.append(np.stack([-xc[:, 1], xc[:, 0]], axis=1))
-    else:
-        for (i, j) in ((0, 1), (1, 2), (2, 0)):
-            m = np.zeros((n, d))
-            m[:, i], m[:, j] = -xc[:, j], xc[:, i]
-            modes.append(m)
-    # modified Gram-Schmidt (global dot products)
-    basis = []
-    for m in modes:
-        v = m.ravel().copy()
-        for b in basis:
-            v -= comm.allreduce(float(v @ b)) * b
-        nrm = np.sqrt(comm.allreduce(float(v @ v)))
-        basis.append(v / nrm)
-    vecs = []
-    for b in basis:
-        vec = PETSc.Vec().createMPI((n * d, PETSc.DECIDE), bsize=d, comm=comm)
-        vec.setArray(b)
-        vecs.append(vec)
-    return PETSc.NullSpace().create(vectors=vecs, comm=comm)
-
-
-#: relative asymmetry ‖S x − Sᵀ x‖ / ‖S x‖ of the condensed matrix (random x) below which it
-#: is factorised as L D Lᵀ (``<prefix>factor_symmetric``); the round-off of a symmetric
-#: tangent is ~1e-16, a non-symmetric term (implicit friction) is orders of magnitude above
-SYMMETRY_RTOL = 1e-10
 
 
 def asymmetry(S: PETSc.Mat) -> float:

@@ -1,10 +1,16 @@
 """Small numba kernels of one cell shared by the element kernels: the bubble block's inverse,
-the Schur complement of an element matrix and the geometry of an affine tetrahedron (their
+the Schur complement of an element matrix, the geometry of an affine tetrahedron, and the
+condensation of one cell's bubble — of an element system (A, b) for the P1/P1 assembly
+(:func:`condense_system`) or of an element matrix with the blocks that recover the bubble
+(:func:`condense_matrix`). The condensations have numpy twins (``*_numpy``); the kernels'
 results are checked against numpy in ``tests/test_element_condense.py``,
-``tests/test_element_jacobian.py`` and ``tests/test_dual.py``)."""
+``tests/test_element_jacobian.py`` and ``tests/test_dual.py``."""
 
 import numba
 import numpy as np
+
+__all__ = ["SINGULAR_DET", "condense_matrix", "condense_matrix_numpy", "condense_system",
+           "condense_system_numpy"]
 
 #: a 3 × 3 bubble block whose |det| is below this times its largest entry cubed is singular
 #: (round-off of a determinant of O(1) entries: a few 1e-16)
@@ -158,3 +164,70 @@ def _tet_geometry(coords, g1, Ki, G):
                 acc += Ki[k, j] * g1[n, k]
             G[n, j] = acc
     return det
+
+
+# -- the condensation of one cell ------------------------------------------------------------------
+@numba.njit(cache=True)
+def condense_system(A, b, lpos, bpos, S, r, X, y):
+    """Condense the ``bpos`` dofs of one element (A, b): S = A_ll − A_lb X, r = b_l − A_lb y
+    with X = A_bb⁻¹ A_bl, y = A_bb⁻¹ b_b. Returns False when A_bb is singular or not
+    finite."""
+    nl = lpos.size
+    k = bpos.size
+    Binv = np.empty((k, k))
+    if not _bubble_inverse(A, bpos, Binv):
+        return False
+    _schur(A, lpos, bpos, Binv, X, S)
+    for i in range(k):
+        acc = 0.0
+        for q in range(k):
+            acc += Binv[i, q] * b[bpos[q]]
+        y[i] = acc
+    for i in range(nl):
+        acc = b[lpos[i]]
+        for q in range(k):
+            acc -= A[lpos[i], bpos[q]] * y[q]
+        r[i] = acc
+    return True
+
+
+def condense_system_numpy(A: np.ndarray, b: np.ndarray, lpos: np.ndarray, bpos: np.ndarray):
+    """numpy twin of :func:`condense_system`: (S, r, X, y) of one element system (A, b)."""
+    Abb = A[np.ix_(bpos, bpos)]
+    X = np.linalg.solve(Abb, A[np.ix_(bpos, lpos)])
+    y = np.linalg.solve(Abb, b[bpos])
+    S = A[np.ix_(lpos, lpos)] - A[np.ix_(lpos, bpos)] @ X
+    r = b[lpos] - A[np.ix_(lpos, bpos)] @ y
+    return S, r, X, y
+
+
+@numba.njit(cache=True)
+def condense_matrix(A, lpos, bpos, S, X, Y, Binv, Abb):
+    """S = A_ll − A_lb X, X = A_bb⁻¹ A_bl, Y = A_lb A_bb⁻¹, Binv = A_bb⁻¹, Abb = A_bb. Returns
+    False when A_bb is singular or its inverse is not finite."""
+    nl = lpos.size
+    k = bpos.size
+    for i in range(k):
+        for j in range(k):
+            Abb[i, j] = A[bpos[i], bpos[j]]
+    if not _bubble_inverse(A, bpos, Binv):
+        return False
+    _schur(A, lpos, bpos, Binv, X, S)
+    for i in range(nl):
+        li = lpos[i]
+        for j in range(k):
+            acc = 0.0
+            for q in range(k):
+                acc += A[li, bpos[q]] * Binv[q, j]
+            Y[i, j] = acc
+    return True
+
+
+def condense_matrix_numpy(A: np.ndarray, lpos: np.ndarray, bpos: np.ndarray):
+    """numpy twin of :func:`condense_matrix`: (S, X, Y, A_bb⁻¹, A_bb) of one element matrix."""
+    Abb = A[np.ix_(bpos, bpos)]
+    Binv = np.linalg.inv(Abb)
+    X = Binv @ A[np.ix_(bpos, lpos)]
+    Y = A[np.ix_(lpos, bpos)] @ Binv
+    S = A[np.ix_(lpos, lpos)] - A[np.ix_(lpos, bpos)] @ X
+    return S, X, Y, Binv, Abb

@@ -36,16 +36,19 @@ import copy
 import logging
 from typing import List, Optional
 
+import dolfinx.cpp.fem
+import dolfinx.la
 import numba
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fxcontact.element.cell import _bubble_inverse, _schur
-from fxcontact.element.tensors import _ffcx_tab_jacobian, _nh_tab
+from fxcontact.element.assembled import CondensedPC
+from fxcontact.element.cell import condense_matrix
+from fxcontact.element.tensors import FFCxElementTensors, P1P1Layout, _ffcx_tab_jacobian, _nh_tab
+from fxcontact.la import add_nodal_jacobian
 
-__all__ = ["CondensedJacobian", "ElementCondensedPC", "condense_cell_numpy",
-           "element_condensation_supported"]
+__all__ = ["CondensedJacobian", "ElementCondensedPC", "element_condensation_supported"]
 
 log = logging.getLogger(__name__)
 
@@ -55,38 +58,6 @@ KERNEL_MATCH_RTOL = 1e-9
 
 
 # -- one cell -------------------------------------------------------------------------------------
-@numba.njit(cache=True)
-def _condense_cell(A, lpos, bpos, S, X, Y, Binv, Abb):
-    """S = A_ll − A_lb X, X = A_bb⁻¹ A_bl, Y = A_lb A_bb⁻¹, Binv = A_bb⁻¹, Abb = A_bb. Returns
-    False when A_bb is singular or its inverse is not finite."""
-    nl = lpos.size
-    k = bpos.size
-    for i in range(k):
-        for j in range(k):
-            Abb[i, j] = A[bpos[i], bpos[j]]
-    if not _bubble_inverse(A, bpos, Binv):
-        return False
-    _schur(A, lpos, bpos, Binv, X, S)
-    for i in range(nl):
-        li = lpos[i]
-        for j in range(k):
-            acc = 0.0
-            for q in range(k):
-                acc += A[li, bpos[q]] * Binv[q, j]
-            Y[i, j] = acc
-    return True
-
-
-def condense_cell_numpy(A: np.ndarray, lpos: np.ndarray, bpos: np.ndarray):
-    """numpy twin of the cell condensation: (S, X, Y, A_bb⁻¹, A_bb) of one element matrix."""
-    Abb = A[np.ix_(bpos, bpos)]
-    Binv = np.linalg.inv(Abb)
-    X = Binv @ A[np.ix_(bpos, lpos)]
-    Y = A[np.ix_(lpos, bpos)] @ Binv
-    S = A[np.ix_(lpos, lpos)] - A[np.ix_(lpos, bpos)] @ X
-    return S, X, Y, Binv, Abb
-
-
 @numba.njit(cache=True)
 def _jacobian_loop_ffcx(data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
     """Element matrices of ``cells`` from the FFCx kernels, condensed: S[n] of the n-th cell,
@@ -98,7 +69,7 @@ def _jacobian_loop_ffcx(data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
     for n in range(cells.size):
         c = cells[n]
         _ffcx_tab_jacobian(data, c, A, b)
-        if not _condense_cell(A, lpos, bpos, S[n], X[c], Y[c], Binv[c], Abb[c]):
+        if not condense_matrix(A, lpos, bpos, S[n], X[c], Y[c], Binv[c], Abb[c]):
             bad += 1
     return bad
 
@@ -110,7 +81,7 @@ def _jacobian_loop_nh(data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
     for n in range(cells.size):
         c = cells[n]
         _nh_tab(data, c, A, b)
-        if not _condense_cell(A, lpos, bpos, S[n], X[c], Y[c], Binv[c], Abb[c]):
+        if not condense_matrix(A, lpos, bpos, S[n], X[c], Y[c], Binv[c], Abb[c]):
             bad += 1
     return bad
 
@@ -225,12 +196,10 @@ def element_condensation_supported(problem) -> Optional[str]:
     MINI space (gdim + 1 dofs per vertex and cell-interior dofs only) and Jacobian and residual
     forms with cell integrals over the whole mesh only (a facet term, e.g. a traction, keeps the
     algebraic condensation)."""
-    from fxcontact.element.tensors import P1P1Layout
     try:
         P1P1Layout(problem.w.function_space)
     except (ValueError, RuntimeError) as e:
         return str(e)
-    import dolfinx.cpp.fem
     cell = dolfinx.cpp.fem.IntegralType.cell
     # the FFCx element source compiles the residual's kernel too (element vectors of the
     # same cells): both forms must be whole-mesh cell integrals
@@ -266,7 +235,6 @@ class CondensedJacobian:
     """
 
     def __init__(self, problem, tensors=None, fast_tensors=None, chunk: int = 8192):
-        from fxcontact.element.tensors import FFCxElementTensors, P1P1Layout
         self.problem = problem
         W = problem.w.function_space
         self.layout = lay = P1P1Layout(W)
@@ -318,7 +286,6 @@ class CondensedJacobian:
         """The symmetry planes' projectors P = I − Q Qᵀ per vertex block (owned and ghost:
         the element matrices are projected before the assembly, (P S P)_ij = P_i S_ij P_j),
         and the Q Qᵀ blocks added at the owned constrained vertices (collective)."""
-        import dolfinx.la
         lay = self.layout
         bs, d = lay.bs, lay.bs - 1
         cimap = lay.Vc.dofmap.index_map
@@ -406,7 +373,6 @@ class CondensedJacobian:
         layout) with the Dirichlet rows and columns zeroed, the unit Dirichlet diagonal, then
         the symmetry projection. Raises RuntimeError on every rank for a singular bubble
         block."""
-        from fxcontact.newton.problem import add_nodal_jacobian
         S = self.S
         bc_marker = self.problem.bc_marker
         S.zeroEntries()
@@ -585,7 +551,6 @@ def jacobian_shell(element: CondensedJacobian) -> PETSc.Mat:
 
 
 def _condensed_pc_class():
-    from fxcontact.element.assembled import CondensedPC
 
     class ElementCondensedPC(CondensedPC):
         """:class:`~fxcontact.element.assembled.CondensedPC` on the P1/P1 matrix of a

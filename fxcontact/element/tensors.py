@@ -34,48 +34,22 @@ from __future__ import annotations
 
 import basix
 import cffi
+import dolfinx
+import dolfinx.fem.petsc
 import numba
 import numba.experimental.function_type  # noqa: F401 (numba's typing of first-class functions)
 import numpy as np
 import ufl
 from petsc4py import PETSc
 
-import dolfinx
-import dolfinx.fem.petsc
-
 from fxcontact import compat
-from fxcontact.element.cell import _bubble_inverse, _schur, _tet_geometry
+from fxcontact.element.cell import _tet_geometry, condense_system
 from fxcontact.materials import NortonHoff
 
 __all__ = ["P1P1Layout", "CondensedAssembler", "FFCxElementTensors",
            "NortonHoffElementTensors", "norton_hoff_forms", "norton_hoff_tensors_numpy"]
 
 _ffi = cffi.FFI()
-
-
-# -- the condensation of one cell -----------------------------------------------------------
-@numba.njit(cache=True)
-def _condense_cell(A, b, lpos, bpos, S, r, X, y):
-    """Condense the ``bpos`` dofs of one element (A, b): S = A_ll − A_lb X, r = b_l − A_lb y
-    with X = A_bb⁻¹ A_bl, y = A_bb⁻¹ b_b. Returns False when A_bb is singular or not
-    finite."""
-    nl = lpos.size
-    k = bpos.size
-    Binv = np.empty((k, k))
-    if not _bubble_inverse(A, bpos, Binv):
-        return False
-    _schur(A, lpos, bpos, Binv, X, S)
-    for i in range(k):
-        acc = 0.0
-        for q in range(k):
-            acc += Binv[i, q] * b[bpos[q]]
-        y[i] = acc
-    for i in range(nl):
-        acc = b[lpos[i]]
-        for q in range(k):
-            acc -= A[lpos[i], bpos[q]] * y[q]
-        r[i] = acc
-    return True
 
 
 # -- generic loops over cells of an element-tensor source ``tab(data, cell, A, b)`` ----------
@@ -98,7 +72,7 @@ def _condense_loop(tab, data, cells, lpos, bpos, A, b, S, r, X, y):
     for n in range(cells.size):
         c = cells[n]
         tab(data, c, A, b)
-        if not _condense_cell(A, b, lpos, bpos, S[n], r[n], X[c], y[c]):
+        if not condense_system(A, b, lpos, bpos, S[n], r[n], X[c], y[c]):
             bad += 1
     return bad
 
@@ -363,7 +337,7 @@ def _reference_tables(space):
             np.ascontiguousarray(wts))
 
 
-class _KernelTables:
+class KernelTables:
     """The reference tables of the hand kernel, split as the element is: the velocity basis
     of the MINI element is φ_n = λ_n + c_n B (n < 4: the P1 hat functions plus a share c_n of
     the bubble B; φ_4 = B), checked on the tabulation.
@@ -676,7 +650,7 @@ class NortonHoffElementTensors:
         self.w = w
         self.dual = dual
         self.pressure_source = float(pressure_source)
-        self.tables = _KernelTables(space)
+        self.tables = KernelTables(space)
         msh = space.mesh
         self._x = msh.geometry.x
         self._xdofs = compat.geometry_dofmap(msh)

@@ -1,7 +1,7 @@
 """The outputs of a :class:`~fxcontact.simulation.Simulation`: CSV history, VTK series, run summary.
 
 :class:`Outputs` opens the writers of :mod:`fxcontact.io` at the first increment (after the
-checkpoints of :mod:`fxcontact.io.checkpoint` have claimed the output directory), writes a CSV row
+checkpoints of :mod:`fxcontact.checkpoint` have claimed the output directory), writes a CSV row
 and, every ``output_every`` increments, a VTK step per accepted increment, continues both after
 a second ``run()`` or a ``resume()``, and turns a failed write (a full disk) into an
 :class:`OutputError` on every rank. :func:`wall_split` and :func:`format_wall_split` give the
@@ -17,6 +17,7 @@ from typing import Optional
 import numpy as np
 
 from fxcontact import compat
+from fxcontact.io.series import HistoryWriter, SeriesWriter
 from fxcontact.protocols import HasOutputFields, UpdatesOutputFields
 
 __all__ = ["Outputs", "OutputError", "WALL_PARTS", "wall_split", "format_wall_split",
@@ -166,10 +167,9 @@ class Outputs:
     # ------------------------------------------------------------------ files
     def open(self):
         """Open the writers (collective): a first opening claims the output directory
-        (:meth:`~fxcontact.io.checkpoint.Checkpoints.before_first_outputs`) and writes the initial
+        (:meth:`~fxcontact.checkpoint.Checkpoints.before_first_outputs`) and writes the initial
         state; a resumed run, or a run whose outputs an earlier ``run()`` closed, continues the
         files."""
-        from fxcontact.io import HistoryWriter, SeriesWriter
         sim = self.sim
         if not self.opened:
             sim._checkpoints.before_first_outputs()

@@ -16,7 +16,7 @@ from typing import List
 import numpy as np
 from petsc4py import PETSc
 
-from fxcontact.newton.linalg import pc_apply_many
+from fxcontact.la import pc_apply_many
 
 __all__ = ["BorderedPC"]
 
@@ -77,7 +77,7 @@ class BorderedPC:
 
     def apply_many(self, xs, ys) -> bool:
         """:meth:`apply` to several vectors, the inner preconditioner applied to all of them at
-        once where it can be (:func:`~fxcontact.newton.linalg.pc_apply_many`); returns False
+        once where it can be (:func:`~fxcontact.la.pc_apply_many`); returns False
         (nothing done) where it cannot."""
         if not pc_apply_many(self.inner, xs, ys):
             return False

@@ -4,11 +4,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Dict, Optional
+from typing import Dict, List, Optional
 
 import numpy as np
 
-__all__ = ["SolverOptions", "LINEAR_SOLVERS", "LINE_SEARCHES", "MATERIAL_TANGENTS"]
+__all__ = ["SolverOptions", "SolveInfo", "LINEAR_SOLVERS", "LINE_SEARCHES", "MATERIAL_TANGENTS"]
 
 #: Linear solver presets (PETSc options without prefix).
 LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
@@ -343,3 +343,29 @@ def _globalization_options(kind: str) -> Dict[str, str]:
         return {"snes_type": "newtontr"}
     return {"snes_type": "newtonls", "snes_linesearch_type": kind}
 
+
+@dataclass
+class SolveInfo:
+    """Outcome of one Newton solve."""
+
+    converged: bool
+    iterations: int
+    reason: int
+    residual_norms: List[float]
+    message: str = ""
+    times: Dict[str, float] = field(default_factory=dict)
+    #: Krylov iterations of the solve (inner iterations of a condensed solver), summed over
+    #: the Newton iterations
+    linear_iterations: int = 0
+    #: Newton iterations of the softened and of the full stage (penalty continuation), or None
+    stage_iterations: Optional[tuple] = None
+    #: number of residual and Jacobian evaluations (SNES callbacks) of the solve: one
+    #: residual at the start plus one per line-search trial, one Jacobian per iteration
+    evaluations: Dict[str, int] = field(default_factory=dict)
+    #: null pivots of the MUMPS factorisation of each Newton iteration's matrix (INFOG(28);
+    #: None with a solver that is not MUMPS): a positive count means a singular Newton matrix,
+    #: a motion that nothing holds (see :data:`fxcontact.newton.solver.NULL_PIVOT_HINT`)
+    null_pivots: List[Optional[int]] = field(default_factory=list)
+    #: factorisations of the Newton matrix made during the solve (one per Newton iteration
+    #: unless ``SolverOptions.reuse_factorisation`` keeps them)
+    factorisations: int = 0

@@ -15,7 +15,7 @@ m = 0.016"). The prediction solves the Newton system *of the predicted branch* i
    ``o ∇h``;
 3. ``y = (J + U C Uᵀ)⁻¹ (F + U o)`` by the Woodbury identity, with one solve ``Z = J⁻¹U`` per
    selected node, C = diag(dc) (with a MUMPS factorisation, the columns of a round in one
-   solve with several right-hand sides, :mod:`fxcontact.newton.linalg`):
+   solve with several right-hand sides, :mod:`fxcontact.la`):
    ``w = y₀ + Z o``, ``y = w − Z (I + C UᵀZ)⁻¹ C Uᵀ w``;
 4. repeat from 2 with the new step until the predicted set is unchanged (at most ``rounds``
    times; the solves of nodes already selected are reused).
@@ -41,7 +41,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fxcontact.newton.linalg import pc_apply_many
+from fxcontact.la import pc_apply_many
 
 __all__ = ["ActiveSetPrediction", "woodbury_step_numpy"]
 
@@ -111,7 +111,7 @@ class ActiveSetPrediction:
 
     def _solve_columns(self, ksp: PETSc.KSP, us: List[PETSc.Vec]) -> List[PETSc.Vec]:
         """``J⁻¹ u`` for the columns ``us`` (collective). With a direct solver, all in one
-        solve with several right-hand sides (:func:`~fxcontact.newton.linalg.pc_apply_many`).
+        solve with several right-hand sides (:func:`~fxcontact.la.pc_apply_many`).
         Under a Krylov method the sum of the columns is checked against ``ksp``'s tolerances
         (one product with J: the columns sit at different nodes, their sum does not cancel);
         if it fails (e.g. a kept factorisation), every column is solved by ``ksp`` as

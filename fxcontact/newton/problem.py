@@ -19,15 +19,15 @@ import time
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence
 
+import dolfinx.fem
+import dolfinx.fem.petsc
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import dolfinx.fem
-import dolfinx.fem.petsc
-
 from fxcontact import compat
 from fxcontact.collective import together
+from fxcontact.la import add_nodal_jacobian, add_nodal_residual, rigid_body_modes
 
 __all__ = ["NodalTerms", "NodalNonlinearProblem", "NonlinearProblem", "ContactProblem", "Timers",
            "add_nodal_residual", "add_nodal_jacobian", "ContributorError", "lifting_needed",
@@ -90,31 +90,6 @@ class Timers:
         """Context manager adding its wall time to every one of ``names`` (e.g. a phase and
         its sub-phase)."""
         return Timers._Ctx(self, names)
-
-
-def add_nodal_residual(b: PETSc.Vec, terms: NodalTerms):
-    """Add nodal residual entries into the owned part of ``b`` (after the ghost update)."""
-    if terms.dofs.size == 0:
-        return
-    dofs = terms.dofs.ravel()
-    vals = terms.residual.ravel()
-    keep = dofs >= 0
-    arr = b.getArray(readonly=False)
-    np.add.at(arr, dofs[keep], vals[keep])
-
-
-def add_nodal_jacobian(A: PETSc.Mat, terms: NodalTerms, bc_marker: np.ndarray):
-    """Add nodal blocks to ``A`` before the UFL assembly; Dirichlet rows/columns masked."""
-    if terms.jacobian is None or terms.dofs.shape[0] == 0:
-        return
-    rows = terms.dofs.astype(np.int32).copy()
-    rows[rows >= 0] = np.where(bc_marker[rows[rows >= 0]], -1, rows[rows >= 0])
-    active = np.any(rows >= 0, axis=1)
-    if not np.any(active):
-        return  # never call setValuesLocalRCV with zero rows (SIGFPE)
-    rows = np.ascontiguousarray(rows[active])
-    vals = np.ascontiguousarray(terms.jacobian[active]).reshape(rows.shape[0], -1)
-    A.setValuesLocalRCV(rows, rows, vals, addv=PETSc.InsertMode.ADD_VALUES)
 
 
 def lifting_needed(bcs, x0: PETSc.Vec, work: PETSc.Vec, bc_owned: np.ndarray, comm) -> bool:
@@ -364,15 +339,6 @@ class NodalNonlinearProblem:
             A = self.create_matrix()
         self.jacobian(None, self.w.vector, A, A)
         return A
-
-
-def same_nonzero_pattern(A: PETSc.Mat, B: PETSc.Mat) -> bool:
-    """True if the distributed AIJ matrices A and B (same layout) store the same entries
-    (row pointers and column indices of every rank's rows; collective)."""
-    ai, aj, _ = A.getValuesCSR()
-    bi, bj, _ = B.getValuesCSR()
-    same = bool(np.array_equal(ai, bi) and np.array_equal(aj, bj))
-    return bool(A.getComm().tompi4py().allreduce(same, op=MPI.LAND))
 
 
 def mumps_null_pivots(ksp: PETSc.KSP) -> Optional[int]:
@@ -655,7 +621,6 @@ class ContactProblem(dolfinx.fem.petsc.NonlinearProblem):
             defaults = {"ksp_type": "cg", "ksp_rtol": rtol, "ksp_max_it": 1000,
                         "pc_type": "gamg", "pc_gamg_use_sa_esteig": False,
                         "mg_levels_ksp_chebyshev_esteig_noisy": True}
-            from fxcontact.element.assembled import rigid_body_modes
             x = V.tabulate_dof_coordinates()[:V.dofmap.index_map.size_local, :bs]
             self._near_null = rigid_body_modes(self.comm, np.ascontiguousarray(x))
         ksp.setErrorIfNotConverged(kind == "iterative" and

@@ -29,19 +29,31 @@ import inspect
 import logging
 import math
 import time
-from dataclasses import dataclass, field
 from typing import Dict, List, Optional
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fxcontact.newton.bordered import BorderedPC, _BorderedOperator
 from fxcontact.collective import RanksDisagree, check_decision
+from fxcontact.element.assembled import CondensationLayout, CondensedPC
+from fxcontact.element.jacobian import (
+    CondensedJacobian,
+    ElementCondensedPC,
+    element_condensation_supported,
+    jacobian_shell,
+)
+from fxcontact.newton.bordered import BorderedPC, _BorderedOperator
+from fxcontact.newton.options import (
+    LINE_SEARCHES,
+    LINEAR_SOLVERS,
+    MATERIAL_TANGENTS,
+    SolveInfo,
+    SolverOptions,
+    _globalization_options,
+)
+from fxcontact.newton.prediction import ActiveSetPrediction
 from fxcontact.newton.problem import NonlinearProblem, mumps_null_pivots
-from fxcontact.protocols import force_scale, warn_unscaled_ftol
-from fxcontact.newton.options import (LINE_SEARCHES, LINEAR_SOLVERS, MATERIAL_TANGENTS,
-                                      SolverOptions, _globalization_options)
 
 __all__ = ["ContactNewtonSolver", "NewtonSolver", "SolveInfo", "SolverOptions", "LINEAR_SOLVERS",
            "choose_linear_solver", "BorderedPC", "MATERIAL_TANGENTS"]
@@ -98,31 +110,21 @@ REUSE_CONTRACTION = 0.25
 _WRITTEN_OPTIONS: Dict[str, set] = {}
 
 
-@dataclass
-class SolveInfo:
-    """Outcome of one Newton solve."""
+def force_scale(contributors) -> float:
+    """ℓ² norm of the contributors' nodal forces (``force_norm()``): ``SolverOptions.ftol``'s
+    scale."""
+    return math.sqrt(sum(c.force_norm() ** 2 for c in contributors if hasattr(c, "force_norm")))
 
-    converged: bool
-    iterations: int
-    reason: int
-    residual_norms: List[float]
-    message: str = ""
-    times: Dict[str, float] = field(default_factory=dict)
-    #: Krylov iterations of the solve (inner iterations of a condensed solver), summed over
-    #: the Newton iterations
-    linear_iterations: int = 0
-    #: Newton iterations of the softened and of the full stage (penalty continuation), or None
-    stage_iterations: Optional[tuple] = None
-    #: number of residual and Jacobian evaluations (SNES callbacks) of the solve: one
-    #: residual at the start plus one per line-search trial, one Jacobian per iteration
-    evaluations: Dict[str, int] = field(default_factory=dict)
-    #: null pivots of the MUMPS factorisation of each Newton iteration's matrix (INFOG(28);
-    #: None with a solver that is not MUMPS): a positive count means a singular Newton matrix,
-    #: a motion that nothing holds (see :data:`NULL_PIVOT_HINT`)
-    null_pivots: List[Optional[int]] = field(default_factory=list)
-    #: factorisations of the Newton matrix made during the solve (one per Newton iteration
-    #: unless ``SolverOptions.reuse_factorisation`` keeps them)
-    factorisations: int = 0
+
+def warn_unscaled_ftol(contributors, ftol: float) -> bool:
+    """Warn (this module's logger) when ``ftol`` is set and no contributor reports
+    ``force_norm()``; returns whether it warned."""
+    if ftol > 0 and not any(hasattr(c, "force_norm") for c in contributors):
+        log.warning(
+            "ftol = %g has no effect: no contributor reports force_norm() (the nodal contact "
+            "does); Newton stops on rtol, atol and stol only", ftol)
+        return True
+    return False
 
 
 class ContactNewtonSolver:
@@ -169,7 +171,6 @@ class ContactNewtonSolver:
         self.border = None
         self._J_shell = self._J_element = None
         if self.options.uses_condensation:
-            from fxcontact.element.assembled import CondensationLayout
             self._layout = CondensationLayout(problem.w.function_space)
         self._enable_element_condensation()
         #: the assembled Newton matrix (None with the element condensation: its own matrix)
@@ -204,7 +205,6 @@ class ContactNewtonSolver:
     def _enable_element_condensation(self):
         """The element condensation of the Jacobian when the options ask for it (sets
         :attr:`element`; collective)."""
-        from fxcontact.element.jacobian import CondensedJacobian, element_condensation_supported
         self.element = None
         want = self.options.element_condensation
         if not (self.options.uses_condensation and want is not False):
@@ -254,7 +254,6 @@ class ContactNewtonSolver:
         if self.element is not None:
             # the condensed system in the element's matrix; the product with the Newton matrix
             # (line search slope, Krylov, border) from the kept cell matrices
-            from fxcontact.element.jacobian import jacobian_shell
             op = P = self._J_element = jacobian_shell(self.element)
         if self.border is not None:
             m, n = op.getSizes()
@@ -289,11 +288,9 @@ class ContactNewtonSolver:
                                   ("p", self._fieldsplit_is[1]))
         ksp.setFromOptions()
         if self._layout is not None:
-            from fxcontact.element.assembled import CondensedPC
             if self._condensed_pc is not None:
                 self._condensed_pc.destroy()
             if self.element is not None:
-                from fxcontact.element.jacobian import ElementCondensedPC
                 self._condensed_pc = ElementCondensedPC(
                     self.options.prefix + "condensed_", self.element,
                     getattr(self.problem, "schur_weight", None), problem=self.problem)
@@ -557,7 +554,6 @@ class ContactNewtonSolver:
         """Create (or drop) the active-set prediction for the current options."""
         if self.options.predicts_active_set:
             if self.prediction is None:
-                from fxcontact.newton.prediction import ActiveSetPrediction
                 self.prediction = ActiveSetPrediction(
                     self.problem, self.comm, max_nodes=self.options.prediction_max_nodes)
         else:

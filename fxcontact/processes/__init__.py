@@ -29,8 +29,14 @@ from fxcontact.processes.extrusion import ExtrusionCase, ExtrusionResult, Extrus
 from fxcontact.processes.extrusion import build as build_extrusion
 from fxcontact.processes.extrusion import run as run_extrusion
 from fxcontact.processes.flat_rolling import FlatRollingCase, FlatRollingResult, FlatRollingSetup
-from fxcontact.processes.monitor import (STATUSES, RunNumerics, SteadyMonitor, SteadyRun,
-                                         StopRules, window_increments)
+from fxcontact.processes.monitor import (
+                                         STATUSES,
+                                         RunNumerics,
+                                         SteadyMonitor,
+                                         SteadyRun,
+                                         StopRules,
+                                         window_increments,
+)
 from fxcontact.processes.ring_rolling import RingRollingCase, RingRollingResult, RingRollingSetup
 from fxcontact.processes.upsetting import UpsettingCase, UpsettingResult, UpsettingSetup
 from fxcontact.processes.upsetting import build as build_upsetting

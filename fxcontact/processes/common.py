@@ -12,8 +12,8 @@ import csv
 import dataclasses
 import functools
 import math
-import types
 import os
+import types
 from dataclasses import dataclass, field
 from typing import Callable, Dict, Optional, Sequence
 
@@ -21,8 +21,14 @@ import numpy as np
 from mpi4py import MPI
 
 from fxcontact import compat
+from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.processes.monitor import contact_lines
-from fxcontact.simulation import IncrementError, wall_split
+from fxcontact.simulation import (
+    IncrementError,
+    format_iteration_split,
+    format_wall_split,
+    wall_split,
+)
 from fxcontact.steady import steady_window
 
 __all__ = ["CaseBase", "script_main", "gather", "numerics_columns", "run_summary", "steady_values", "run_increments",
@@ -96,7 +102,6 @@ def script_main(parser, case_type, run, default=None, argv=None, output_dir="res
     ``--vtk_every``, ``--no-pictures``, ``--output-dir`` and ``--verbose``/``--quiet``; the
     case is ``default`` (or the quick one) with the fields given; ``run(case, ...)`` is run and
     its ``report()`` printed on rank 0. Returns the result."""
-    from fxcontact.console import add_verbosity_arguments, configure_logging
 
     parser.add_argument("--quick", action="store_true", help="the reduced size of the tests")
     parser.add_argument("--vtk_every", type=int, default=0)
@@ -221,7 +226,6 @@ class ProcessResult:
 
     def numerics_lines(self) -> list:
         """The report's lines on the power balance and the numerics."""
-        from fxcontact.simulation import format_iteration_split, format_wall_split
 
         return [f"power balance P_in / (D + P_f) - 1 = {100 * self.power_balance:.2f} % "
                 f"(with the penalty work {self.power_balance_penalty:.1e})",

@@ -16,7 +16,10 @@ from typing import Optional
 import numpy as np
 from mpi4py import MPI
 
-from fxcontact.meshing import gmsh_session
+from fxcontact.materials import NortonHoff
+from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, gmsh_session, sector_plane_normals
+from fxcontact.simulation import Simulation
+from fxcontact.spaces import MixedSpace
 from fxcontact.tools.faceted import FacetedTool
 from fxcontact.tools.revolved import RevolvedProfile
 
@@ -89,10 +92,6 @@ def bar_simulation(case, g: NoseLayout, comm, strain_rate: float, solver_options
     ``case.speed`` along +z, its reaction named ``reaction``. Returns ``(sim, facet_tags,
     facets by tag name, material)``; the VTK series every ``vtk_every`` increments into
     ``output_dir`` (0: none)."""
-    from fxcontact.materials import NortonHoff
-    from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
-    from fxcontact.simulation import Simulation
-    from fxcontact.spaces import MixedSpace
 
     mat = NortonHoff(K=case.K, m=case.m, regularization=1e-3 * strain_rate)
     msh, _, ft = drawing_bar(comm, case.R0, case.length, g.h, nose_length=g.nose_length,

@@ -57,21 +57,30 @@ from typing import Optional
 import numpy as np
 from mpi4py import MPI
 
-from fxcontact.theory import forming
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
 from fxcontact.meshing import DRAWING_BAR_TAGS
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
-from fxcontact.processes.common import (CaseBase, ProcessResult,
-                                        meridian_section, numerics_columns, plot_curves,
-                                        plot_sections, run_increments, run_summary,
-                                        steady_values, vertex_field, finish_run)
+from fxcontact.processes.common import (
+    CaseBase,
+    ProcessResult,
+    finish_run,
+    meridian_section,
+    numerics_columns,
+    plot_curves,
+    plot_sections,
+    run_increments,
+    run_summary,
+    steady_values,
+    vertex_field,
+)
+from fxcontact.processes.die import bar_simulation, die_profile_tool, die_radius, nose_layout
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone
-from fxcontact.processes.die import bar_simulation, die_profile_tool, die_radius, nose_layout
 from fxcontact.simulation import Simulation
-from fxcontact.newton.solver import SolverOptions
+from fxcontact.theory import forming
 from fxcontact.tools.revolved import RevolvedProfile
 
 __all__ = ["ExtrusionCase", "ExtrusionSetup", "ExtrusionResult", "CONTAINERS", "build", "run"]

@@ -27,19 +27,24 @@ import os
 from dataclasses import dataclass, field
 from typing import List, Optional
 
+import dolfinx
+import dolfinx.mesh
 import numpy as np
 from mpi4py import MPI
 
-import dolfinx
-import dolfinx.mesh
-
 import fxcontact as fx
 from fxcontact import compat
-from fxcontact.theory import flat_rolling as rolling
 from fxcontact.power import PowerBalance
 from fxcontact.processes.common import gather
-from fxcontact.processes.monitor import (RunNumerics, SteadyMonitor, SteadyRun, StopRules,
-                                         is_number, window_increments)
+from fxcontact.processes.monitor import (
+    RunNumerics,
+    SteadyMonitor,
+    SteadyRun,
+    StopRules,
+    is_number,
+    window_increments,
+)
+from fxcontact.theory import flat_rolling as rolling
 
 __all__ = ["FlatRollingCase", "FlatRollingSetup", "FlatRollingResult", "build", "run",
            "strip_mesh", "faceted_roll", "ROLLS"]

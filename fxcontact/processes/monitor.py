@@ -33,8 +33,14 @@ from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from fxcontact.simulation import (IncrementError, format_iteration_split, format_wall_split,
-                                  wall_split)
+from fxcontact.newton.options import SolverOptions
+from fxcontact.protocols import HasSummary
+from fxcontact.simulation import (
+    IncrementError,
+    format_iteration_split,
+    format_wall_split,
+    wall_split,
+)
 from fxcontact.steady import steady_window
 
 __all__ = ["StopRules", "SteadyMonitor", "SteadyRun", "RunNumerics", "STATUSES", "contact_lines",
@@ -91,7 +97,6 @@ class RunNumerics:
 
     def solver_options(self):
         """The :class:`fxcontact.SolverOptions` of these numerics."""
-        from fxcontact.newton.solver import SolverOptions
         return SolverOptions(line_search=self.line_search,
                              active_set_prediction=self.active_set_prediction,
                              penalty_continuation=self.penalty_continuation,
@@ -150,7 +155,6 @@ def contact_lines(sim) -> List[str]:
     resolved, each friction law and which shear flow stress k it uses), for a process's
     report: the processes step their simulation themselves, so ``Simulation.run``'s summary is
     not printed."""
-    from fxcontact.protocols import HasSummary
     return [c.summary() for c in getattr(sim, "contributors", ())   # (a scripted stand-in: none)
             if isinstance(c, HasSummary)]
 

@@ -60,26 +60,32 @@ import time
 from dataclasses import dataclass
 from typing import Optional
 
+import dolfinx.mesh
 import numpy as np
 from mpi4py import MPI
 
-import dolfinx.mesh
-
-from fxcontact.theory import forming
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Coulomb, Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
-from fxcontact.processes.common import (CaseBase, ProcessResult, _pyplot, finish_run,
-                                        meridian_section, numerics_columns, plot_curves,
-                                        run_summary)
+from fxcontact.processes.common import (
+    CaseBase,
+    ProcessResult,
+    _pyplot,
+    finish_run,
+    meridian_section,
+    numerics_columns,
+    plot_curves,
+    run_summary,
+)
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone
 from fxcontact.simulation import IncrementError, Simulation
-from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
+from fxcontact.theory import forming
 from fxcontact.tools.analytic import Plane
 
 __all__ = ["UpsettingCase", "UpsettingSetup", "UpsettingResult", "build", "run"]

@@ -35,15 +35,23 @@ import time
 from dataclasses import dataclass, field, replace
 from typing import Callable, List, Optional, Sequence, Union
 
+import dolfinx.mesh
 import numpy as np
+import ufl
 from mpi4py import MPI
 
+from fxcontact import compat
 from fxcontact.collective import together
+from fxcontact.io.keys import as_records, vertex_keys
+from fxcontact.io.outputs import Outputs
 from fxcontact.protocols import Remeshable
 from fxcontact.registration import label
 from fxcontact.remesh import criteria as _criteria
 from fxcontact.remesh.selection import facet_tags_of, rederived_calls
-from fxcontact.remesh.volume import SizeZone
+from fxcontact.remesh.state import transfer_simulation_state
+from fxcontact.remesh.surface import gather_boundary
+from fxcontact.remesh.volume import SizeZone, volume_mesh
+from fxcontact.spaces import MixedSpace
 
 __all__ = ["Remeshing", "RemeshRecord", "remesh_simulation", "rebind", "mean_edge_length",
            "summary_lines"]
@@ -268,10 +276,6 @@ def remesh_simulation(sim, size: Optional[float] = None,
     docstring). ``size``, ``zones``, ``feature_angle``: default those of
     :meth:`~fxcontact.simulation.Simulation.set_remeshing`, else the mean edge length of the
     current mesh, no zones and 40°."""
-    from fxcontact.remesh.surface import gather_boundary
-    from fxcontact.remesh.state import transfer_simulation_state
-    from fxcontact.remesh.volume import volume_mesh
-    from fxcontact.spaces import MixedSpace
     settings = sim._remeshing
     with together(sim.comm, "Simulation.remesh()", reason=reason):
         if sim.u is not None:
@@ -334,7 +338,6 @@ def rebind(sim, space, facet_tags, state=None, build: bool = True):
     facet calls on the facets of the same tags in ``facet_tags``, the contributors
     (``remesh(space, facet_tags)``), mesh health, outputs and checkpoint keys; then, if
     ``build``, the forms and the solver with the volume correction's reference kept."""
-    from fxcontact.io.outputs import Outputs
     old_calls = list(getattr(sim, "_facet_calls", []))
     sim._checkpoints.remeshed()
     opened = sim._outputs.opened
@@ -380,8 +383,6 @@ def checkpoint_arrays(sim) -> dict:
     rank's part): the owned geometry nodes at the remesh (``mesh_x0``, keyed like ``x`` by
     their input index), the owned cells as input indices of their nodes, the facet tags keyed
     by the sorted input indices of their vertices."""
-    from fxcontact import compat
-    from fxcontact.io.checkpoint import vertex_keys
     msh = sim.mesh
     tdim = msh.topology.dim
     nx = msh.geometry.index_map().size_local
@@ -399,10 +400,6 @@ def checkpoint_arrays(sim) -> dict:
 def restore_mesh(sim, arrays: dict):
     """Bind ``sim`` (set up on its initial mesh) to the mesh a checkpoint written after a
     remesh holds (:func:`checkpoint_arrays`), without building it (collective)."""
-    import ufl
-    import dolfinx.mesh
-    from fxcontact.io.checkpoint import _as_records, vertex_keys
-    from fxcontact.spaces import MixedSpace
     comm = sim.comm
     gdim = sim.mesh.geometry.dim
     if comm.rank == 0:
@@ -418,8 +415,8 @@ def restore_mesh(sim, arrays: dict):
     msh.topology.create_connectivity(tdim - 1, 0)
     msh.topology.create_connectivity(tdim - 1, tdim)
     f2v = np.asarray(msh.topology.connectivity(tdim - 1, 0).array).reshape(-1, tdim)
-    mine = _as_records(np.sort(vertex_keys(msh)[f2v], axis=1))
-    saved = _as_records(arrays["mesh_facet_key"])
+    mine = as_records(np.sort(vertex_keys(msh)[f2v], axis=1))
+    saved = as_records(arrays["mesh_facet_key"])
     order = np.argsort(saved)
     pos = np.minimum(np.searchsorted(saved[order], mine), max(len(saved) - 1, 0))
     found = saved[order][pos] == mine if len(saved) else np.zeros(len(mine), bool)

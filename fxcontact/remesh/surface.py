@@ -10,10 +10,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 import dolfinx
 import dolfinx.mesh
+import numpy as np
 
 from fxcontact import compat
 

@@ -35,14 +35,14 @@ import math
 from typing import Callable, Optional
 
 import basix
-import numpy as np
-from mpi4py import MPI
-
 import dolfinx
 import dolfinx.fem
 import dolfinx.geometry
+import numpy as np
+from mpi4py import MPI
 
 from fxcontact import compat
+from fxcontact.collective import check_together
 
 __all__ = ["PointLocation", "interpolate_from", "transfer_cellwise", "cell_vertex_coordinates",
            "CONSERVE"]
@@ -166,7 +166,6 @@ class PointLocation:
         """``f(points, cells) -> (n, k)`` evaluated where each point was located (on the rank
         that owns its old cell; ``cells`` are that rank's local cell indices); returns the
         (N, k) values at this rank's points, in their order (collective)."""
-        from fxcontact.collective import check_together
         vals, err = [], None
         try:
             vals = [np.asarray(f(p, c), dtype=np.float64).reshape(len(p), -1) if len(p) else None

@@ -40,9 +40,12 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from fxcontact import compat
+from fxcontact.collective import together
 from fxcontact.mesh_health import simplex_measures
-from fxcontact.remesh.surface import UNTAGGED, BoundarySurface
+from fxcontact.meshing import gmsh_session
 from fxcontact.remesh.smooth import SmoothBoundary, place_surface_nodes
+from fxcontact.remesh.surface import UNTAGGED, BoundarySurface
 from fxcontact.remesh.topology import discrete_model
 
 __all__ = ["SizeZone", "size_field", "size_fields", "surface_patches", "volume_mesh", "CELL_TAG"]
@@ -473,9 +476,6 @@ def volume_mesh(comm, surface: BoundarySurface, h: float, zones: Sequence[SizeZo
     Returns:
         ``(mesh, cell_tags, facet_tags)``; the facet tags are those of the old boundary.
     """
-    from fxcontact import compat
-    from fxcontact.collective import together
-    from fxcontact.meshing import gmsh_session
     with together(comm, "volume_mesh()", h=h, feature_angle=feature_angle):
         if not (np.isfinite(h) and h > 0):
             raise ValueError(f"volume_mesh: h must be > 0, got {h!r}")

@@ -390,7 +390,7 @@ class ControlledMotion(RigidMotion):
 
     def checkpoint_state(self) -> dict:
         """The stages of rates set so far (plain numbers and lists): what a resumed run needs
-        to place the tool where the checkpointed run had it (:mod:`fxcontact.io.checkpoint`)."""
+        to place the tool where the checkpointed run had it (:mod:`fxcontact.checkpoint`)."""
         st = self._st
         return {"t": [float(x) for x in st["t"]], "th": [float(x) for x in st["th"]],
                 "w": [float(x) for x in st["w"]],

@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 from typing import Optional, Tuple
 
 import numpy as np
@@ -82,6 +83,7 @@ from fxcontact.tools.normals import (
     facet_normals,
     facet_vertex_normals,
 )
+from fxcontact.tools.revolved import RevolvedProfile, faceted_revolved
 
 __all__ = [
     "FacetedTool",
@@ -264,7 +266,6 @@ class FacetedTool(Tool):
         STL files carry no connectivity; meshio merges exactly coincident points, which is
         what CAD exports need. ``kwargs`` are passed to the constructor (``name`` defaults to
         the file name)."""
-        import os
 
         V, T = read_surface(path)
         kwargs.setdefault("name", os.path.basename(path))
@@ -288,7 +289,6 @@ class FacetedTool(Tool):
             kwargs: passed to the constructor (``mode``, ``normals``, ``crease_angle``, ...;
                 ``name`` defaults to the tool's). The motion is the analytic tool's.
         """
-        from fxcontact.tools.revolved import RevolvedProfile, faceted_revolved
 
         if not isinstance(tool, RevolvedProfile):
             raise ValueError(f"tool must be a RevolvedProfile, got {type(tool).__name__}")

@@ -5,7 +5,6 @@ kernels over the candidate search, and their reference twins (for testing only).
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -14,9 +13,9 @@ from fxcontact.tools.faceted_search import _search, closest_point_triangle_ref
 from fxcontact.tools.nagata import (
     _GT,
     _LOOSE,
-    _RefPatch,
     _TOLA,
     _pt,
+    _RefPatch,
     _xe,
     _xz,
     patch_gap_nb,
@@ -26,9 +25,6 @@ from fxcontact.tools.nagata import (
     project_patch_ref,
 )
 from fxcontact.tools.normals import LOCAL_EDGES
-
-if TYPE_CHECKING:
-    from fxcontact.tools.faceted import FacetedTool
 
 __all__ = ["flat_project_ref", "nagata_project_ref"]
 
@@ -331,7 +327,7 @@ def _flat_select_ref(p, cands, d, reg, q, tool):
     return cands[choose], gbest, s * d[jb]
 
 
-def flat_project_ref(tool: "FacetedTool", P: np.ndarray, ptr: np.ndarray, idx: np.ndarray):
+def flat_project_ref(tool, P: np.ndarray, ptr: np.ndarray, idx: np.ndarray):
     """Reference implementation, for testing only: twin of the flat mesh kernel.
 
     Returns ``(gap, normal, point, feature, signed_true_distance)``."""
@@ -349,7 +345,7 @@ def flat_project_ref(tool: "FacetedTool", P: np.ndarray, ptr: np.ndarray, idx: n
     return gap, normal, P - gap[:, None] * normal, feature, sd
 
 
-def nagata_project_ref(tool: "FacetedTool", P: np.ndarray, ptr: np.ndarray, idx: np.ndarray,
+def nagata_project_ref(tool, P: np.ndarray, ptr: np.ndarray, idx: np.ndarray,
                        want_hessian: bool = True):
     """Reference implementation, for testing only: twin of the Nagata mesh kernel.
 

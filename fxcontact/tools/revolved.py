@@ -107,8 +107,15 @@ from fxcontact.tools.analytic import (
     _tup,
 )
 from fxcontact.tools.base import Projection, RigidMotion, as_points, unit_vector
-from fxcontact.tools.revolved_profile import (_ARC, _LINE, _SNAP, _pos, _Profile, die_profile,
-                                              grooved_roll_profile)
+from fxcontact.tools.revolved_profile import (
+    _ARC,
+    _LINE,
+    _SNAP,
+    _pos,
+    _Profile,
+    die_profile,
+    grooved_roll_profile,
+)
 
 __all__ = ["RevolvedProfile", "die_profile", "grooved_roll_profile", "faceted_revolved",
            "revolved_numpy"]

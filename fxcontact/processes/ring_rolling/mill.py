@@ -25,14 +25,21 @@ from __future__ import annotations
 import math
 from typing import Dict, Optional, Sequence
 
+import dolfinx.fem
 import numpy as np
+import ufl
 from mpi4py import MPI
+from scipy.spatial import cKDTree
 
-from fxcontact.theory import forming
+from fxcontact import compat
 from fxcontact.contact.friction import LAW_NONE, Coulomb, Frictionless, Norton
-from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.idle import controlled_motion, rolling_speed
+from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.processes.monitor import is_number
+from fxcontact.remesh.criteria import RemeshCriteria
+from fxcontact.remesh.remeshing import mean_edge_length
+from fxcontact.remesh.volume import SizeZone
+from fxcontact.theory import forming
 from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
 
 __all__ = ["RingCentring", "AxialRolls", "cone_row", "BiteZones", "set_ring_remeshing",
@@ -133,9 +140,6 @@ class RingCentring:
 
     def measure(self, sim):
         """(centroid, mean outer radius) of the current configuration (collective)."""
-        import dolfinx.fem
-        import ufl
-        from fxcontact import compat
         if self._forms is None:
             x = ufl.SpatialCoordinate(sim.mesh)
             self._forms = [compat.form(x[i] * sim.space.dx) for i in range(3)]
@@ -376,7 +380,6 @@ class BiteZones:
         return np.linspace(lo, hi, max(2, int(math.ceil((hi - lo) / h)) + 1))
 
     def __call__(self, sim) -> list:
-        from fxcontact.remesh.volume import SizeZone
         cz = self.centring
         c, _ = cz.measure(sim)
         a, e = cz.axis, cz.e
@@ -438,8 +441,6 @@ def set_ring_remeshing(sim, centring: RingCentring, case, h_theta: float, start:
     ``start``, the ring is remeshed before the first increment (its bite refined from the
     start). The bite's length is the steady one: while the bite grows (the first revolution
     from a small ``initial_bite``) it is spanned by fewer elements."""
-    from fxcontact.remesh.criteria import RemeshCriteria
-    from fxcontact.remesh.remeshing import mean_edge_length
     c = case
     n = c.remesh_min_across
     across = None if n is None else dict.fromkeys(("main_roll", "mandrel"), n)
@@ -466,7 +467,6 @@ def bite_coverage(sim, contact, center, tools=("main_roll", "mandrel"), axis=(0.
     edge, elements across)}``; (0, nan, 0) for a tool with fewer than 3 contact nodes. An
     independent measure of what ``RemeshCriteria.min_elements_across`` checks (that one: the
     width 2√3σ of the nodes' spread, over the facets around them)."""
-    from scipy.spatial import cKDTree
     comm, b = sim.comm, contact.boundary
     msh = sim.mesh
     fdim = msh.topology.dim - 1

@@ -48,14 +48,20 @@ from mpi4py import MPI
 
 import fxcontact as fx
 from fxcontact import compat
-from fxcontact.theory import forming
-from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.idle import IDLE_METHODS, ControlledMotion, IdleRotation
+from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.power import PowerBalance, delivered_power
 from fxcontact.processes.monitor import RunNumerics, SteadyRun, contact_lines, is_number
 from fxcontact.processes.ring_rolling import pictures as ring_pictures
-from fxcontact.processes.ring_rolling.mill import (AxialRolls, RingCentring, cone_row, friction_law,
-                                          friction_spec, set_ring_remeshing)
+from fxcontact.processes.ring_rolling.mill import (
+    AxialRolls,
+    RingCentring,
+    cone_row,
+    friction_law,
+    friction_spec,
+    set_ring_remeshing,
+)
+from fxcontact.theory import forming
 
 __all__ = ["RingRollingCase", "RingRollingSetup", "RingRollingResult", "build", "run",
            "K_THESIS", "K_HOT", "QUICK", "TOOLS", "UPDATES"]

@@ -1,0 +1,3 @@
+"""The version of fxcontact (written into checkpoints and manifests)."""
+
+__version__ = "0.1.0"
