@@ -32,72 +32,32 @@ from fxcontact.io.outputs import OutputError
 from fxcontact.kinematics import CartesianUpdate, CylindricalUpdate, RingAxisUpdate
 from fxcontact.materials import LinearElastic, Material, NortonHoff
 from fxcontact.mesh_health import simplex_measures
-from fxcontact.meshing import (
-    BILLET_TAGS,
-    BLOCK_TAGS,
-    DRAWING_BAR_TAGS,
-    RING_TAGS,
-    block,
-    cylinder_billet,
-    drawing_bar,
-    gmsh_session,
-    ring,
-    sector_plane_normals,
-    structured_ring,
-)
-from fxcontact.newton.problem import (
-    ContactProblem,
-    ContributorError,
-    NodalNonlinearProblem,
-    NodalTerms,
-    NonlinearProblem,
-)
+from fxcontact.meshing import (BILLET_TAGS, BLOCK_TAGS, DRAWING_BAR_TAGS, RING_TAGS, block,
+                               cylinder_billet, drawing_bar, gmsh_session, ring,
+                               sector_plane_normals, structured_ring)
+from fxcontact.newton.problem import (ContactProblem, ContributorError, NodalNonlinearProblem,
+                                      NodalTerms, NonlinearProblem)
 from fxcontact.newton.retry import IncrementError, MeshInversionError
-from fxcontact.newton.solver import (
-    LINE_SEARCHES,
-    MATERIAL_TANGENTS,
-    ContactNewtonSolver,
-    NewtonSolver,
-    SolveInfo,
-    SolverOptions,
-)
+from fxcontact.newton.solver import (LINE_SEARCHES, MATERIAL_TANGENTS, ContactNewtonSolver,
+                                     NewtonSolver, SolveInfo, SolverOptions)
 from fxcontact.power import PlasticDissipation, on_configuration, penalty_power, plastic_dissipation
 from fxcontact.protocols import Contributor, Controller
 from fxcontact.simulation import VOLUME_CORRECTIONS, IncrementResult, Simulation
 from fxcontact.spaces import MixedSpace, facets_with_tags
 from fxcontact.steady import steady_window
 from fxcontact.symmetry import SymmetryPlanes
-from fxcontact.theory.forming import (
-    avitzur_f,
-    drawing_ideal_stress,
-    drawing_mean_strain_rate,
-    drawing_optimal_angle,
-    drawing_sachs_stress,
-    drawing_theory,
-    drawing_upper_bound,
-    flow_stress,
-    ring_compression_upper_bound,
-    ring_rolling_feed_window,
-    ring_rolling_force,
-    upsetting_slab_coulomb,
-    upsetting_upper_bound,
-)
+from fxcontact.theory.forming import (avitzur_f, drawing_ideal_stress, drawing_mean_strain_rate,
+                                      drawing_optimal_angle, drawing_sachs_stress, drawing_theory,
+                                      drawing_upper_bound, flow_stress,
+                                      ring_compression_upper_bound, ring_rolling_feed_window,
+                                      ring_rolling_force, upsetting_slab_coulomb,
+                                      upsetting_upper_bound)
 from fxcontact.tools.analytic import Cone, Cylinder, Plane, Sphere
-from fxcontact.tools.base import (
-    ControlledMotion,
-    MovedTool,
-    Projection,
-    RigidMotion,
-    StagedMotion,
-    Tool,
-)
+from fxcontact.tools.base import (ControlledMotion, MovedTool, Projection, RigidMotion,
+                                  StagedMotion, Tool)
 from fxcontact.tools.faceted import FacetedTool, check_surface, read_surface
-from fxcontact.tools.revolved import (
-    RevolvedProfile,
-    die_profile,
-    faceted_revolved,
-    grooved_roll_profile,
-)
+from fxcontact.tools.revolved import (RevolvedProfile, die_profile, faceted_revolved,
+                                      grooved_roll_profile)
 
 _legacy.install()      # the former module names (fxcontact.solver, ...), with a warning
 

@@ -42,15 +42,8 @@ from mpi4py import MPI
 
 from fxcontact._version import __version__
 from fxcontact.collective import describe
-from fxcontact.io.keys import (
-    CheckpointError,
-    KeyTable,
-    PerVertex,
-    VertexLookup,
-    dof_keys,
-    mesh_fingerprint,
-    vertex_keys,
-)
+from fxcontact.io.keys import (CheckpointError, KeyTable, PerVertex, VertexLookup, dof_keys,
+                               mesh_fingerprint, vertex_keys)
 from fxcontact.io.outputs import OutputError
 from fxcontact.protocols import HasSetupSignature, RestoresState, SavesState
 from fxcontact.remesh.remeshing import RemeshRecord, checkpoint_arrays, restore_mesh

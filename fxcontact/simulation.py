@@ -41,54 +41,29 @@ from fxcontact.checkpoint import Checkpoints
 from fxcontact.collective import check_together, digest, digest_parameters, together
 from fxcontact.element.dual import DualStress
 from fxcontact.element.tensors import NortonHoffElementTensors
-from fxcontact.io.outputs import (
-    OutputError,
-    Outputs,
-    format_iteration_split,
-    format_wall_split,
-    output_dir_problem,
-    wall_split,
-)
+from fxcontact.io.outputs import (OutputError, Outputs, format_iteration_split, format_wall_split,
+                                  output_dir_problem, wall_split)
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.la import add_nodal_residual
 from fxcontact.materials import Material
-from fxcontact.materials.forms import (
-    equivalent_strain_rate_ufl,
-    primal_dual_jacobian,
-    shear_viscosity_ufl,
-    standard_norton_hoff,
-    uses_dual_stress,
-    volumetric_augment_ufl,
-)
+from fxcontact.materials.forms import (equivalent_strain_rate_ufl, primal_dual_jacobian,
+                                       shear_viscosity_ufl, standard_norton_hoff, uses_dual_stress,
+                                       volumetric_augment_ufl)
 from fxcontact.mesh_health import MeshHealth
 from fxcontact.newton.problem import ContributorError, NodalNonlinearProblem
 from fxcontact.newton.retry import IncrementError, MeshInversionError, RetryLadder
 from fxcontact.newton.solver import ContactNewtonSolver, SolveInfo, SolverOptions
-from fxcontact.protocols import (
-    BeginsIncrement,
-    Contributor,
-    EndsIncrement,
-    HasDiagnostics,
-    HasSummary,
-    SolvesIncrement,
-)
-from fxcontact.registration import VelocityCondition as _BC
-from fxcontact.registration import bc_label as _bc_label
-from fxcontact.registration import check_added_once as _check_added_once
-from fxcontact.registration import column_labels as _column_labels
-from fxcontact.registration import label as _label
-from fxcontact.registration import merge_columns as _merge_columns
-from fxcontact.registration import time_value as _time_value
+from fxcontact.protocols import (BeginsIncrement, Contributor, EndsIncrement, HasDiagnostics,
+                                 HasSummary, SolvesIncrement)
+from fxcontact.registration import (VelocityCondition as _BC, bc_label as _bc_label,
+                                    check_added_once as _check_added_once,
+                                    column_labels as _column_labels, label as _label,
+                                    merge_columns as _merge_columns, time_value as _time_value)
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.remeshing import Remeshing, remesh_simulation
 from fxcontact.remesh.selection import FacetSelection, remembered
-from fxcontact.spaces import (
-    MixedSpace,
-    checked_facets,
-    facets_with_tags,
-    set_function_value,
-    velocity_bc,
-)
+from fxcontact.spaces import (MixedSpace, checked_facets, facets_with_tags, set_function_value,
+                              velocity_bc)
 from fxcontact.symmetry import SymmetryPlanes, unit_normal
 
 __all__ = ["Simulation", "IncrementError", "MeshInversionError", "OutputError", "IncrementResult",

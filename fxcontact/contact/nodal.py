@@ -50,13 +50,8 @@ from mpi4py import MPI
 
 from fxcontact.collective import together
 from fxcontact.contact.boundary import ContactBoundary
-from fxcontact.contact.friction import (
-    LAW_NONE,
-    friction_kernel,
-    friction_kernel_numpy,
-    laws_per_tool,
-    shear_flow_stress,
-)
+from fxcontact.contact.friction import (LAW_NONE, friction_kernel, friction_kernel_numpy,
+                                        laws_per_tool, shear_flow_stress)
 from fxcontact.contact.nodal_io import STICK_FACTOR, NodalContactIO, flip_hint
 from fxcontact.contact.penalty import (  # noqa: F401
     DEFAULT_BETA,

@@ -50,12 +50,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from fxcontact import compat
-from fxcontact.la import (
-    direct_mumps,
-    factor_solve_many,
-    rigid_body_modes,
-    same_nonzero_pattern,
-)
+from fxcontact.la import direct_mumps, factor_solve_many, rigid_body_modes, same_nonzero_pattern
 
 __all__ = ["SYMMETRY_RTOL", "CondensationLayout", "CondensedPC"]
 

@@ -37,21 +37,11 @@ from petsc4py import PETSc
 
 from fxcontact.collective import RanksDisagree, check_decision
 from fxcontact.element.assembled import CondensationLayout, CondensedPC
-from fxcontact.element.jacobian import (
-    CondensedJacobian,
-    ElementCondensedPC,
-    element_condensation_supported,
-    jacobian_shell,
-)
+from fxcontact.element.jacobian import (CondensedJacobian, ElementCondensedPC,
+                                        element_condensation_supported, jacobian_shell)
 from fxcontact.newton.bordered import BorderedPC, _BorderedOperator
-from fxcontact.newton.options import (
-    LINE_SEARCHES,
-    LINEAR_SOLVERS,
-    MATERIAL_TANGENTS,
-    SolveInfo,
-    SolverOptions,
-    _globalization_options,
-)
+from fxcontact.newton.options import (LINE_SEARCHES, LINEAR_SOLVERS, MATERIAL_TANGENTS, SolveInfo,
+                                      SolverOptions, _globalization_options)
 from fxcontact.newton.prediction import ActiveSetPrediction
 from fxcontact.newton.problem import NonlinearProblem, mumps_null_pivots
 

@@ -23,11 +23,9 @@ pictures, ``report()``).
 from fxcontact.processes import bar_rolling, flat_rolling, ring_rolling
 from fxcontact.processes.bar_rolling import BarRollingCase, BarRollingResult, BarRollingSetup
 from fxcontact.processes.drawing import DrawingCase, DrawingResult, DrawingSetup
-from fxcontact.processes.drawing import build as build_drawing
-from fxcontact.processes.drawing import run as run_drawing
+from fxcontact.processes.drawing import build as build_drawing, run as run_drawing
 from fxcontact.processes.extrusion import ExtrusionCase, ExtrusionResult, ExtrusionSetup
-from fxcontact.processes.extrusion import build as build_extrusion
-from fxcontact.processes.extrusion import run as run_extrusion
+from fxcontact.processes.extrusion import build as build_extrusion, run as run_extrusion
 from fxcontact.processes.flat_rolling import FlatRollingCase, FlatRollingResult, FlatRollingSetup
 from fxcontact.processes.monitor import (
                                          STATUSES,
@@ -39,8 +37,7 @@ from fxcontact.processes.monitor import (
 )
 from fxcontact.processes.ring_rolling import RingRollingCase, RingRollingResult, RingRollingSetup
 from fxcontact.processes.upsetting import UpsettingCase, UpsettingResult, UpsettingSetup
-from fxcontact.processes.upsetting import build as build_upsetting
-from fxcontact.processes.upsetting import run as run_upsetting
+from fxcontact.processes.upsetting import build as build_upsetting, run as run_upsetting
 
 __all__ = ["bar_rolling", "flat_rolling", "ring_rolling",
            "BarRollingCase", "BarRollingResult", "BarRollingSetup",

@@ -46,14 +46,8 @@ from fxcontact import compat
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.power import PowerBalance
 from fxcontact.processes.common import gather
-from fxcontact.processes.monitor import (
-    RunNumerics,
-    SteadyMonitor,
-    SteadyRun,
-    StopRules,
-    is_number,
-    window_increments,
-)
+from fxcontact.processes.monitor import (RunNumerics, SteadyMonitor, SteadyRun, StopRules,
+                                         is_number, window_increments)
 
 __all__ = ["BarRollingCase", "BarRollingSetup", "BarRollingResult", "build", "run", "compare",
            "pass_geometry", "stand_pass", "make_rolls", "pass_outline", "pass_outline_of_rolls",

@@ -23,12 +23,8 @@ from mpi4py import MPI
 from fxcontact import compat
 from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.processes.monitor import contact_lines
-from fxcontact.simulation import (
-    IncrementError,
-    format_iteration_split,
-    format_wall_split,
-    wall_split,
-)
+from fxcontact.simulation import (IncrementError, format_iteration_split, format_wall_split,
+                                  wall_split)
 from fxcontact.steady import steady_window
 
 __all__ = ["CaseBase", "script_main", "gather", "numerics_columns", "run_summary", "steady_values", "run_increments",

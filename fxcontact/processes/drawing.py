@@ -41,29 +41,11 @@ from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
 from fxcontact.meshing import DRAWING_BAR_TAGS
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
-from fxcontact.processes.common import (
-    CaseBase,
-    ProcessResult,
-    finish_run,
-    gather,
-    meridian_section,
-    numerics_columns,
-    plot_curves,
-    plot_sections,
-    run_increments,
-    run_summary,
-    steady_values,
-)
-from fxcontact.processes.die import (
-    DIE_MESHES,
-    DIES,
-    bar_simulation,
-    die_profile_tool,
-    die_radius,
-    die_tool,
-    nose_layout,
-    true_penetration,
-)
+from fxcontact.processes.common import (CaseBase, ProcessResult, finish_run, gather,
+                                        meridian_section, numerics_columns, plot_curves,
+                                        plot_sections, run_increments, run_summary, steady_values)
+from fxcontact.processes.die import (DIE_MESHES, DIES, bar_simulation, die_profile_tool, die_radius,
+                                     die_tool, nose_layout, true_penetration)
 from fxcontact.simulation import Simulation
 from fxcontact.theory import forming
 

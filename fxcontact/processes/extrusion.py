@@ -63,19 +63,9 @@ from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
 from fxcontact.meshing import DRAWING_BAR_TAGS
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
-from fxcontact.processes.common import (
-    CaseBase,
-    ProcessResult,
-    finish_run,
-    meridian_section,
-    numerics_columns,
-    plot_curves,
-    plot_sections,
-    run_increments,
-    run_summary,
-    steady_values,
-    vertex_field,
-)
+from fxcontact.processes.common import (CaseBase, ProcessResult, finish_run, meridian_section,
+                                        numerics_columns, plot_curves, plot_sections,
+                                        run_increments, run_summary, steady_values, vertex_field)
 from fxcontact.processes.die import bar_simulation, die_profile_tool, die_radius, nose_layout
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone

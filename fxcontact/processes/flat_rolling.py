@@ -36,14 +36,8 @@ import fxcontact as fx
 from fxcontact import compat
 from fxcontact.power import PowerBalance
 from fxcontact.processes.common import gather
-from fxcontact.processes.monitor import (
-    RunNumerics,
-    SteadyMonitor,
-    SteadyRun,
-    StopRules,
-    is_number,
-    window_increments,
-)
+from fxcontact.processes.monitor import (RunNumerics, SteadyMonitor, SteadyRun, StopRules,
+                                         is_number, window_increments)
 from fxcontact.theory import flat_rolling as rolling
 
 __all__ = ["FlatRollingCase", "FlatRollingSetup", "FlatRollingResult", "build", "run",

@@ -35,12 +35,8 @@ import numpy as np
 
 from fxcontact.newton.options import SolverOptions
 from fxcontact.protocols import HasSummary
-from fxcontact.simulation import (
-    IncrementError,
-    format_iteration_split,
-    format_wall_split,
-    wall_split,
-)
+from fxcontact.simulation import (IncrementError, format_iteration_split, format_wall_split,
+                                  wall_split)
 from fxcontact.steady import steady_window
 
 __all__ = ["StopRules", "SteadyMonitor", "SteadyRun", "RunNumerics", "STATUSES", "contact_lines",

@@ -71,16 +71,9 @@ from fxcontact.materials import NortonHoff
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
-from fxcontact.processes.common import (
-    CaseBase,
-    ProcessResult,
-    _pyplot,
-    finish_run,
-    meridian_section,
-    numerics_columns,
-    plot_curves,
-    run_summary,
-)
+from fxcontact.processes.common import (CaseBase, ProcessResult, _pyplot, finish_run,
+                                        meridian_section, numerics_columns, plot_curves,
+                                        run_summary)
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone
 from fxcontact.simulation import IncrementError, Simulation

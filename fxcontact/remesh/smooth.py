@@ -39,12 +39,8 @@ from typing import Dict, Iterable, List, Optional, Tuple
 import numpy as np
 from scipy.spatial import cKDTree
 
-from fxcontact.tools.nagata import (
-    patch_edge_coefficients,
-    patch_monomials,
-    patch_normals,
-    patch_points,
-)
+from fxcontact.tools.nagata import (patch_edge_coefficients, patch_monomials, patch_normals,
+                                    patch_points)
 from fxcontact.tools.normals import facet_vertex_normals, vertex_normals
 
 __all__ = ["SmoothBoundary", "quadric_normals", "NEIGHBOURS", "MERGE_ANGLE"]

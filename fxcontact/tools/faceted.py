@@ -57,32 +57,15 @@ from scipy.spatial import cKDTree
 from fxcontact.console import ALL_RANKS
 from fxcontact.tools.base import Projection, RigidMotion, Tool, as_points
 from fxcontact.tools.faceted_input import CheckedSurface, check_surface, read_surface
-from fxcontact.tools.faceted_projection import (
-    _flat_kernel,
-    _nagata_kernel,
-    flat_project_ref,
-    nagata_project_ref,
-)
-from fxcontact.tools.faceted_search import (
-    _candidates_kernel,
-    _kdtree_hierarchy,
-    _refit_boxes,
-    closest_point_triangle,
-    closest_point_triangle_nb,
-    closest_point_triangle_ref,
-)
-from fxcontact.tools.nagata import (
-    patch_derivatives,
-    patch_edge_coefficients,
-    patch_monomials,
-    patch_normals,
-)
-from fxcontact.tools.normals import (
-    FacetVertexNormals,
-    corner_angles,
-    facet_normals,
-    facet_vertex_normals,
-)
+from fxcontact.tools.faceted_projection import (_flat_kernel, _nagata_kernel, flat_project_ref,
+                                                nagata_project_ref)
+from fxcontact.tools.faceted_search import (_candidates_kernel, _kdtree_hierarchy, _refit_boxes,
+                                            closest_point_triangle, closest_point_triangle_nb,
+                                            closest_point_triangle_ref)
+from fxcontact.tools.nagata import (patch_derivatives, patch_edge_coefficients, patch_monomials,
+                                    patch_normals)
+from fxcontact.tools.normals import (FacetVertexNormals, corner_angles, facet_normals,
+                                     facet_vertex_normals)
 from fxcontact.tools.revolved import RevolvedProfile, faceted_revolved
 
 __all__ = [

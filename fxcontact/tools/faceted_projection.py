@@ -10,20 +10,9 @@ import numba
 import numpy as np
 
 from fxcontact.tools.faceted_search import _search, closest_point_triangle_ref
-from fxcontact.tools.nagata import (
-    _GT,
-    _LOOSE,
-    _TOLA,
-    _pt,
-    _RefPatch,
-    _xe,
-    _xz,
-    patch_gap_nb,
-    patch_gap_ref,
-    patch_normals,
-    project_patch_nb,
-    project_patch_ref,
-)
+from fxcontact.tools.nagata import (_GT, _LOOSE, _TOLA, _pt, _RefPatch, _xe, _xz, patch_gap_nb,
+                                    patch_gap_ref, patch_normals, project_patch_nb,
+                                    project_patch_ref)
 from fxcontact.tools.normals import LOCAL_EDGES
 
 __all__ = ["flat_project_ref", "nagata_project_ref"]

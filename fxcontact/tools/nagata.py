@@ -26,13 +26,8 @@ from typing import Optional, Tuple
 import numba
 import numpy as np
 
-from fxcontact.tools.nagata_edges import (
-    PARALLEL_TOL,
-    crease_edge_coefficients,
-    edge_coefficients,
-    patch_edge_coefficients,
-    patch_monomials,
-)
+from fxcontact.tools.nagata_edges import (PARALLEL_TOL, crease_edge_coefficients, edge_coefficients,
+                                          patch_edge_coefficients, patch_monomials)
 
 __all__ = [
     "PARALLEL_TOL",

@@ -97,25 +97,11 @@ from typing import List, Optional, Tuple
 import numba
 import numpy as np
 
-from fxcontact.tools.analytic import (
-    AXIS_TOL,
-    _AnalyticTool,
-    _check_flag,
-    _finite_vector,
-    _fixed_perpendicular,
-    _readonly,
-    _tup,
-)
+from fxcontact.tools.analytic import (AXIS_TOL, _AnalyticTool, _check_flag, _finite_vector,
+                                      _fixed_perpendicular, _readonly, _tup)
 from fxcontact.tools.base import Projection, RigidMotion, as_points, unit_vector
-from fxcontact.tools.revolved_profile import (
-    _ARC,
-    _LINE,
-    _SNAP,
-    _pos,
-    _Profile,
-    die_profile,
-    grooved_roll_profile,
-)
+from fxcontact.tools.revolved_profile import (_ARC, _LINE, _SNAP, _pos, _Profile, die_profile,
+                                              grooved_roll_profile)
 
 __all__ = ["RevolvedProfile", "die_profile", "grooved_roll_profile", "faceted_revolved",
            "revolved_numpy"]

@@ -53,14 +53,8 @@ from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.power import PowerBalance, delivered_power
 from fxcontact.processes.monitor import RunNumerics, SteadyRun, contact_lines, is_number
 from fxcontact.processes.ring_rolling import pictures as ring_pictures
-from fxcontact.processes.ring_rolling.mill import (
-    AxialRolls,
-    RingCentring,
-    cone_row,
-    friction_law,
-    friction_spec,
-    set_ring_remeshing,
-)
+from fxcontact.processes.ring_rolling.mill import (AxialRolls, RingCentring, cone_row, friction_law,
+                                                   friction_spec, set_ring_remeshing)
 from fxcontact.theory import forming
 
 __all__ = ["RingRollingCase", "RingRollingSetup", "RingRollingResult", "build", "run",
