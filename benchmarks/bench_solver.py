@@ -7,8 +7,9 @@ Usage::
     mpirun -n 2 python benchmarks/bench_solver.py [--large]    # 2 ranks -> solver_np2.csv
     python benchmarks/bench_solver.py --compare                # speed-up / parallel efficiency
 
-Problem: the Norton–Hoff upsetting of ``demos/demo_upsetting.py`` (quarter billet R = 10 mm,
-H = 15 mm, sticking dies, K = 50, m = 0.15, die speed 5 mm/s, dt = 0.06 s, updated Lagrangian).
+Problem: the Norton–Hoff upsetting of :mod:`fxcontact.processes.upsetting_dies` (quarter
+billet R = 10 mm, H = 15 mm, sticking dies, K = 50, m = 0.15, die speed 5 mm/s, dt = 0.06 s,
+updated Lagrangian).
 For every case (element × linear solver × size) a fresh simulation runs ``--increments``
 increments (default 2). The first increment contains the Newtonian start-up solve and the first
 (symbolic) factorisation / preconditioner set-up; the timings reported are those of the **last**

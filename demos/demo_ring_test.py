@@ -18,7 +18,8 @@
 # Avitzur's upper-bound curves (THEORY §14.5,
 # :func:`fxcontact.theory.forming.ring_compression_upper_bound`).
 #
-# **Model.** One eighth of the ring (:func:`fxcontact.meshing.ring`, ``sector="eighth"``): a
+# **Model** (:mod:`fxcontact.processes.ring_test`). One eighth of the ring
+# (:func:`fxcontact.meshing.ring`, ``sector="eighth"``): a
 # quarter in plan (symmetry planes x = 0 and y = 0) and the upper half in height (the mid-plane
 # z = 0 is a symmetry plane, u_z = 0). The upper die is a rigid
 # :class:`~fxcontact.tools.analytic.Plane` moving down at half the closing speed; the lower
@@ -32,8 +33,8 @@
 # **Start-up increment.** The nodal shear flow stress k of the Tresca law is taken from the
 # increment's predictor, the previous increment's velocity; the first increment starts from rest
 # and gets k at the material's regularisation strain rate (a quarter of the process's k here).
-# So the run starts with a short increment (``STARTUP`` = 5 % of the others; its force is not
-# reported); the following increments take k from its velocity. (Starting instead from the
+# So the run starts with a short increment (``ring_test.STARTUP`` = 5 % of the others; its force
+# is not reported); the following increments take k from its velocity. (Starting instead from the
 # homogeneous field as predictor gives the right k, but Newton's iteration then stalls where
 # the slip must reverse, at the neutral radius.)
 #
@@ -56,227 +57,41 @@
 # force is expected below the upper bound (an upper bound on the power, §14.1).
 #
 # Run: ``python demos/demo_ring_test.py`` (serial) or ``mpirun -n 2 python demos/...``;
-# ``--size`` sets the element size, ``--reduction`` the final height reduction, ``--mbar`` the
-# list of friction factors. Outputs in ``results/ring_test``: ``ring_test.png`` (calibration
-# chart and forces), ``ring_test.csv`` (FE and upper-bound curves), per m̄ a CSV history and a
-# VTK series (``mbar_<m̄>/``).
+# ``--size`` sets the element size, ``--reduction`` the final height reduction, ``--steps`` the
+# increments, ``--mbar`` the list of friction factors; ``--quick`` is a coarse run of seconds
+# (h = 5 mm, 20 % in 2 increments, m̄ = 0, 0.3, 1). Outputs in ``--output-dir``
+# (``results/ring_test``): ``ring_test.png`` (calibration chart and forces), ``ring_test.csv``
+# (FE and upper-bound curves), per m̄ a CSV history and a VTK series (``mbar_<m̄>/``).
 
 # %%
-from __future__ import annotations
-
 import argparse
-import csv
-import os
-import time
 
-import numpy as np
 from mpi4py import MPI
 
 from fxcontact.console import add_verbosity_arguments, configure_logging
-from fxcontact.contact.boundary import ContactBoundary
-from fxcontact.contact.friction import Tresca
-from fxcontact.contact.nodal import NodalContact
-from fxcontact.theory.forming import flow_stress, ring_compression_upper_bound
-from fxcontact.materials import NortonHoff
-from fxcontact.meshing import RING_TAGS, ring
-from fxcontact.simulation import Simulation
-from fxcontact.newton.solver import SolverOptions
-from fxcontact.spaces import MixedSpace
-from fxcontact.tools.analytic import Plane
-
-#: default friction factors of the chart
-MBARS = (0.0, 0.1, 0.2, 0.4, 0.7, 1.0)
-#: length of the start-up increment, as a fraction of the others (see the notes)
-STARTUP = 0.05
-
+from fxcontact.processes.ring_test import MBARS
+from fxcontact.processes.ring_test import run as run_ring_test
 
 # %% [markdown]
-# ## One ring
-
-# %%
-def run_ring(mbar: float, *, outer_radius, inner_radius, height, h, K, m, speed, reduction,
-             n_steps, slip_velocity, line_search, output_dir, progress, comm) -> dict:
-    """Compress the eighth ring with Tresca friction ``mbar``; returns the tracked curves."""
-    Ro, Ri, H = outer_radius, inner_radius, height
-    msh, _, ft = ring(comm, Ro, Ri, H, h, sector="eighth")
-    space = MixedSpace(msh)
-    name = f"mbar_{mbar:g}"
-    sim = Simulation(space, NortonHoff(K=K, m=m, regularization=1e-4 * speed / H),
-                     solver_options=SolverOptions(line_search=line_search),
-                     output_dir=None if output_dir is None else os.path.join(output_dir, name),
-                     name=name, progress=progress)
-    sim.add_velocity_bc(sim.facets(ft, RING_TAGS["symmetry_x"]), 0.0, 0)
-    sim.add_velocity_bc(sim.facets(ft, RING_TAGS["symmetry_y"]), 0.0, 1)
-    sim.add_velocity_bc(sim.facets(ft, RING_TAGS["mid_plane"]), 0.0, 2)
-    die = Plane(point=(0.0, 0.0, 0.5 * H), normal=(0.0, 0.0, -1.0),
-                velocity=(0.0, 0.0, -0.5 * speed), name="die")
-    sim.add_contributor(NodalContact(ContactBoundary(space, ft, RING_TAGS["top"]), die,
-                                     scheme="implicit", friction=Tresca(mbar),
-                                     slip_velocity=slip_velocity, name="contact"))
-    # fold-over of the bore and the outer surface onto the die: frictionless contact with the
-    # same plane (see the notes)
-    fold = Plane(die.point, die.normal, velocity=(0.0, 0.0, -0.5 * speed), name="die_fold")
-    sim.add_contributor(NodalContact(ContactBoundary(space, ft, [RING_TAGS["inner"],
-                                                                 RING_TAGS["outer"]]),
-                                     fold, scheme="implicit", name="fold"))
-    bore = ContactBoundary(space, ft, RING_TAGS["inner"]).vertices   # owned bore vertices
-    tol = 1e-3 * h
-
-    def measure():
-        x = sim.vertex_positions()
-        top = comm.allreduce(np.max(x[:, 2], initial=-np.inf), op=MPI.MAX)
-        xb = x[bore]
-        rb = np.hypot(xb[:, 0], xb[:, 1])
-        mid = np.abs(xb[:, 2]) < tol
-        face = xb[:, 2] > top - tol
-
-        def mean(sel):
-            s = comm.allreduce(np.array([np.sum(rb[sel]), np.sum(sel)], float), op=MPI.SUM)
-            return s[0] / s[1] if s[1] > 0 else np.nan
-
-        return (comm.allreduce(np.min(rb, initial=np.inf), op=MPI.MIN), mean(mid), mean(face),
-                sim.t)
-
-    rows = [measure()]
-    t_end = reduction * H / speed
-    dt = t_end / n_steps
-    # start-up increment (its nodal Tresca limits come from the rest state), then n_steps
-    sim.run(STARTUP * dt, STARTUP * dt, close=False, callback=lambda s, res: rows.append(measure()))
-    sim.run(t_end, dt, callback=lambda s, res: rows.append(measure()))
-    rows = np.array(rows)
-    hist = sim.history
-    T = H - speed * rows[:, 3]          # current height (die position)
-    # force on the dies (full ring: 4 quarters; the half height carries the whole force) on
-    # each increment's initial geometry (updated Lagrangian)
-    F = np.array([4.0 * (row["die_force_z"] + row["die_fold_force_z"]) for row in hist])
-    A0 = np.pi * (Ro ** 2 - Ri ** 2)
-    force = np.r_[np.nan, F / (flow_stress(K, m, speed / T[:-1]) * A0)]
-    force[1] = np.nan   # the start-up increment (friction limits at the rest state's rate)
-    return {"mbar": mbar, "reduction": 1.0 - T / H,
-            "id_min": 100.0 * (rows[:, 0] / Ri - 1.0), "id_mid": 100.0 * (rows[:, 1] / Ri - 1.0),
-            "id_face": 100.0 * (rows[:, 2] / Ri - 1.0),
-            # the force of increment k acts on the geometry at the start of the increment
-            "force_reduction": np.r_[np.nan, 1.0 - T[:-1] / H], "force": force,
-            "history": hist, "newton_iterations": int(sum(r["newton_iterations"] for r in hist)),
-            "cutbacks": int(sum(r["cutbacks"] for r in hist))}
-
-
-# %% [markdown]
-# ## The chart
-
-# %%
-def run(outer_radius=30.0, inner_radius=15.0, height=20.0, h=2.5, K=50.0, m=0.15, speed=10.0,
-        reduction=0.5, n_steps=25, mbars=MBARS, slip_velocity=None, line_search="bt",
-        output_dir="results/ring_test", picture=True, progress=True,
-        comm=MPI.COMM_WORLD) -> dict:
-    """FE ring-compression curves for each m̄ of ``mbars`` and Avitzur's upper-bound curves.
-
-    Args:
-        outer_radius, inner_radius, height: the ring [mm] (default the 6:3:2 ring 60:30:20).
-        h: element size [mm].
-        K [MPa·s^m], m: Norton–Hoff parameters.
-        speed: closing speed of the dies [mm/s] (each die moves at half of it).
-        reduction: final height reduction (fraction); n_steps: increments.
-        mbars: Tresca friction factors in [0, 1].
-        slip_velocity: regularisation v₀ of the slip speed [mm/s] (default: the contact's,
-            10⁻³ × the process speed of the increment).
-        line_search: Newton line search (``"bt"``: backtracking, ``"basic"``: full steps).
-        output_dir: where the outputs go (None: nothing written).
-    Returns:
-        dict with ``fe`` (per m̄: ``reduction``, ``id_min``, ``id_mid``, ``id_face`` (% change
-        of the inner diameter: minimum over the bore, at mid-height, at the die face),
-        ``force_reduction``, ``force`` (F/(σ₀A₀)), history, Newton iterations, cut-backs,
-        wall time), ``ub`` (per m̄: the upper bound at the FE reductions: ``id_change``,
-        ``neutral_radius``, ``pressure`` and ``force`` = J/(vσ₀A₀)), ``diff`` (per m̄: FE − UB
-        of the minimum inner diameter change, in percentage points, and of the force), the
-        ``table`` rows written to the CSV, and the output paths ``csv``, ``png``.
-    """
-    if not (0 < inner_radius < outer_radius and height > 0 and h > 0 and speed > 0):
-        raise ValueError("need 0 < inner_radius < outer_radius, height > 0, h > 0, speed > 0")
-    if not (0 < reduction < 0.8 and n_steps >= 1):
-        raise ValueError("need 0 < reduction < 0.8 and n_steps >= 1")
-    mbars = [float(x) for x in mbars]
-    if not mbars or any(not 0.0 <= x <= 1.0 for x in mbars):
-        raise ValueError(f"mbars must be friction factors in [0, 1], got {mbars!r}")
-    if output_dir is not None and comm.rank == 0:
-        os.makedirs(output_dir, exist_ok=True)
-    common = dict(outer_radius=outer_radius, inner_radius=inner_radius, height=height, h=h, K=K,
-                  m=m, speed=speed, reduction=reduction, n_steps=n_steps,
-                  slip_velocity=slip_velocity, line_search=line_search, output_dir=output_dir,
-                  progress=progress, comm=comm)
-    fe, ub, diff, table = {}, {}, {}, []
-    A0 = np.pi * (outer_radius ** 2 - inner_radius ** 2)
-    for mb in mbars:
-        t0 = time.perf_counter()
-        r = run_ring(mb, **common)
-        r["wall_time"] = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
-        fe[mb] = r
-        u = ring_compression_upper_bound(outer_radius, inner_radius, height, mb, r["reduction"])
-        # force of increment k: on the geometry at the start of the increment (point k − 1)
-        J = u["pressure"] * np.pi * (u["outer_radius"] ** 2 - u["inner_radius"] ** 2) / A0
-        u["force"] = np.r_[np.nan, J[:-1]]
-        ub[mb] = u
-        diff[mb] = {"id_min": r["id_min"] - u["id_change"], "force": r["force"] - u["force"]}
-        for k in range(len(r["reduction"])):
-            table.append({"mbar": mb, "reduction": r["reduction"][k],
-                          "id_min_fe": r["id_min"][k], "id_mid_fe": r["id_mid"][k],
-                          "id_face_fe": r["id_face"][k], "id_ub": u["id_change"][k],
-                          "neutral_radius_ub": u["neutral_radius"][k],
-                          "force_reduction": r["force_reduction"][k], "force_fe": r["force"][k],
-                          "force_ub": u["force"][k]})
-    out = {"fe": fe, "ub": ub, "diff": diff, "table": table, "csv": None, "png": None,
-           "parameters": {k: v for k, v in common.items() if k != "comm"}}
-    if output_dir is not None and comm.rank == 0:
-        out["csv"] = os.path.join(output_dir, "ring_test.csv")
-        with open(out["csv"], "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(table[0].keys()))
-            w.writeheader()
-            w.writerows(table)
-        if picture:
-            out["png"] = plot_chart(fe, ub, os.path.join(output_dir, "ring_test.png"),
-                                    (outer_radius, inner_radius, height))
-    return out
-
-
-def plot_chart(fe: dict, ub: dict, path: str, ring_size) -> str:
-    """Calibration chart (% change of the minimum inner diameter vs % height reduction) and the
-    die force, FE (solid, markers) and upper bound (dashed, same colour) for each m̄."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.lines import Line2D
-
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.5))
-    colors = plt.get_cmap("tab10").colors
-    keys = list(fe)
-    for i, mb in enumerate(keys):
-        c = colors[i % len(colors)]
-        r, u = fe[mb], ub[mb]
-        ax1.plot(100 * r["reduction"], r["id_min"], "-o", color=c, ms=3.5, lw=1.6,
-                 label=f"m̄ = {mb:g}")
-        ax1.plot(100 * r["reduction"], u["id_change"], "--", color=c, lw=1.4)
-        ax2.plot(100 * r["force_reduction"], r["force"], "-o", color=c, ms=3.5, lw=1.6,
-                 label=f"m̄ = {mb:g}")
-        ax2.plot(100 * r["force_reduction"], u["force"], "--", color=c, lw=1.4)
-    Ro, Ri, H = ring_size
-    ax1.axhline(0.0, color="0.5", lw=0.8)
-    ax1.set_xlabel("height reduction [%]")
-    ax1.set_ylabel("change of the minimum inner diameter [%]")
-    ax1.set_title(f"Ring test {2 * Ro:g}:{2 * Ri:g}:{H:g} mm, Tresca friction m̄")
-    ax2.set_xlabel("height reduction [%]")
-    ax2.set_ylabel(r"die force $F/(\sigma_0 A_0)$")
-    ax2.set_title(r"Die force ($\sigma_0$ at $\dot{\bar\varepsilon}=v/T$, $A_0$ initial annulus)")
-    style = [Line2D([], [], color="k", marker="o", ms=3.5, label="FE"),
-             Line2D([], [], color="k", ls="--", label="upper bound (Avitzur)")]
-    for ax in (ax1, ax2):
-        ax.grid(alpha=0.3)
-        h, lab = ax.get_legend_handles_labels()
-        ax.legend(handles=h + style, fontsize=8.5, loc="best", ncol=2)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
-
+# ## One ring, written out
+#
+# ``fxcontact.processes.ring_test.run_ring(mbar, ...)`` builds and runs one ring:
+#
+# ```python
+# msh, _, ft = ring(comm, 30.0, 15.0, 20.0, h, sector="eighth")     # mid-plane z = 0
+# sim = Simulation(MixedSpace(msh), NortonHoff(K=50, m=0.15, regularization=...))
+# sim.add_velocity_bc(facets("symmetry_x"), 0.0, 0)                  # and y, and the
+# sim.add_velocity_bc(facets("mid_plane"), 0.0, 2)                   # mid-plane in z
+# die = Plane(point=(0, 0, H / 2), normal=(0, 0, -1), velocity=(0, 0, -v / 2))
+# sim.add_contributor(NodalContact(ContactBoundary(space, ft, TAGS["top"]), die,
+#                                  scheme="implicit", friction=Tresca(mbar)))
+# sim.add_contributor(NodalContact(ContactBoundary(space, ft, [TAGS["inner"], TAGS["outer"]]),
+#                                  Plane(...same plane...), scheme="implicit"))   # fold-over
+# ```
+#
+# After each increment the bore's nodes are measured (minimum radius, mean radius on the
+# mid-plane and on the die); ``run`` does this for every m̄, evaluates Avitzur's curve at the
+# same height reductions, writes the table and draws the chart.
 
 # %% [markdown]
 # ## Results (measured, serial, Debian 12 / dolfinx 0.5.2, 2-core machine)
@@ -324,23 +139,35 @@ def plot_chart(fe: dict, ub: dict, path: str, ring_size) -> str:
 #   below 0.4 points.
 
 # %% [markdown]
-# ## Script
+# ## The script
 
 # %%
+#: the reduced run (--quick): coarse mesh, 20 % in 2 increments, three friction factors
+QUICK = dict(size=5.0, reduction=0.2, steps=2, mbar=[0.0, 0.3, 1.0])
+FULL = dict(size=2.5, reduction=0.5, steps=25, mbar=list(MBARS))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description="Ring compression test against Avitzur's bound")
-    ap.add_argument("--size", type=float, default=2.5, help="element size [mm]")
-    ap.add_argument("--reduction", type=float, default=0.5, help="final height reduction")
-    ap.add_argument("--steps", type=int, default=25, help="increments")
-    ap.add_argument("--mbar", type=float, nargs="+", default=list(MBARS),
-                    help="Tresca friction factors")
-    ap.add_argument("--output", default="results/ring_test")
+    ap.add_argument("--quick", action="store_true",
+                    help="coarse run of seconds (h = 5 mm, 20 %% in 2 increments, m = 0, 0.3, 1)")
+    ap.add_argument("--size", type=float, help="element size [mm] (default 2.5)")
+    ap.add_argument("--reduction", type=float, help="final height reduction (default 0.5)")
+    ap.add_argument("--steps", type=int, help="increments (default 25)")
+    ap.add_argument("--mbar", type=float, nargs="+",
+                    help=f"Tresca friction factors (default {' '.join(map(str, MBARS))})")
+    ap.add_argument("--output-dir", "--output", dest="output_dir", default="results/ring_test")
     add_verbosity_arguments(ap)
     a = ap.parse_args(argv)
     configure_logging(a.verbose, a.quiet)
-    res = run(h=a.size, reduction=a.reduction, n_steps=a.steps, mbars=a.mbar,
-              output_dir=a.output)
+    p = {k: v if v is not None else (QUICK if a.quick else FULL)[k]
+         for k, v in (("size", a.size), ("reduction", a.reduction), ("steps", a.steps),
+                      ("mbar", a.mbar))}
+    res = run_ring_test(h=p["size"], reduction=p["reduction"], n_steps=p["steps"],
+                        mbars=p["mbar"], output_dir=a.output_dir)
     if MPI.COMM_WORLD.rank == 0:
+        print(f"ring 60:30:20 mm, h = {p['size']:g} mm, {100 * p['reduction']:g} % height "
+              f"reduction in {p['steps']} increments (+ start-up)")
         print("% change of the inner diameter (FE minimum / mid-height / die face; upper bound)"
               " and die force F/(sigma0 A0) (FE; upper bound)")
         for mb, r in res["fe"].items():

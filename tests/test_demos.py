@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from helpers import load_demo, run_script, shared_tmpdir
+from fxcontact.processes import upsetting_dies
+from helpers import run_script, shared_tmpdir
 
 DEMOS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "demos")
 
@@ -21,8 +22,7 @@ def outdir():
 
 
 def test_upsetting_small(outdir):
-    demo = load_demo("demo_upsetting")
-    res = demo.run(h=4.0, n_steps=4, reduction=0.2, output_dir=outdir, progress=False)
+    res = upsetting_dies.run(h=4.0, n_steps=4, reduction=0.2, output_dir=outdir, progress=False)
     comm = MPI.COMM_WORLD
     H = 15.0 * (1 - 0.2)
     assert abs(res["height"] - H) < 1e-9
@@ -41,16 +41,15 @@ def test_upsetting_small(outdir):
 
 
 def test_upsetting_sliding_is_homogeneous(outdir):
-    demo = load_demo("demo_upsetting")
-    res = demo.run(h=5.0, n_steps=2, reduction=0.1, dies="sliding", output_dir=None,
-                   progress=False)
+    res = upsetting_dies.run(h=5.0, n_steps=2, reduction=0.1, dies="sliding", output_dir=None,
+                             progress=False)
     # sliding dies: (nearly) uniform radial expansion — the bulge is < 1 % of the expansion
     # (sticking dies give a bulge of the order of the expansion itself)
     expansion = res["radius_end"] - 10.0
     assert expansion > 0.04 * 10.0
     assert abs(res["radius_mid"] - res["radius_end"]) < 1e-2 * expansion
     with pytest.raises(ValueError, match="dies"):
-        demo.run(dies="glued", output_dir=None)
+        upsetting_dies.run(dies="glued", output_dir=None)
 
 
 #: the process demos (fxcontact.processes told as stories) at the reduced size, a few
@@ -63,6 +62,11 @@ PROCESS_DEMOS = {
                          "bar_rolling_third_diagnostics.csv"),
     "demo_ring_rolling": (("--quick", "--revolutions", 0.04), "status done",
                           "sigma0 = 107 MPa (K = 50, m = 0.14)", "ring_rolling.csv"),
+    "demo_upsetting": (("--quick",), "final height 12.000 mm",
+                       "radius at mid-height 11.603 mm, at the end faces 10.000 mm",
+                       "upsetting_pressure.csv"),
+    "demo_ring_test": (("--quick", "--mbar", 0.3), "20 % height reduction in 2 increments",
+                       "20.0 %: ID    0.11    0.64    0.16; UB   -1.73", "ring_test.csv"),
 }
 
 

@@ -1,6 +1,8 @@
 """Friction demos at reduced size (serial and on 2 ranks): upsetting between Plane dies with
-Tresca / Coulomb friction against the upper bound and the slab estimate, and the ring test
-against Avitzur's upper bound (THEORY §14.5).
+Tresca / Coulomb friction against the upper bound and the slab estimate
+(:mod:`fxcontact.processes.upsetting_dies`, told in ``demos/demo_upsetting.py``), and the ring
+test against Avitzur's upper bound (:mod:`fxcontact.processes.ring_test`, told in
+``demos/demo_ring_test.py``) (THEORY §14.5).
 
 What theory guarantees is asserted: the FE mean die pressure stays below the Tresca upper bound
 (the FE field minimises the power over a space that contains the bound's homogeneous field);
@@ -25,10 +27,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from helpers import assert_histories_match, assert_newton_counts_match, load_demo
-
-up = load_demo("demo_upsetting")
-ring_demo = load_demo("demo_ring_test")
+from fxcontact.processes import ring_test, upsetting_dies
+from helpers import assert_histories_match, assert_newton_counts_match
 
 #: short billet (d/h = 2), coarse mesh, 10 % reduction in 2 increments (+ start-up)
 # the volume correction (on by default) adds a volumetric rate of the order of one increment's
@@ -46,11 +46,11 @@ def _say(*args):
 
 @pytest.fixture(scope="module")
 def upsetting():
-    runs = {"sliding": up.run(dies="sliding", **UPSET),
-            "sticking": up.run(dies="sticking", **UPSET),
-            "coulomb": up.run(dies="coulomb", mu=0.2, **UPSET)}
+    runs = {"sliding": upsetting_dies.run(dies="sliding", **UPSET),
+            "sticking": upsetting_dies.run(dies="sticking", **UPSET),
+            "coulomb": upsetting_dies.run(dies="coulomb", mu=0.2, **UPSET)}
     for mb in (0.0, 0.1, 0.3, 1.0):
-        runs[mb] = up.run(dies="tresca", mbar=mb, **UPSET)
+        runs[mb] = upsetting_dies.run(dies="tresca", mbar=mb, **UPSET)
     _say("\nupsetting d/h = 2, 10 %: p/sigma0 (homogeneous face; actual face) vs bounds")
     for k, r in runs.items():
         _say(f"  {k!s:>8}: p {r['p_mean'][-1]:.4f}; {r['p_face'][-1]:.4f}  UB "
@@ -116,9 +116,9 @@ def test_upsetting_coulomb(upsetting):
 
 def test_upsetting_bad_dies():
     with pytest.raises(ValueError, match="dies"):
-        up.run(dies="glued", output_dir=None)
+        upsetting_dies.run(dies="glued", output_dir=None)
     with pytest.raises(ValueError, match="mbar"):
-        up.run(dies="tresca", mbar=1.5, **UPSET)
+        upsetting_dies.run(dies="tresca", mbar=1.5, **UPSET)
 
 
 RING = dict(h=5.0, reduction=0.2, n_steps=2, output_dir=None, picture=False, progress=False)
@@ -126,7 +126,7 @@ RING = dict(h=5.0, reduction=0.2, n_steps=2, output_dir=None, picture=False, pro
 
 @pytest.fixture(scope="module")
 def ring():
-    res = ring_demo.run(mbars=(0.0, 0.3, 1.0), **RING)
+    res = ring_test.run(mbars=(0.0, 0.3, 1.0), **RING)
     _say("\nring 60:30:20, % change of the minimum ID, FE vs upper bound")
     for mb, r in res["fe"].items():
         _say(f"  m = {mb}: reduction {100 * r['reduction'][-1]:.1f} %: FE {r['id_min'][-1]:.2f} "
@@ -181,7 +181,7 @@ def test_friction_run_parallel_matches_serial(upsetting):
     if comm.size == 1:
         pytest.skip("needs several ranks (the serial run is the reference)")
     par = upsetting[0.3]
-    ser = up.run(dies="tresca", mbar=0.3, **UPSET, comm=MPI.COMM_SELF)
+    ser = upsetting_dies.run(dies="tresca", mbar=0.3, **UPSET, comm=MPI.COMM_SELF)
     keys = ("die_force_z", "die_friction_x", "die_friction_y", "base_force_z",
             "contact_friction_power")
     assert_histories_match(par["history"], ser["history"], keys, 1e-8, scale_key="die_force_z")

@@ -13,6 +13,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
+from fxcontact.processes import upsetting_dies
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(os.path.dirname(HERE), "demos"))
 
@@ -54,9 +56,9 @@ def _say(text):
 def test_upsetting(m):
     """Sticking dies, 10 % of the height in 3 increments: the die force and the final shape of
     both solvers agree to 1e-6 (the Krylov tolerance is 1e-8, the Newton tolerance 1e-9)."""
-    import demo_upsetting as demo
-    res = {s: demo.run(h=3.0, m=m, n_steps=3, reduction=0.1, output_dir=None, picture=False,
-                       progress=False, linear_solver=s) for s in SOLVERS}
+    res = {s: upsetting_dies.run(h=3.0, m=m, n_steps=3, reduction=0.1, output_dir=None,
+                                 picture=False, progress=False, linear_solver=s)
+           for s in SOLVERS}
     ref, it = res["mumps"], res["condensed-amg"]
     assert len(it["history"]) == len(ref["history"]) == 3
     assert all(r["cutbacks"] == 0 for r in it["history"])

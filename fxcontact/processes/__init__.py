@@ -10,6 +10,11 @@ pictures, ``report()``).
   :func:`build_extrusion`, :func:`run_extrusion`;
 * :mod:`fxcontact.processes.upsetting` — upsetting a cylinder between flat dies, remeshed:
   :class:`UpsettingCase`, :func:`build_upsetting`, :func:`run_upsetting`;
+* :mod:`fxcontact.processes.upsetting_dies` — upsetting a quarter billet on one mesh between
+  sticking, sliding, Tresca or Coulomb dies against the upper bound and the slab estimate:
+  :func:`run_upsetting_dies`;
+* :mod:`fxcontact.processes.ring_test` — the ring-compression friction test against Avitzur's
+  calibration curves: :func:`run_ring_test`;
 * :mod:`fxcontact.processes.flat_rolling` — flat rolling of a strip (one quarter);
 * :mod:`fxcontact.processes.bar_rolling` — three-roll rolling of a round bar (a third or the
   whole bar);
@@ -20,7 +25,8 @@ pictures, ``report()``).
   :mod:`fxcontact.processes.die` (the bar's nose, the die and its faceted sectors).
 """
 
-from fxcontact.processes import bar_rolling, flat_rolling, ring_rolling
+from fxcontact.processes import (bar_rolling, flat_rolling, ring_rolling, ring_test,
+                                 upsetting_dies)
 from fxcontact.processes.bar_rolling import BarRollingCase, BarRollingResult, BarRollingSetup
 from fxcontact.processes.drawing import DrawingCase, DrawingResult, DrawingSetup
 from fxcontact.processes.drawing import build as build_drawing, run as run_drawing
@@ -36,16 +42,18 @@ from fxcontact.processes.monitor import (
                                          window_increments,
 )
 from fxcontact.processes.ring_rolling import RingRollingCase, RingRollingResult, RingRollingSetup
+from fxcontact.processes.ring_test import run as run_ring_test
 from fxcontact.processes.upsetting import UpsettingCase, UpsettingResult, UpsettingSetup
 from fxcontact.processes.upsetting import build as build_upsetting, run as run_upsetting
+from fxcontact.processes.upsetting_dies import run as run_upsetting_dies
 
-__all__ = ["bar_rolling", "flat_rolling", "ring_rolling",
+__all__ = ["bar_rolling", "flat_rolling", "ring_rolling", "ring_test", "upsetting_dies",
            "BarRollingCase", "BarRollingResult", "BarRollingSetup",
            "DrawingCase", "DrawingResult", "DrawingSetup", "build_drawing", "run_drawing",
            "ExtrusionCase", "ExtrusionResult", "ExtrusionSetup", "build_extrusion",
            "run_extrusion",
            "FlatRollingCase", "FlatRollingResult", "FlatRollingSetup",
-           "RingRollingCase", "RingRollingResult", "RingRollingSetup",
+           "RingRollingCase", "RingRollingResult", "RingRollingSetup", "run_ring_test",
            "UpsettingCase", "UpsettingResult", "UpsettingSetup", "build_upsetting",
-           "run_upsetting",
+           "run_upsetting", "run_upsetting_dies",
            "STATUSES", "RunNumerics", "SteadyMonitor", "SteadyRun", "StopRules", "window_increments"]
