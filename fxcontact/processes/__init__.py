@@ -25,22 +25,15 @@ pictures, ``report()``).
   :mod:`fxcontact.processes.die` (the bar's nose, the die and its faceted sectors).
 """
 
-from fxcontact.processes import (bar_rolling, flat_rolling, ring_rolling, ring_test,
-                                 upsetting_dies)
+from fxcontact.processes import bar_rolling, flat_rolling, ring_rolling, ring_test, upsetting_dies
 from fxcontact.processes.bar_rolling import BarRollingCase, BarRollingResult, BarRollingSetup
 from fxcontact.processes.drawing import DrawingCase, DrawingResult, DrawingSetup
 from fxcontact.processes.drawing import build as build_drawing, run as run_drawing
 from fxcontact.processes.extrusion import ExtrusionCase, ExtrusionResult, ExtrusionSetup
 from fxcontact.processes.extrusion import build as build_extrusion, run as run_extrusion
 from fxcontact.processes.flat_rolling import FlatRollingCase, FlatRollingResult, FlatRollingSetup
-from fxcontact.processes.monitor import (
-                                         STATUSES,
-                                         RunNumerics,
-                                         SteadyMonitor,
-                                         SteadyRun,
-                                         StopRules,
-                                         window_increments,
-)
+from fxcontact.processes.monitor import (STATUSES, RunNumerics, SteadyMonitor, SteadyRun, StopRules,
+                                         window_increments)
 from fxcontact.processes.ring_rolling import RingRollingCase, RingRollingResult, RingRollingSetup
 from fxcontact.processes.ring_test import run as run_ring_test
 from fxcontact.processes.upsetting import UpsettingCase, UpsettingResult, UpsettingSetup
