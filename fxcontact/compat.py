@@ -7,9 +7,13 @@ When the stack moves to a newer dolfinx, this is the module to change: names suc
 
 from __future__ import annotations
 
+import functools
+import sys
+
 import dolfinx
 import dolfinx.fem
 import dolfinx.fem.petsc
+import dolfinx.jit
 import dolfinx.la
 import dolfinx.mesh
 import dolfinx.plot
@@ -47,7 +51,6 @@ def jit_params(user=None) -> dict:
     :data:`JIT_EXTRA_COMPILE_ARGS`."""
     p = dict(user or {})
     if "cffi_extra_compile_args" not in p and JIT_EXTRA_COMPILE_ARGS:
-        import dolfinx.jit
         base = list(dolfinx.jit.get_parameters()["cffi_extra_compile_args"])
         p["cffi_extra_compile_args"] = base + [a for a in JIT_EXTRA_COMPILE_ARGS
                                                if a not in base]
@@ -129,7 +132,7 @@ def num_owned(index_map) -> int:
 
 def model_to_mesh(model, comm, rank: int = 0, gdim: int = 3):
     """gmsh model → (mesh, cell_tags, facet_tags) (``read_from_msh`` is broken in 0.5.2)."""
-    from dolfinx.io import gmshio
+    from dolfinx.io import gmshio   # here, not at the top: it imports gmsh (see import_gmsh)
     return gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
 
 
@@ -186,16 +189,14 @@ def ghosted_vector(V):
 
 def import_gmsh():
     """The ``gmsh`` module, with its initialisation followed (see :func:`gmsh_initialized`)."""
-    import sys
     fresh = "gmsh" not in sys.modules
-    import gmsh
+    import gmsh     # here, not at the top: whether this first import initialises gmsh matters
     if not hasattr(gmsh, "isInitialized") and not hasattr(gmsh, "_fxcontact_state"):
         _follow_gmsh(gmsh, False if fresh else None)
     return gmsh
 
 
 def _follow_gmsh(gmsh, state):
-    import functools
     init, fin = gmsh.initialize, gmsh.finalize
 
     @functools.wraps(init)

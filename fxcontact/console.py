@@ -28,10 +28,13 @@ What it does:
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 import logging
 import sys
 
 from mpi4py import MPI
+from tqdm import tqdm
 
 __all__ = ["configure_logging", "add_verbosity_arguments", "case_parser", "parse_case",
            "progress_enabled", "ALL_RANKS", "RankFilter", "auto_on_off"]
@@ -84,7 +87,6 @@ class _TqdmHandler(logging.StreamHandler):
         try:
             msg = self.format(record)
             try:
-                from tqdm import tqdm
                 tqdm.write(msg, file=self.stream)
             except ImportError:  # pragma: no cover - tqdm is a dependency
                 self.stream.write(msg + self.terminator)
@@ -145,7 +147,6 @@ def auto_on_off(value: str):
     v = str(value).strip().lower()
     table = {"auto": "auto", "on": True, "off": False}
     if v not in table:
-        import argparse
         raise argparse.ArgumentTypeError(f"expected auto, on or off, got {value!r}")
     return table[v]
 
@@ -168,7 +169,6 @@ def on_off(value: str) -> bool:
         return True
     if v in ("off", "false", "0"):
         return False
-    import argparse
     raise argparse.ArgumentTypeError(f"expected on or off, got {value!r}")
 
 
@@ -183,8 +183,6 @@ def case_parser(case_type, description: str, output_dir: str):
     ``on|off`` for a ``bool``),
     ``--output-dir`` and ``--verbose``/``--quiet``. Add the demo's own options, then
     :func:`parse_case`."""
-    import argparse
-    import dataclasses
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--quick", action="store_true",
                         help="the reduced size of the tests (the case's quick())")
@@ -202,7 +200,6 @@ def parse_case(parser, case_type, argv=None):
     """Parse the command line of :func:`case_parser`, configure the console
     (:func:`configure_logging`) and return ``(case, args)``: the default case (its ``quick()``
     with ``--quick``) with the fields given on the command line."""
-    import dataclasses
     args = parser.parse_args(argv)
     configure_logging(verbose=args.verbose, quiet=args.quiet)
     case = case_type().quick() if args.quick else case_type()

@@ -10,8 +10,11 @@ import contextlib
 import logging
 from typing import Dict
 
+import dolfinx.mesh
 import numpy as np
+import ufl
 from mpi4py import MPI
+from scipy.spatial import cKDTree
 
 from fxcontact import compat
 
@@ -215,8 +218,6 @@ def structured_ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, he
     Returns ``(mesh, None, facet_tags)`` with facet tags :data:`RING_TAGS` (``top``, ``outer``,
     ``inner`` and ``mid_plane`` or ``bottom``).
     """
-    import dolfinx.mesh
-    import ufl
     if not (outer_radius > 0 and height > 0):
         raise ValueError("outer_radius and height must be > 0")
     if not 0 < inner_radius < outer_radius:
@@ -507,7 +508,6 @@ def _mirror_and_replicate(gmsh, phi, n_copies, eps):
     image about θ = φ/2 (``n_copies = 1``, tags ``symmetry_0``/``symmetry_1`` kept) or by the
     whole bar made of ``n_copies`` turned copies of that sector (the symmetry faces become
     interior), as a discrete gmsh model; coincident nodes are merged."""
-    from scipy.spatial import cKDTree
 
     tags, coords, _ = gmsh.model.mesh.getNodes()
     X = coords.reshape(-1, 3)

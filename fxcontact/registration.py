@@ -8,6 +8,7 @@ that two of them do not write the same history column.
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 from typing import Dict, Optional
 
@@ -46,7 +47,6 @@ def time_value(value, t):
     """A BC value at time t: constants pass through, f(t) is called, f(x) (vectorised) too."""
     if callable(value):
         try:
-            import inspect
             params = inspect.signature(value).parameters
         except (TypeError, ValueError):
             params = {}

@@ -51,7 +51,6 @@ def p1_trace_check(V):
     the vertices and their weights the P1 lumped areas. Accepted: vector Lagrange of degree 1,
     or P1 enriched with interior bubbles (MINI, the bubble vanishes on the boundary).
     """
-    import ufl
     e = V.ufl_element()
     if not isinstance(e, ufl.VectorElement):
         return (f"nodal contact needs a vector field (one dof per component at each vertex), got "

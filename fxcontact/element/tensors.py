@@ -40,6 +40,7 @@ import numba
 import numba.experimental.function_type  # noqa: F401 (numba's typing of first-class functions)
 import numpy as np
 import ufl
+from ffcx.element_interface import create_element
 from petsc4py import PETSc
 
 from fxcontact import compat
@@ -326,7 +327,6 @@ def _reference_tables(space):
     (nq,)). The velocity basis is the element's own: basix's enriched P1 + bubble element,
     whose vertex functions are not the P1 hat functions (they hold a share of the bubble), so
     their gradients vary over the cell."""
-    from ffcx.element_interface import create_element
 
     cell = basix.cell.string_to_type(space.mesh.topology.cell_type.name)
     pts, wts = basix.make_quadrature(cell, space.quadrature_degree)
@@ -350,7 +350,6 @@ class KernelTables:
     """
 
     def __init__(self, space):
-        from ffcx.element_interface import create_element
 
         gref, psi, wq = self.full = _reference_tables(space)
         _, pre = space.W.ufl_element().sub_elements()

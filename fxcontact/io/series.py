@@ -11,10 +11,16 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import json
 import logging
 import os
+import subprocess
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
 from typing import Dict, List, Optional, Sequence
 
+import meshio
 import numpy as np
 from mpi4py import MPI
 
@@ -96,7 +102,6 @@ def make_directory(comm: MPI.Comm, directory: str):
 
 def read_pvd(path: str) -> List[tuple]:
     """``[(time, file), …]`` of a ``.pvd`` collection (empty if the file does not exist)."""
-    import xml.etree.ElementTree as ET
     if not os.path.exists(path):
         return []
     root = ET.parse(path).getroot()
@@ -210,12 +215,7 @@ def render_png(msh, path: str, cell_values: Optional[np.ndarray] = None,
     data = gather_mesh_data(msh, cell_values)
     if msh.comm.rank != 0:
         return False
-    import json
-    import subprocess
-    import sys
-    import tempfile
 
-    import meshio
     topo, ctypes, pts, vals = data
     if pts.shape[1] == 2:
         pts = np.c_[pts, np.zeros(len(pts))]

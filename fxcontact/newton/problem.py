@@ -22,6 +22,7 @@ from typing import Dict, List, Optional, Sequence
 import dolfinx.fem
 import dolfinx.fem.petsc
 import numpy as np
+import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -200,7 +201,6 @@ class NodalNonlinearProblem:
 
     def __init__(self, F, w, bcs=(), J=None, contributors: Sequence = (), jit_params=None,
                  constraints: Sequence = (), schur_weight=None, augment=None):
-        import ufl
         self.w = w
         self.bcs = list(bcs)
         if J is None:

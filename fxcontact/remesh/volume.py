@@ -39,6 +39,9 @@ from dataclasses import dataclass
 from typing import Optional, Sequence
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from fxcontact import compat
 from fxcontact.collective import together
@@ -126,7 +129,6 @@ class SizeZone:
     def distance(self, x: np.ndarray) -> np.ndarray:
         """(n,) distance of the points x (n, 3) to the zone."""
         if self.points is not None:
-            from scipy.spatial import cKDTree
             if not hasattr(self, "_tree"):
                 self._tree = cKDTree(self.points)
             return self._tree.query(x)[0]
@@ -146,8 +148,6 @@ def size_field(x: np.ndarray, h: float, zones: Sequence[SizeZone] = ()) -> np.nd
 def surface_patches(surface: BoundarySurface, feature_angle: float = 40.0) -> np.ndarray:
     """(m,) patch number of each triangle: the triangles of one tag connected across edges
     whose dihedral angle (between the outward normals) is below ``feature_angle`` degrees."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
     T = surface.triangles
     m = len(T)
     edges = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
@@ -337,7 +337,6 @@ def _build_on_root(gmsh, surface: BoundarySurface, h: float, zones, feature_angl
 def _entity_patches(gmsh, surface: BoundarySurface, patches: np.ndarray) -> dict:
     """{new surface entity: the old patch it lies on}: the patch that most of the nearest old
     triangles of its triangles' centroids belong to."""
-    from scipy.spatial import cKDTree
     tags, xyz, _ = gmsh.model.mesh.getNodes()
     lookup = np.zeros(int(tags.max()) + 1, dtype=np.int64)
     lookup[tags.astype(np.int64)] = np.arange(len(tags))

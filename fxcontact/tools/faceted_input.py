@@ -7,6 +7,7 @@ import logging
 from dataclasses import dataclass
 from typing import Tuple
 
+import meshio
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -165,7 +166,6 @@ def read_surface(path: str) -> Tuple[np.ndarray, np.ndarray]:
     All ``triangle`` cell blocks are concatenated (``quad`` cells are split into two triangles);
     other cells (lines, points, volume cells) are ignored. Returns ``(vertices, triangles)``.
     """
-    import meshio
 
     mesh = meshio.read(path)
     tris = []

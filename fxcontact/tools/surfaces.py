@@ -31,6 +31,7 @@ import os
 from collections import deque
 from typing import Sequence, Tuple
 
+import meshio
 import numpy as np
 
 from fxcontact.meshing import gmsh_session
@@ -350,7 +351,6 @@ def extruded_cylinder_surface(radius: float = 5.0, length: float = 20.0,
 def write_surface(path: str, vertices: np.ndarray, triangles: np.ndarray) -> str:
     """Write a triangle surface with meshio; the format follows the extension (.msh = gmsh 2.2
     ASCII, .stl = binary STL, .obj, .vtk, ...). Returns ``path``."""
-    import meshio
 
     mesh = meshio.Mesh(np.asarray(vertices, dtype=np.float64),
                        [("triangle", np.asarray(triangles, dtype=np.int64))])
