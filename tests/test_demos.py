@@ -63,7 +63,7 @@ PROCESS_DEMOS = {
                          "bar_rolling_third_diagnostics.csv"),
     "demo_ring_rolling": (("--quick", "--revolutions", 0.04), "status done",
                           "sigma0 = 107 MPa (K = 50, m = 0.14)", "ring_rolling.csv"),
-    "demo_ironing": (("--quick", "--travel", 0.7), "slab: 768 tetrahedra, 3528 dofs",
+    "demo_ironing": (("--quick", "--travel", 0.5), "slab: 768 tetrahedra, 3528 dofs",
                      "implicit: F_z Nagata / analytic", "summary.csv"),
     "demo_groove": (("--quick", "--rotations", 5), "bar section: 1152 tetrahedra, 5256 dofs",
                     "nagata-coarse-implicit: F_z / bore", "summary.csv"),
