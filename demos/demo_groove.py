@@ -55,7 +55,8 @@ ap.add_argument("--quick", action="store_true",
                 help="reduced configuration of the tests (coarse groove, implicit scheme)")
 ap.add_argument("--rotations", type=int, default=None,
                 help="number of rotation increments (at least 5)")
-ap.add_argument("--output-dir", "--output", dest="output_dir", default="results/groove")
+ap.add_argument("--output-dir", "--output", dest="output_dir", default="results/groove",
+                help="output directory")
 add_verbosity_arguments(ap)
 args = ap.parse_args()
 configure_logging(args.verbose, args.quiet)

@@ -58,7 +58,8 @@ ap.add_argument("--size", type=float, default=0.25, help="fine element size h_fi
 ap.add_argument("--travel", type=float, default=None, help="translation [mm]")
 ap.add_argument("--quick", action="store_true",
                 help="reduced configuration of the tests (coarse tool, implicit scheme)")
-ap.add_argument("--output-dir", "--output", dest="output_dir", default="results/ironing")
+ap.add_argument("--output-dir", "--output", dest="output_dir", default="results/ironing",
+                help="output directory")
 add_verbosity_arguments(ap)
 args = ap.parse_args()
 configure_logging(args.verbose, args.quiet)
