@@ -8,11 +8,11 @@ Usage::
     python benchmarks/bench_newton_facets.py --list               # case names and overrides
     mpirun -n 2 python benchmarks/bench_newton_facets.py --quick  # same rows, ranks = 2
 
-Problem: the cylinder ironing of ``demos/demo_ironing.py`` (rigid cylinder R = 5 mm pressed by
-δ into an elastic slab one element thick, then translated along x; frictionless nodal penalty
-contact, Newton with full steps, rtol 1e-9 on the residual for every tool). Every case is a set
-of overrides on top of the demo's reduced configuration ``QUICK`` (see ``CASES``) and runs three
-variants with the same scheme (``implicit`` unless the case says otherwise): the analytic
+Problem: the cylinder ironing of ``fxcontact.processes.ironing`` (rigid cylinder R = 5 mm
+pressed by δ into an elastic slab one element thick, then translated along x; frictionless nodal
+penalty contact, Newton with full steps, rtol 1e-9 on the residual for every tool). Every case
+is a set of overrides on top of the reduced configuration ``ironing.QUICK`` (see ``CASES``) and
+runs three variants with the same scheme (``implicit`` unless the case says otherwise): the analytic
 cylinder, the flat-faceted coarse tool (1.7 mm facets, Forge's closest-facet plane) and the same
 coarse facets smoothed by Nagata patches. The question is whether Nagata smoothing reduces the
 Newton iterations compared to the flat facets.
@@ -41,8 +41,9 @@ Reading hints:
 * A failed variant (an increment that did not converge after the cut-backs) keeps its status;
   its statistics are NaN if fewer than 3 steady increments were accepted.
 
-The ``groove`` cases run ``demos/demo_groove.py`` instead (a concave tool: a round bar in a
-turning groove of 36 to 180 facets, against the analytic bore; statistics over the rotation).
+The ``groove`` cases run ``fxcontact.processes.groove`` instead (a concave tool: a round bar
+in a turning groove of 36 to 180 facets, against the analytic bore; statistics over the
+rotation).
 The ``fine tools`` cases compare the fine (0.2 mm) flat and Nagata ironing tools.
 
 Rows are upserted by (ranks, case, variant) into ``benchmarks/results/newton_facets.csv`` with
@@ -61,7 +62,8 @@ from typing import List, NamedTuple
 
 from mpi4py import MPI
 
-from _common import load_demo, read_csv
+from _common import read_csv
+from fxcontact.processes import groove, ironing
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = os.path.join(HERE, "results")
@@ -79,8 +81,8 @@ def fine_tools(scheme: str = "implicit") -> tuple:
 
 class Case(NamedTuple):
     name: str
-    params: dict  # overrides of the demo's QUICK (``variants`` defaults to tools("implicit"))
-    demo: str = "ironing"  # "ironing" (demos/demo_ironing.py) or "groove" (demo_groove.py)
+    params: dict  # overrides of the study's QUICK (``variants`` defaults to tools("implicit"))
+    demo: str = "ironing"  # "ironing" (fxcontact.processes.ironing) or "groove" (.groove)
 
 
 #: The sweep, in order (``--quick`` runs the first two). Add cases here.
@@ -96,13 +98,13 @@ CASES: List[Case] = [
                              margin_fine=1.0, fine_depth=2.0, h_coarse=2.0, start_offset=0.0)),
     Case("fine tools", dict(variants=fine_tools("implicit"))),
     Case("fine tools, start_offset 0", dict(start_offset=0.0, variants=fine_tools("implicit"))),
-    # concave tool: round bar in a turning groove (demos/demo_groove.py), 36 to 180 facets
+    # concave tool: round bar in a turning groove (processes.groove), 36 to 180 facets
     Case("groove, 36 facets", {}, demo="groove"),
     Case("groove, 72 facets", dict(coarse_facets=72), demo="groove"),
     Case("groove, 180 facets", dict(coarse_facets=180), demo="groove"),
 ]
 
-#: Parameters of ``demo_ironing.run`` written to the CSV (resolved values).
+#: Parameters of ``ironing.run`` (and ``groove.run``) written to the CSV (resolved values).
 PARAMS = ["h_fine", "indentation", "n_indent", "step", "travel", "settle", "start_offset",
           "beta", "tool_mesh", "phase", "margin", "margin_fine", "fine_depth", "h_coarse",
           "growth", "line_search", "h", "coarse_facets", "rotation_step", "n_rotation"]
@@ -248,7 +250,7 @@ def main(argv=None):
     names = [c.name for c in CASES]
     if a.list:
         for c in CASES:
-            say(f"{c.name!r:32s} {slug(c.name):28s} demo_{c.demo}: {describe(c.params)}")
+            say(f"{c.name!r:32s} {slug(c.name):28s} {c.demo}: {describe(c.params)}")
         return None
     if a.cases is not None:
         lookup = {n: n for n in names} | {slug(n): n for n in names}
@@ -259,7 +261,7 @@ def main(argv=None):
     else:
         selected = set(names[:2] if a.quick else names)
 
-    demos = {d: load_demo(f"demo_{d}") for d in sorted({c.demo for c in CASES})}
+    demos = {"ironing": ironing, "groove": groove}
     t_all = time.perf_counter()
     rows: List[dict] = []
     for c in CASES:
@@ -267,7 +269,7 @@ def main(argv=None):
             continue
         demo = demos[c.demo]
         kw = {**demo.QUICK, "variants": tools("implicit"), **c.params}
-        say(f"[{c.name}] demo_{c.demo}: {describe(c.params)} ...", flush=True)
+        say(f"[{c.name}] {c.demo}: {describe(c.params)} ...", flush=True)
         new = case_rows(comm, c.name, demo.run, kw, describe(c.params))
         rows += new
         if comm.rank == 0:

@@ -67,6 +67,10 @@ PROCESS_DEMOS = {
                        "upsetting_pressure.csv"),
     "demo_ring_test": (("--quick", "--mbar", 0.3), "20 % height reduction in 2 increments",
                        "20.0 %: ID    0.11    0.64    0.16; UB   -1.73", "ring_test.csv"),
+    "demo_ironing": (("--quick", "--travel", 0.5), "slab: 768 tetrahedra, 3528 dofs",
+                     "implicit: F_z Nagata / analytic", "summary.csv"),
+    "demo_groove": (("--quick", "--rotations", 5), "bar section: 1152 tetrahedra, 5256 dofs",
+                    "nagata-coarse-implicit: F_z / bore", "summary.csv"),
 }
 
 

@@ -1,7 +1,7 @@
-"""Round bar in a turning faceted groove (concave tool, ``demos/demo_groove.py``) at reduced
-size, serially and on 2 ranks: the analytic bore is invariant under the rotation, the Nagata
-groove carries the bore's force without the flat facets' oscillation, converges where the flat
-fine groove fails (facet switching), and 1 vs 2 ranks agree."""
+"""Round bar in a turning faceted groove (concave tool, ``fxcontact.processes.groove``) at
+reduced size, serially and on 2 ranks: the analytic bore is invariant under the rotation, the
+Nagata groove carries the bore's force without the flat facets' oscillation, converges where the
+flat fine groove fails (facet switching), and 1 vs 2 ranks agree."""
 
 import math
 import os
@@ -10,9 +10,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from helpers import assert_histories_match, assert_newton_counts_match, load_demo, shared_tmpdir
-
-demo = load_demo("demo_groove")
+from fxcontact.processes import groove, ironing
+from helpers import assert_histories_match, assert_newton_counts_match, shared_tmpdir
 
 NAGATA, FLAT, ANALYTIC = "nagata-coarse-implicit", "flat-coarse-implicit", "analytic-implicit"
 
@@ -20,7 +19,7 @@ NAGATA, FLAT, ANALYTIC = "nagata-coarse-implicit", "flat-coarse-implicit", "anal
 @pytest.fixture(scope="module")
 def quick():
     d = shared_tmpdir("fxc-groove-")
-    res = demo.run(**demo.QUICK, output_dir=d, progress=False, newton_rtol=1e-12)
+    res = groove.run(**groove.QUICK, output_dir=d, progress=False, newton_rtol=1e-12)
     return d, res
 
 
@@ -90,9 +89,9 @@ def test_fine_flat_groove_fails_nagata_converges(quick):
     groove built from the same facets converges without cut-backs and carries the bore's
     force (within 1 %, measured 0.00 %)."""
     _, res = quick
-    kw = {**demo.QUICK, "coarse_facets": 180, "n_rotation": 5, "max_cutbacks": 1,
+    kw = {**groove.QUICK, "coarse_facets": 180, "n_rotation": 5, "max_cutbacks": 1,
           "variants": (("flat", "coarse", "implicit"), ("nagata", "coarse", "implicit"))}
-    out = demo.run(**kw, output_dir=None, progress=False)
+    out = groove.run(**kw, output_dir=None, progress=False)
     s = out["by_name"]
     assert s[FLAT]["status"].startswith("failed"), s[FLAT]["status"]
     # recognised as a cycle (stopped early) and explained
@@ -111,9 +110,9 @@ def test_groove_parallel_matches_serial(quick):
     if comm.size == 1:
         pytest.skip("needs several ranks (the serial run is the reference)")
     _, res = quick
-    kw = {**demo.QUICK, "variants": (("nagata", "coarse", "implicit"),)}
-    ref = demo.run(**kw, output_dir=None, progress=False, comm=MPI.COMM_SELF,
-                   newton_rtol=1e-12)   # the fixture's Newton tolerance
+    kw = {**groove.QUICK, "variants": (("nagata", "coarse", "implicit"),)}
+    ref = groove.run(**kw, output_dir=None, progress=False, comm=MPI.COMM_SELF,
+                     newton_rtol=1e-12)   # the fixture's Newton tolerance
     h_par = res["results"][NAGATA]["history"]
     h_ser = ref["results"][NAGATA]["history"]
     assert_histories_match(h_par, h_ser, ("tool_force_z", "tool_force_x", "top_z"), 1e-8)
@@ -123,18 +122,18 @@ def test_groove_parallel_matches_serial(quick):
 
 def test_bad_parameters_and_inward_groove():
     with pytest.raises(ValueError, match="groove wider"):
-        demo.run(bar_radius=6.0, groove_radius=5.0, output_dir=None, progress=False)
+        groove.run(bar_radius=6.0, groove_radius=5.0, output_dir=None, progress=False)
     with pytest.raises(ValueError, match="bad variant"):
-        demo.run(variants=(("flat", None, "implicit"),), output_dir=None, progress=False)
+        groove.run(variants=(("flat", None, "implicit"),), output_dir=None, progress=False)
     # a groove whose normals point into the tool material (no flip) is caught
     from fxcontact.tools.faceted import FacetedTool
 
     center = (0.0, 0.125, 6.0)
-    V, T = demo.groove_surface(6.0, 36, 4.25, center)
+    V, T = groove.groove_surface(6.0, 36, 4.25, center)
     wrong = FacetedTool(V, T, mode="flat")
     with pytest.raises(ValueError, match="normals point into the tool"):
-        demo.ironing.tool_deviation(wrong, center, 6.0, 0.125, free_point=center)
+        ironing.tool_deviation(wrong, center, 6.0, 0.125, free_point=center)
     right = FacetedTool(V, T, mode="flat", flip=True)
-    dev = demo.ironing.tool_deviation(right, center, 6.0, 0.125, free_point=center)
+    dev = ironing.tool_deviation(right, center, 6.0, 0.125, free_point=center)
     assert abs(dev["bottom_gap"]) < 1e-12
     assert np.isfinite(dev["dev_out"])

@@ -1,6 +1,7 @@
-"""Cylinder ironing demo (coarse 1.7 mm tool, implicit scheme) at reduced size, serially and on
-2 ranks: outputs, the acceptance criteria of the issue (Nagata vs flat facets vs the analytic
-tool), and 1-rank vs 2-rank agreement of the faceted (Nagata) contact."""
+"""Cylinder ironing (``fxcontact.processes.ironing``, coarse 1.7 mm tool, implicit scheme) at
+reduced size, serially and on 2 ranks: outputs, the acceptance criteria of the issue (Nagata vs
+flat facets vs the analytic tool), and 1-rank vs 2-rank agreement of the faceted (Nagata)
+contact."""
 
 import math
 import os
@@ -9,18 +10,18 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from helpers import assert_histories_match, load_demo, shared_tmpdir
-
-demo = load_demo("demo_ironing")
+from fxcontact.processes import ironing, ironing_report
+from fxcontact.tools import surfaces
+from helpers import assert_histories_match, shared_tmpdir
 
 NAGATA, FLAT, ANALYTIC = "nagata-coarse-implicit", "flat-coarse-implicit", "analytic-implicit"
 
 
 @pytest.fixture(scope="module")
 def quick():
-    """The test configuration of the demo (demo.QUICK: 3 variants, 15 increments each)."""
+    """The test configuration (ironing.QUICK: 3 variants, 15 increments each)."""
     d = shared_tmpdir("fxc-ironing-")
-    res = demo.run(**demo.QUICK, output_dir=d, progress=False)
+    res = ironing.run(**ironing.QUICK, output_dir=d, progress=False)
     return d, res
 
 
@@ -56,7 +57,7 @@ def test_outputs_and_diagnostics(quick):
         for key in ("force", "newton", "contact_nodes"):
             assert os.path.getsize(res["png"][key]) > 10_000
         assert os.path.getsize(os.path.join(d, "tool_coarse.stl")) > 0
-        assert "contact" in demo.format_table(res["summary"]).splitlines()[0]
+        assert "contact" in ironing_report.format_table(res["summary"]).splitlines()[0]
 
 
 def test_nagata_force_matches_analytic(quick):
@@ -104,8 +105,8 @@ def test_faceted_contact_parallel_matches_serial(quick):
     if comm.size == 1:
         pytest.skip("needs several ranks (the serial run is the reference)")
     _, res = quick
-    kw = {**demo.QUICK, "variants": (("nagata", "coarse", "implicit"),)}
-    ref = demo.run(**kw, output_dir=None, progress=False, comm=MPI.COMM_SELF)
+    kw = {**ironing.QUICK, "variants": (("nagata", "coarse", "implicit"),)}
+    ref = ironing.run(**kw, output_dir=None, progress=False, comm=MPI.COMM_SELF)
     h_par = res["results"][NAGATA]["history"]
     h_ser = ref["results"][NAGATA]["history"]
     assert_histories_match(h_par, h_ser, ("tool_force_z", "tool_force_x", "bottom_z"), 1e-8)
@@ -116,10 +117,10 @@ def test_faceted_contact_parallel_matches_serial(quick):
 
 
 def test_extruded_cylinder_tool_mesh():
-    """The gmsh structured tool mesh of the demo: 18 facets per turn for 1.7 mm, vertices on
+    """The gmsh structured tool mesh of the ironing: 18 facets per turn for 1.7 mm, vertices on
     the circle, a generator at the bottom, every cross-section the same polygon, outward
     normals (open surface)."""
-    tm = demo.tool_meshes
+    tm = surfaces
     V, T = tm.extruded_cylinder_surface(5.0, 4.25, 1.7, theta0=0.5 * np.pi,
                                         center=(1.0, 0.0, 5.0), axis=(0.0, 1.0, 0.0))
     rel = V - np.array([1.0, 0.0, 5.0])

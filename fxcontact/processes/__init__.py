@@ -20,12 +20,18 @@ pictures, ``report()``).
   whole bar);
 * :mod:`fxcontact.processes.ring_rolling` — radial ring rolling (driven main roll, idle
   mandrel fed towards it, guide rolls, optional cone rolls; pictures in ``ring_pictures``);
+* :mod:`fxcontact.processes.ironing` — a rigid cylinder (analytic, flat-faceted or
+  Nagata-smoothed) ironing an elastic slab: ``ironing.run``, the tool comparison per
+  (tool, facets, scheme) variant; :mod:`fxcontact.processes.groove` — the concave counterpart, a
+  round bar in a turning faceted groove: ``groove.run``; their statistics, tables and pictures
+  in :mod:`fxcontact.processes.ironing_report`;
 * shared pieces: :mod:`fxcontact.processes.monitor` (the run-until-steady loop and its stop
   rules), :mod:`fxcontact.processes.common` (gathers, power balance, sections and curves),
   :mod:`fxcontact.processes.die` (the bar's nose, the die and its faceted sectors).
 """
 
-from fxcontact.processes import bar_rolling, flat_rolling, ring_rolling, ring_test, upsetting_dies
+from fxcontact.processes import (bar_rolling, flat_rolling, groove, ironing, ironing_report,
+                                 ring_rolling, ring_test, upsetting_dies)
 from fxcontact.processes.bar_rolling import BarRollingCase, BarRollingResult, BarRollingSetup
 from fxcontact.processes.drawing import DrawingCase, DrawingResult, DrawingSetup
 from fxcontact.processes.drawing import build as build_drawing, run as run_drawing
@@ -40,7 +46,8 @@ from fxcontact.processes.upsetting import UpsettingCase, UpsettingResult, Upsett
 from fxcontact.processes.upsetting import build as build_upsetting, run as run_upsetting
 from fxcontact.processes.upsetting_dies import run as run_upsetting_dies
 
-__all__ = ["bar_rolling", "flat_rolling", "ring_rolling", "ring_test", "upsetting_dies",
+__all__ = ["bar_rolling", "flat_rolling", "groove", "ironing", "ironing_report", "ring_rolling",
+           "ring_test", "upsetting_dies",
            "BarRollingCase", "BarRollingResult", "BarRollingSetup",
            "DrawingCase", "DrawingResult", "DrawingSetup", "build_drawing", "run_drawing",
            "ExtrusionCase", "ExtrusionResult", "ExtrusionSetup", "build_extrusion",
