@@ -63,6 +63,11 @@ PROCESS_DEMOS = {
                          "bar_rolling_third_diagnostics.csv"),
     "demo_ring_rolling": (("--quick", "--revolutions", 0.04), "status done",
                           "sigma0 = 107 MPa (K = 50, m = 0.14)", "ring_rolling.csv"),
+    "demo_hertz_sphere": (("--quick",), "Hertz at delta = 13.3 um: P = 1005.1 N, a = 0.2579 mm",
+                          "p_max [MPa]", "profile.csv"),
+    "demo_hertz_cylinder": (("--quick",), "half-width a [mm]", "a/R = 0.035", "profile.csv"),
+    "demo_hyperelastic_contact": (("--quick",), "588 dofs, 3 load steps, indentation 0.3",
+                                  "penetration (penalty)", "force.csv"),
 }
 
 
