@@ -1,7 +1,7 @@
 """Hertz sphere at equal accuracy: fxcontact P1 displacement, fxcontact mixed (MINI) and a plain
 integrated-UFL-penalty P1 script, one process, one after the other on the same machine.
 
-Each method runs on the graded quarter block of ``demos/demo_hertz_sphere.py`` for each
+Each method runs on the graded quarter block of ``fxcontact.processes.hertz_sphere`` for each
 ``h_fine`` of ``--sizes`` (or of ``--sizes-of METHOD=SIZES``); the table gives the force and
 p_max errors against Hertz, dofs, Newton and Krylov iterations, MUMPS factorisations, the wall
 time (mesh generation, form compilation from a warm cache, solve) and its split: assembly (UFL
@@ -28,6 +28,8 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from fxcontact.processes import hertz_sphere
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -38,7 +40,7 @@ def _load(name, path):
     return mod
 
 
-#: demo_hertz_sphere.run arguments of the fxcontact methods
+#: hertz_sphere.run arguments of the fxcontact methods
 METHODS = {"p1": dict(formulation="p1"),
            "p1-direct": dict(formulation="p1", linear_solver="direct"),
            "p1-iterative": dict(formulation="p1", linear_solver="iterative"),
@@ -56,7 +58,6 @@ def main():
     ap.add_argument("--output", default="results")
     args = ap.parse_args()
     comm = MPI.COMM_WORLD
-    demo = _load("demo_hertz_sphere", ROOT / "demos" / "demo_hertz_sphere.py")
     ufl_script = _load("hertz_ufl_penalty", ROOT / "benchmarks" / "hertz_ufl_penalty.py")
     sizes = [float(s) for s in args.sizes.split(",")]
     sizes_of = {m: [float(s) for s in v.split(",")]
@@ -73,8 +74,8 @@ def main():
                         print(f"ufl h_fine={h}: {e}", flush=True)
                     continue
             else:
-                r = demo.run(h_fine=h, output_dir=None, picture=False, progress=False,
-                             **METHODS[method])
+                r = hertz_sphere.run(h_fine=h, output_dir=None, picture=False, progress=False,
+                                     **METHODS[method])
             t = r.get("times", {})
             split = {k: t.get(k, float("nan")) for k in ("assembly", "contact", "linear_solve")}
             if method == "ufl":

@@ -6,10 +6,11 @@ Usage::
     python benchmarks/bench_contact.py --h-fine 0.05 --schemes implicit   # quick, ~40k dofs
     mpirun -n 2 python benchmarks/bench_contact.py           # -> results/contact_np2.csv
 
-Problem: ``demos/demo_hertz_sphere.py`` (rigid sphere R = 5 pressed into an elastic quarter
-block, radially graded mesh, MINI, MUMPS). The mesh is refined with ``--h-fine`` / ``--growth``
-until the dof count reaches the target. For each contact scheme the demo runs ``--steps``
-increments; per increment the library records (``Simulation.history``, max over ranks):
+Problem: ``fxcontact.processes.hertz_sphere`` (rigid sphere R = 5 pressed into an elastic
+quarter block, radially graded mesh, MINI, MUMPS). The mesh is refined with ``--h-fine`` /
+``--growth`` until the dof count reaches the target. For each contact scheme the run takes
+``--steps`` increments; per increment the library records (``Simulation.history``, max over
+ranks):
 
 * ``contact``: everything the contact contributor does inside Newton — projections on the tool
   at every residual/Jacobian evaluation, penalty kernels, insertion of the nodal terms into the
@@ -32,7 +33,7 @@ import time
 
 from mpi4py import MPI
 
-from _common import load_demo
+from fxcontact.processes import hertz_sphere
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = os.path.join(HERE, "results")
@@ -42,10 +43,10 @@ FIELDS = ["ranks", "scheme", "h_fine", "growth", "dofs", "cells", "contact_nodes
           "share_nonsolver", "force_err", "wall_s"]
 
 
-def run_case(comm, demo, scheme: str, h_fine: float, growth: float, steps: int) -> dict:
+def run_case(comm, scheme: str, h_fine: float, growth: float, steps: int) -> dict:
     t0 = time.perf_counter()
-    res = demo.run(h_fine=h_fine, growth=growth, scheme=scheme, n_steps=steps, output_dir=None,
-                   picture=False, progress=False, comm=comm)
+    res = hertz_sphere.run(h_fine=h_fine, growth=growth, scheme=scheme, n_steps=steps,
+                           output_dir=None, picture=False, progress=False, comm=comm)
     wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
     hist = res["history"][1:] if len(res["history"]) > 1 else res["history"]
     sums = {}
@@ -106,12 +107,11 @@ def main():
     if a.steps < 2:
         ap.error("--steps must be >= 2 (the first increment is not timed)")
     comm = MPI.COMM_WORLD
-    demo = load_demo("demo_hertz_sphere")
     path = a.csv or os.path.join(RESULTS, "contact.csv" if comm.size == 1
                                  else f"contact_np{comm.size}.csv")
     rows = []
     for s in [s.strip() for s in a.schemes.split(",") if s.strip()]:
-        row = run_case(comm, demo, s, a.h_fine, a.growth, a.steps)
+        row = run_case(comm, s, a.h_fine, a.growth, a.steps)
         rows.append(row)
         if comm.rank == 0:
             print_table([row])

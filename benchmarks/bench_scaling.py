@@ -6,7 +6,7 @@ Usage::
     python benchmarks/bench_scaling.py --h-fine 0.03 --solvers condensed-mumps,condensed-amg
     python benchmarks/bench_scaling.py --table                       # print stored rows
 
-Problem: the Hertz sphere of ``demos/demo_hertz_sphere.py`` (quarter block, MINI, linear
+Problem: the Hertz sphere of ``fxcontact.processes.hertz_sphere`` (quarter block, MINI, linear
 elasticity in velocity form, analytic sphere, implicit nodal contact, β = 10⁴), with the mesh
 refined to ``--h-fine`` under the sphere. For every linear solver and rank count a fresh
 process (``mpirun -n N``) runs ``--steps`` increments; the first one (numba compilation,
@@ -53,19 +53,18 @@ def worker(args):
     """One run on MPI.COMM_WORLD; rank 0 writes times and the vertex solution to args.out."""
     from mpi4py import MPI
 
-    from _common import load_demo
     from fxcontact.contact.boundary import ContactBoundary
     from fxcontact.contact.nodal import NodalContact, penalty_from_beta
     from fxcontact.materials import LinearElastic
     from fxcontact.meshing import BLOCK_TAGS
     from fxcontact.simulation import Simulation
     from fxcontact.newton.solver import SolverOptions
+    from fxcontact.processes import hertz
     from fxcontact.spaces import MixedSpace
 
-    demo = load_demo("demo_hertz_sphere")
     comm = MPI.COMM_WORLD
     radius, E, nu, delta, beta = 5.0, 2e5, 0.3, 0.0133, 1e4
-    msh, _, ft = demo.graded_block(comm, 80.0, 80.0, args.h_fine, 0.4, 0.15, 16.0)
+    msh, _, ft = hertz.graded_block(comm, 80.0, 80.0, args.h_fine, 0.4, 0.15, 16.0)
     space = MixedSpace(msh)
     mat = LinearElastic(E, nu)
     sim = Simulation(space, mat, progress=False,
@@ -74,7 +73,7 @@ def worker(args):
     sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["ymin"]), 0.0, 1)
     sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["zmin"]), 0.0, 2)
     dt = 1.0 / args.steps
-    tool, _ = demo.make_tool("analytic", radius, delta, 1.0, "nvv")
+    tool, _ = hertz.make_tool("analytic", radius, delta, 1.0, "nvv")
     penalty = penalty_from_beta(mat, beta, args.h_fine, dt=dt)
     sim.add_contributor(NodalContact(ContactBoundary(space, ft, BLOCK_TAGS["zmax"]), tool,
                                      scheme="implicit", penalty=penalty,

@@ -5,9 +5,10 @@ integrated UFL penalty on the exact sphere gap — no fxcontact contact.
     g(X) = |X − c| − R,  n_s = (X − c)/|X − c|,
 
 solved with dolfinx's NewtonSolver (MUMPS) in load steps (the sphere centre c moves down), on
-the same graded quarter block as ``demos/demo_hertz_sphere.py``, penalty k = β E*/h_fine with
-β = 1e3 (with the nodal contact's β = 1e4 this Newton iteration cycles: quadrature points enter
-and leave contact at every iteration; 1e3 keeps the penetration below 1e-3 δ). The penalty integral uses quadrature degree ``quad`` on the facets (the
+the same graded quarter block as the Hertz sphere (``fxcontact.processes.hertz.graded_block``),
+penalty k = β E*/h_fine with β = 1e3 (with the nodal contact's β = 1e4 this Newton iteration
+cycles: quadrature points enter and leave contact at every iteration; 1e3 keeps the penetration
+below 1e-3 δ). The penalty integral uses quadrature degree ``quad`` on the facets (the
 estimated default degree for the square root of the gap is far higher and slower). The nodal
 pressure is the lumped L2 projection of k [−g]₊ on P1 over the top face (∫ p N_n ds / ∫ N_n ds):
 the vertices of a P1 surface pressed by a convex tool may stay outside it while the facet
@@ -62,17 +63,11 @@ class _TimedProblem(dolfinx.fem.petsc.NonlinearProblem):
 def run(h_fine=0.025, radius=5.0, E=2e5, nu=0.3, indentation=0.0133, beta=1e3, n_steps=3,
         quad=2, h=16.0, width=80.0, height=80.0, refine=0.4, growth=0.15,
         comm=MPI.COMM_WORLD) -> dict:
-    from pathlib import Path
-    import importlib.util
-    spec = importlib.util.spec_from_file_location(
-        "demo_hertz_sphere", Path(__file__).resolve().parents[1] / "demos" /
-        "demo_hertz_sphere.py")
-    demo = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(demo)
     from fxcontact.meshing import BLOCK_TAGS
+    from fxcontact.processes.hertz import graded_block
 
     t0 = time.perf_counter()
-    msh, _, ft = demo.graded_block(comm, width, height, h_fine, refine, growth, h)
+    msh, _, ft = graded_block(comm, width, height, h_fine, refine, growth, h)
     V = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", 1))
     u, v = dolfinx.fem.Function(V), ufl.TestFunction(V)
     mu, lmbda = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))

@@ -16,6 +16,7 @@ import dolfinx.nls.petsc
 import fxcontact as fx
 from fxcontact import compat
 from fxcontact.contact.nodal import NodalContact
+from fxcontact.processes import hyperelastic
 
 from helpers import box_mesh, gather_by_position
 
@@ -365,14 +366,12 @@ def test_ranks_agree():
 
 
 def test_hyperelastic_demo_small():
-    """The demo's neo-Hookean block at a small size: dolfinx's NewtonSolver and the SNES
-    callbacks give the same ball force (1e-8), the block is pressed 30 % of its height, the
-    ball force grows with the indentation, and the penalty penetration stays below 2 % of the
-    indentation."""
-    from helpers import load_demo
-    demo = load_demo("demo_hyperelastic_contact")
-    r1 = demo.run("newton", n=6, n_steps=3)
-    r2 = demo.run("snes", n=6, n_steps=3)
+    """The neo-Hookean block of :mod:`fxcontact.processes.hyperelastic` (the demo's) at a small
+    size: dolfinx's NewtonSolver and the SNES callbacks give the same ball force (1e-8), the
+    block is pressed 30 % of its height, the ball force grows with the indentation, and the
+    penalty penetration stays below 2 % of the indentation."""
+    r1 = hyperelastic.run("newton", n=6, n_steps=3)
+    r2 = hyperelastic.run("snes", n=6, n_steps=3)
     assert abs(r2["force"] / r1["force"] - 1.0) <= 1e-8
     assert r1["u_z_min"] < -0.28
     forces = [row["force"] for row in r1["rows"]]

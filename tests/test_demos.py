@@ -71,6 +71,11 @@ PROCESS_DEMOS = {
                      "implicit: F_z Nagata / analytic", "summary.csv"),
     "demo_groove": (("--quick", "--rotations", 5), "bar section: 1152 tetrahedra, 5256 dofs",
                     "nagata-coarse-implicit: F_z / bore", "summary.csv"),
+    "demo_hertz_sphere": (("--quick",), "Hertz at delta = 13.3 um: P = 1005.1 N, a = 0.2579 mm",
+                          "p_max [MPa]", "profile.csv"),
+    "demo_hertz_cylinder": (("--quick",), "half-width a [mm]", "a/R = 0.035", "profile.csv"),
+    "demo_hyperelastic_contact": (("--quick",), "588 dofs, 3 load steps, indentation 0.3",
+                                  "penetration (penalty)", "force.csv"),
 }
 
 

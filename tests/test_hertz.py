@@ -1,4 +1,5 @@
-"""Hertz validation demos (THEORY §11): small runs (serial and on 2 ranks) and the acceptance
+"""Hertz validation (THEORY §11, :mod:`fxcontact.processes.hertz_cylinder` and
+:mod:`~fxcontact.processes.hertz_sphere`): small runs (serial and on 2 ranks) and the acceptance
 accuracy (line contact: p_max within 3 % of Hertz for the FEM load, half-width within one
 element; sphere: force–indentation within 3 %, p_max within 5 %, contact radius within one
 element)."""
@@ -10,7 +11,9 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from helpers import load_demo, shared_tmpdir
+from fxcontact.processes import hertz_cylinder, hertz_sphere
+
+from helpers import shared_tmpdir
 
 @pytest.fixture
 def outdir():
@@ -45,9 +48,8 @@ def _check_line_contact(res, h_fine, p_tol):
 def test_hertz_cylinder_small(outdir):
     """Coarse line contact (~9 nodes on a): already within 3 % on p_max (measured −0.5 %) and one
     element on the half-width; the nodal profile follows the ellipse within 5 % of p0."""
-    demo = load_demo("demo_hertz_cylinder")
     h_fine = 0.02
-    res = demo.run(h_fine=h_fine, n_steps=2, output_dir=outdir, progress=False)
+    res = hertz_cylinder.run(h_fine=h_fine, n_steps=2, output_dir=outdir, progress=False)
     _check_line_contact(res, h_fine, p_tol=0.03)
     assert res["nodes_on_half_width"] >= 8
     assert _hertz_profile_error(res["x"], res["p"], res["hertz_half_width"],
@@ -62,11 +64,10 @@ def test_hertz_cylinder_small(outdir):
 def test_hertz_cylinder_schemes_agree():
     """Pure normal indentation, no sliding: the four schemes give the same contact state
     (the explicit frozen tangent plane is exact to O((v_t dt)²/R) with v_t ≈ 0)."""
-    demo = load_demo("demo_hertz_cylinder")
     ref = None
     for scheme in ("implicit", "explicit", "quasi-implicit", "implicit-exact"):
-        res = demo.run(h_fine=0.03, n_steps=2, scheme=scheme, output_dir=None,
-                       picture=False, progress=False)
+        res = hertz_cylinder.run(h_fine=0.03, n_steps=2, scheme=scheme, output_dir=None,
+                                 picture=False, progress=False)
         if ref is None:
             ref = res
             continue
@@ -74,17 +75,16 @@ def test_hertz_cylinder_schemes_agree():
         assert abs(res["p_max"] / ref["p_max"] - 1.0) < 1e-3, scheme
         assert res["nodes_on_half_width"] == ref["nodes_on_half_width"], scheme
     with pytest.raises(ValueError, match="indentation"):
-        demo.run(indentation=-1.0, output_dir=None)
+        hertz_cylinder.run(indentation=-1.0, output_dir=None)
 
 
 def test_hertz_sphere_small(outdir):
     """Coarse sphere (5 nodes on a, size growth 0.3, 20 mm block): linear tetrahedra that coarse
     are too stiff, measured +5.3 % on the force; checked within 10 % (force) and 6 % (p_max),
     contact radius within one element."""
-    demo = load_demo("demo_hertz_sphere")
     h_fine = 0.05
-    res = demo.run(h_fine=h_fine, growth=0.3, width=20.0, height=20.0, h=4.0, n_steps=2,
-                   output_dir=outdir, progress=False)
+    res = hertz_sphere.run(h_fine=h_fine, growth=0.3, width=20.0, height=20.0, h=4.0,
+                           n_steps=2, output_dir=outdir, progress=False)
     P, Ph = res["force"], res["hertz_force"]
     assert abs(Ph - 4.0 / 3.0 * res["E_star"] * math.sqrt(5.0) * 0.0133**1.5) < 1e-9 * Ph
     assert abs(res["bottom_reaction"] - P) <= 1e-5 * P
@@ -103,8 +103,7 @@ def test_hertz_sphere_small(outdir):
 def test_hertz_cylinder_accuracy():
     """Default line contact (h_fine = 8 µm, ~21 nodes on a = 0.17 mm, block 10 × 10 mm ≈ 60 a):
     p_max within 3 % of p0 = 2P/(πa) for the FEM load, half-width within one element."""
-    demo = load_demo("demo_hertz_cylinder")
-    res = demo.run(output_dir=None, picture=False, progress=False)
+    res = hertz_cylinder.run(output_dir=None, picture=False, progress=False)
     _check_line_contact(res, res["h_fine"], p_tol=0.03)
     assert res["nodes_on_half_width"] >= 20
     assert _hertz_profile_error(res["x"], res["p"], res["hertz_half_width"],
@@ -115,8 +114,7 @@ def test_hertz_sphere_accuracy():
     """Default sphere (δ = 13.3 µm, h_fine = 25 µm, ~10 nodes on a = 0.258 mm, size growth 0.15,
     block 80 mm ≈ 300 a): force within 3 % of 4/3 E* R^½ δ^{3/2}, p_max within 5 % of p0,
     contact radius within one element."""
-    demo = load_demo("demo_hertz_sphere")
-    res = demo.run(output_dir=None, picture=False, progress=False)
+    res = hertz_sphere.run(output_dir=None, picture=False, progress=False)
     h_fine = res["h_fine"]
     assert abs(res["force"] / res["hertz_force"] - 1.0) <= 0.03, res["force"]
     assert abs(res["p_max"] / res["hertz_p_max"] - 1.0) <= 0.05, res["p_max"]
@@ -131,10 +129,9 @@ def test_hertz_sphere_p1_small(outdir):
     (h_fine = 50 µm, growth 0.15, 20 mm block): the reduced-size tolerances of the mixed test
     (force within +10 %, p_max within 6 %, radius within one element; measured +4.7 %, +5.4 %);
     equilibrium with the bottom reaction, negligible penalty penetration."""
-    demo = load_demo("demo_hertz_sphere")
     h_fine = 0.05
-    res = demo.run(h_fine=h_fine, growth=0.15, width=20.0, height=20.0, h=4.0, n_steps=2,
-                   output_dir=outdir, progress=False, formulation="p1")
+    res = hertz_sphere.run(h_fine=h_fine, growth=0.15, width=20.0, height=20.0, h=4.0,
+                           n_steps=2, output_dir=outdir, progress=False, formulation="p1")
     assert res["formulation"] == "p1"
     P, Ph = res["force"], res["hertz_force"]
     assert abs(res["bottom_reaction"] - P) <= 1e-5 * P
@@ -149,11 +146,10 @@ def test_hertz_sphere_p1_small(outdir):
 def test_hertz_sphere_p1_ranks():
     """P1 displacement on all ranks and on one rank (same gmsh mesh): the same force and
     p_max to 1e-8 (serially the two runs coincide)."""
-    demo = load_demo("demo_hertz_sphere")
     kw = dict(h_fine=0.1, growth=0.3, width=10.0, height=10.0, h=3.0, n_steps=2,
               output_dir=None, progress=False, formulation="p1")
-    r2 = demo.run(comm=MPI.COMM_WORLD, **kw)
-    r1 = demo.run(comm=MPI.COMM_SELF, **kw)
+    r2 = hertz_sphere.run(comm=MPI.COMM_WORLD, **kw)
+    r1 = hertz_sphere.run(comm=MPI.COMM_SELF, **kw)
     assert r1["active_nodes"] == r2["active_nodes"] > 3
     for key in ("force", "p_max", "contact_radius"):
         assert abs(r2[key] / r1[key] - 1.0) <= 1e-8, (key, r1[key], r2[key])
@@ -161,10 +157,9 @@ def test_hertz_sphere_p1_ranks():
 
 def test_hertz_sphere_p1_accuracy():
     """Default sphere mesh (h_fine = 25 µm) in P1 displacement: the acceptance criteria of the
-    mixed demo — force within 3 %, p_max within 5 %, contact radius within one element
+    mixed run — force within 3 %, p_max within 5 %, contact radius within one element
     (measured +2.8 %, +4.5 %)."""
-    demo = load_demo("demo_hertz_sphere")
-    res = demo.run(output_dir=None, picture=False, progress=False, formulation="p1")
+    res = hertz_sphere.run(output_dir=None, picture=False, progress=False, formulation="p1")
     assert abs(res["force"] / res["hertz_force"] - 1.0) <= 0.03, res["force"]
     assert abs(res["p_max"] / res["hertz_p_max"] - 1.0) <= 0.05, res["p_max"]
     assert abs(res["contact_radius"] - res["hertz_contact_radius"]) <= res["h_fine"]

@@ -12,13 +12,12 @@ from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact, penalty_from_beta
 from fxcontact.materials import LinearElastic
 from fxcontact.meshing import BLOCK_TAGS, block
+from fxcontact.processes import hertz, hertz_sphere
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.faceted import FacetedTool
 
-from helpers import gather_by_position, load_demo
-
-demo = load_demo("demo_hertz_sphere")
+from helpers import gather_by_position
 
 # small block mesh of tests/test_hertz.py::test_hertz_sphere_small (5 nodes on a, 20 mm block)
 SMALL = dict(h_fine=0.05, growth=0.3, width=20.0, height=20.0, h=4.0, n_steps=2,
@@ -26,13 +25,13 @@ SMALL = dict(h_fine=0.05, growth=0.3, width=20.0, height=20.0, h=4.0, n_steps=2,
 
 
 def test_octahedral_sphere_tool_mesh():
-    """The demo's tool mesh: closed, outward, vertices on the sphere, mirror-symmetric about
+    """The Hertz sphere's tool mesh: closed, outward, vertices on the sphere, mirror-symmetric about
     x = 0 and y = 0 (needed by the quarter model), lowest vertex at the first-touch point with
     edges of the requested length there."""
     R = 5.0
-    n = demo.octahedral_divisions(R, 1.0)
+    n = hertz.octahedral_divisions(R, 1.0)
     assert n == 8
-    V, T = demo.octahedral_sphere(n, R, (0.0, 0.0, R))
+    V, T = hertz.octahedral_sphere(n, R, (0.0, 0.0, R))
     assert V.shape == (4 * n * n + 2, 3) and T.shape == (8 * n * n, 3)
     tool = FacetedTool(V, T, mode="flat")  # checks orientation and closedness
     assert tool.closed
@@ -58,7 +57,7 @@ def test_nagata_patch_choice_on_shared_edge_is_deterministic():
     unchanged projected patches to declare convergence; with a distance tie-break 542 of 1600
     projections below flipped patch under 1e-15 relative perturbations, doubling the Newton
     iterations of the faceted Hertz run)."""
-    V, T = demo.octahedral_sphere(8, 5.0, (0.0, 0.0, 5.0))
+    V, T = hertz.octahedral_sphere(8, 5.0, (0.0, 0.0, 5.0))
     tool = FacetedTool(V, T, mode="nagata")
     rng = np.random.default_rng(0)
     y = np.linspace(0.02, 0.4, 20)
@@ -83,11 +82,11 @@ def test_hertz_faceted_sphere_nagata_vs_analytic(record_property):
     ≈ 1000 N, with a pressure peak at the tip. Measured: P = 237 N (−78 % against the analytic
     tool), p_max = 4.6 p0. Asserted only that flat facets fail the 5 % criterion and carry less
     than half of the analytic load."""
-    res = demo.compare_tools(**SMALL)
+    res = hertz_sphere.compare_tools(**SMALL)
     an, na, fl = res["analytic"], res["nagata"], res["flat"]
     if MPI.COMM_WORLD.rank == 0:
         print("\n" + res["table"])
-    for kind in demo.TOOLS:
+    for kind in hertz.TOOLS:
         r = res[kind]
         for k in ("force", "p_max", "contact_radius", "fallbacks", "newton_iterations"):
             record_property(f"{kind}_{k}", r[k])
@@ -121,7 +120,7 @@ def _pressed_block(comm, n_inc=2):
     sim = Simulation(sp, mat, progress=False)
     sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["zmin"]), np.zeros(3))
     t_end, dt, delta, R = 1.0, 1.0 / n_inc, 0.03, 5.0
-    V, T = demo.octahedral_sphere(8, R, (0.11, -0.07, R))
+    V, T = hertz.octahedral_sphere(8, R, (0.11, -0.07, R))
     tool = FacetedTool(V, T, mode="nagata", velocity=(0.0, 0.0, -delta / t_end), name="ball")
     c = sim.add_contributor(NodalContact(
         ContactBoundary(sp, ft, BLOCK_TAGS["zmax"]), tool, scheme="implicit",

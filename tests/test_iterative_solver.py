@@ -75,10 +75,10 @@ def test_upsetting(m):
 def test_hertz_sphere_stiff_penalty():
     """The Hertz sphere (linear elasticity, implicit contact, β = 10⁴): same force and contact
     radius as the direct solver."""
-    import demo_hertz_sphere as demo
+    from fxcontact.processes import hertz_sphere
     kw = dict(h_fine=0.05, growth=0.3, width=20.0, height=20.0, h=4.0, n_steps=2, beta=1e4,
               output_dir=None, picture=False, progress=False)
-    res = {s: demo.run(linear_solver=s, **kw) for s in SOLVERS}
+    res = {s: hertz_sphere.run(linear_solver=s, **kw) for s in SOLVERS}
     ref, it = res["mumps"], res["condensed-amg"]
     assert abs(it["force"] - ref["force"]) <= 1e-6 * abs(ref["force"])
     assert it["contact_radius"] == pytest.approx(ref["contact_radius"], rel=1e-6)

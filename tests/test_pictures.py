@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 import fxcontact as fx
-
-from helpers import load_demo
+from fxcontact.processes import hertz_cylinder, hertz_sphere, hyperelastic
 
 
 def test_figure_saves_and_closes(tmp_path):
@@ -48,19 +47,19 @@ def test_pressure_profile_against_hertz(tmp_path):
 
 
 def test_demo_pictures_on_made_up_results(tmp_path):
-    """The Hertz demos' and the hyperelastic demo's pictures from results of the right shape."""
+    """The Hertz runs' and the hyperelastic run's pictures (fxcontact.processes) from results of
+    the right shape."""
     r = np.linspace(0.0, 0.3, 20)
     one = dict(r=r, x=r, p=np.maximum(0.0, 1.0 - (r / 0.2) ** 2), p_max=1.0, force=10.0,
                hertz_contact_radius=0.2, hertz_half_width=0.2, hertz_p_max=1.0,
                contact_radius=0.19, contact_half_width=0.19, indentation=0.01,
                hertz_force=10.0, tool_facet_size=0.05)
-    sphere = load_demo("demo_hertz_sphere")
-    paths = [sphere.plot_tools({"analytic": one, "flat": one}, ("analytic", "flat"),
-                               str(tmp_path / "tools.png")),
-             sphere.plot_profile(one, str(tmp_path / "sphere.png")),
-             load_demo("demo_hertz_cylinder").plot_profile(one, str(tmp_path / "cyl.png"))]
+    paths = [hertz_sphere.plot_tools({"analytic": one, "flat": one}, ("analytic", "flat"),
+                                     str(tmp_path / "tools.png")),
+             hertz_sphere.plot_profile(one, str(tmp_path / "sphere.png")),
+             hertz_cylinder.plot_profile(one, str(tmp_path / "cyl.png"))]
     rows = [dict(indentation=0.1 * k, force=k ** 1.5) for k in range(1, 4)]
-    paths.append(load_demo("demo_hyperelastic_contact").plot_force(
+    paths.append(hyperelastic.plot_force(
         [dict(rows=rows, driver=d, newton=5, wall_time=1.0) for d in ("newton", "snes")],
         str(tmp_path / "force.png")))
     for path in paths:

@@ -25,34 +25,47 @@ pictures, ``report()``).
   (tool, facets, scheme) variant; :mod:`fxcontact.processes.groove` — the concave counterpart, a
   round bar in a turning faceted groove: ``groove.run``; their statistics, tables and pictures
   in :mod:`fxcontact.processes.ironing_report`;
+* :mod:`fxcontact.processes.hertz_sphere`, :mod:`fxcontact.processes.hertz_cylinder` — Hertz
+  validation: a rigid sphere indenting an elastic quarter block (MINI mixed or P1
+  displacement, analytic or faceted tool: :func:`run_hertz_sphere`) and a rigid cylinder
+  pressed on a half block in plane strain (:func:`run_hertz_cylinder`); Hertz's formulas, the
+  graded block and the octahedral sphere tool in :mod:`fxcontact.processes.hertz`;
+* :mod:`fxcontact.processes.hyperelastic` — contact in a user's own dolfinx problem: a
+  neo-Hookean block pressed by a ball with dolfinx's NewtonSolver, a SNES or fxcontact's
+  solver (:func:`run_hyperelastic`);
 * shared pieces: :mod:`fxcontact.processes.monitor` (the run-until-steady loop and its stop
   rules), :mod:`fxcontact.processes.common` (gathers, power balance, sections and curves),
   :mod:`fxcontact.processes.die` (the bar's nose, the die and its faceted sectors).
 """
 
-from fxcontact.processes import (bar_rolling, flat_rolling, groove, ironing, ironing_report,
-                                 ring_rolling, ring_test, upsetting_dies)
+from fxcontact.processes import (bar_rolling, flat_rolling, groove, hertz, hertz_cylinder,
+                                 hertz_sphere, hyperelastic, ironing, ironing_report, ring_rolling,
+                                 ring_test, upsetting_dies)
 from fxcontact.processes.bar_rolling import BarRollingCase, BarRollingResult, BarRollingSetup
 from fxcontact.processes.drawing import DrawingCase, DrawingResult, DrawingSetup
 from fxcontact.processes.drawing import build as build_drawing, run as run_drawing
 from fxcontact.processes.extrusion import ExtrusionCase, ExtrusionResult, ExtrusionSetup
 from fxcontact.processes.extrusion import build as build_extrusion, run as run_extrusion
 from fxcontact.processes.flat_rolling import FlatRollingCase, FlatRollingResult, FlatRollingSetup
-from fxcontact.processes.monitor import (STATUSES, RunNumerics, SteadyMonitor, SteadyRun, StopRules,
-                                         window_increments)
+from fxcontact.processes.hertz_cylinder import run as run_hertz_cylinder
+from fxcontact.processes.hertz_sphere import run as run_hertz_sphere
+from fxcontact.processes.hyperelastic import run as run_hyperelastic
+from fxcontact.processes.monitor import (STATUSES, RunNumerics, SteadyMonitor, SteadyRun,
+                                         StopRules, window_increments)
 from fxcontact.processes.ring_rolling import RingRollingCase, RingRollingResult, RingRollingSetup
 from fxcontact.processes.ring_test import run as run_ring_test
 from fxcontact.processes.upsetting import UpsettingCase, UpsettingResult, UpsettingSetup
 from fxcontact.processes.upsetting import build as build_upsetting, run as run_upsetting
 from fxcontact.processes.upsetting_dies import run as run_upsetting_dies
 
-__all__ = ["bar_rolling", "flat_rolling", "groove", "ironing", "ironing_report", "ring_rolling",
-           "ring_test", "upsetting_dies",
+__all__ = ["bar_rolling", "flat_rolling", "groove", "hertz", "hertz_cylinder", "hertz_sphere",
+           "hyperelastic", "ironing", "ironing_report", "ring_rolling", "ring_test", "upsetting_dies",
            "BarRollingCase", "BarRollingResult", "BarRollingSetup",
            "DrawingCase", "DrawingResult", "DrawingSetup", "build_drawing", "run_drawing",
            "ExtrusionCase", "ExtrusionResult", "ExtrusionSetup", "build_extrusion",
            "run_extrusion",
            "FlatRollingCase", "FlatRollingResult", "FlatRollingSetup",
+           "run_hertz_cylinder", "run_hertz_sphere", "run_hyperelastic",
            "RingRollingCase", "RingRollingResult", "RingRollingSetup", "run_ring_test",
            "UpsettingCase", "UpsettingResult", "UpsettingSetup", "build_upsetting",
            "run_upsetting", "run_upsetting_dies",
