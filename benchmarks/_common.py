@@ -21,11 +21,6 @@ def load_file(name: str, path: str):
     return mod
 
 
-def load_demo(name: str):
-    """Import ``demos/<name>.py``."""
-    return load_file(name, os.path.join(ROOT, "demos", f"{name}.py"))
-
-
 def best_time(fn, repeat: int = 3) -> float:
     """Best wall time of ``repeat`` calls of ``fn()``."""
     best = np.inf

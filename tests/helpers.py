@@ -67,13 +67,6 @@ def _load_file(name, path):
     return mod
 
 
-def load_demo(name):
-    """Import ``demos/<name>.py`` as a module."""
-    from pathlib import Path
-
-    return _load_file(name, Path(__file__).resolve().parents[1] / "demos" / f"{name}.py")
-
-
 def run_script(path, args=(), nranks=1, timeout=HANG_TIMEOUT):
     """Run a script as a user does (``python path args``, under ``mpirun -n nranks`` if
     ``nranks > 1``) in its own process group with the checkout on PYTHONPATH; kill the group

@@ -6,17 +6,12 @@ converges at every increment and gives the direct solver's (MUMPS on the MINI sy
 to the Newton tolerance; the Krylov iterations per Newton iteration are printed. (Their growth
 with the size, 80k → 1M dofs, is measured in benchmarks/README.md: too large for the suite.)"""
 
-import os
-import sys
 
-import numpy as np
 import pytest
 from mpi4py import MPI
 
 from fxcontact.processes import upsetting_dies
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(os.path.dirname(HERE), "demos"))
 
 SOLVERS = ("mumps", "condensed-amg")
 
