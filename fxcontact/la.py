@@ -24,8 +24,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-__all__ = ["add_nodal_jacobian", "add_nodal_residual", "direct_mumps", "factor_solve_many", "pc_apply_many", "rigid_body_modes",
-           "same_nonzero_pattern"]
+__all__ = ["add_nodal_jacobian", "add_nodal_residual", "direct_mumps", "factor_solve_many",
+           "pc_apply_many", "rigid_body_modes", "same_nonzero_pattern"]
 
 
 def direct_mumps(ksp) -> bool:
