@@ -39,6 +39,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fxcontact.collective import together
+from fxcontact.contact.view import ContactNodes
 from fxcontact.protocols import Remeshable
 from fxcontact.registration import label
 from fxcontact.remesh import criteria as _criteria
@@ -231,11 +232,12 @@ def _contact_zones(sim) -> dict:
     out = {}
     for c in sim.contributors:
         b = getattr(c, "boundary", None)
-        if b is None or not hasattr(c, "_tool"):
+        nodes = getattr(c, "nodes", None)
+        if b is None or not isinstance(nodes, ContactNodes):
             continue
         fv = np.asarray(f2v.array).reshape(-1, fdim + 1)[b.facets]
         for k, tool in enumerate(c.tools):
-            verts = b.vertices[(c._h > 0) & (c._tool == k)]
+            verts = nodes.vertices[nodes.active & (nodes.tool == k)]
             near = np.isin(fv, verts).any(axis=1)
             out[tool.name] = (X[verts], X[fv[near]])
     return out
