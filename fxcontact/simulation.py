@@ -252,10 +252,10 @@ class Simulation:
         Raises ValueError if the facets do not lie on one plane of normal ``normal``.
         """
         self._check_not_built()
-        from fxcontact.symmetry import SymmetryPlanes, _unit_normal
+        from fxcontact.symmetry import SymmetryPlanes, unit_normal
         facets = checked_facets(self.mesh, facets, "add_symmetry_plane(facets)", exterior=True,
                                 name=name, normal=digest(np.asarray(normal, dtype=float)))
-        n = _unit_normal(normal, self.space.gdim)
+        n = unit_normal(normal, self.space.gdim)
         axis = np.flatnonzero(np.abs(n) > 1e-12)
         if self._symmetry is None:
             self._symmetry = SymmetryPlanes(self.space)

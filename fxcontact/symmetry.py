@@ -39,7 +39,7 @@ import dolfinx.fem
 from fxcontact import compat
 from fxcontact.newton.problem import same_nonzero_pattern
 
-__all__ = ["SymmetryPlanes"]
+__all__ = ["SymmetryPlanes", "unit_normal"]
 
 log = logging.getLogger(__name__)
 
@@ -95,7 +95,7 @@ class SymmetryPlanes:
             raise RuntimeError("symmetry planes are already set up")
         if name in self.names:
             raise ValueError(f"a symmetry plane named '{name}' already exists")
-        n = _unit_normal(normal, self.gdim)
+        n = unit_normal(normal, self.gdim)
         msh = self.space.mesh
         fdim = msh.topology.dim - 1
         msh.topology.create_connectivity(fdim, 0)
@@ -333,7 +333,9 @@ class SymmetryPlanes:
         self._P, self._C, self._same = None, {}, {}
 
 
-def _unit_normal(normal, gdim: int) -> np.ndarray:
+def unit_normal(normal, gdim: int) -> np.ndarray:
+    """``normal`` (length ``gdim``) normalised; ValueError if it is not a finite non-zero
+    vector of that length."""
     n = np.asarray(normal, dtype=np.float64).reshape(-1)
     if n.shape != (gdim,) or not np.all(np.isfinite(n)):
         raise ValueError(f"normal must be a finite vector of length {gdim}, got {normal!r}")

@@ -58,7 +58,8 @@ def gather_by_position(comm, x, values, decimals=9):
     return xs[idx][order], vs[idx][order]
 
 
-def _load_file(name, path):
+def load_file(name, path):
+    """Import the Python file ``path`` as a module named ``name``."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location(name, str(path))
@@ -71,7 +72,7 @@ def load_demo(name):
     """Import ``demos/<name>.py`` as a module."""
     from pathlib import Path
 
-    return _load_file(name, Path(__file__).resolve().parents[1] / "demos" / f"{name}.py")
+    return load_file(name, Path(__file__).resolve().parents[1] / "demos" / f"{name}.py")
 
 
 def run_script(path, args=(), nranks=1, timeout=HANG_TIMEOUT):
