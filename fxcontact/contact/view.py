@@ -48,7 +48,7 @@ class ContactNodes:
         area: (n,) lumped nodal areas S_n (mm²) of the evaluation.
         positions: (n, gdim) positions X of the nodes at the end of the increment for the
             current iterate (mm): ``kinematics.positions(xᵗ, v, dt)``, the mesh's positions
-            once the increment is accepted (``xᵗ + u − uᵗ`` in displacement form).
+            once the increment is accepted (``X_ref + u`` in displacement form).
         point: (n, 3) closest points on each node's tool (mm; 3 columns also in 2D): of X
             (implicit schemes), of xᵗ at t (explicit) or of the predictor xᵗ + dt v̂
             (quasi-implicit) — the projection the contact's forces act at.
