@@ -113,7 +113,7 @@ def drawing_bar(comm, R0: float, die: DrawingDie, upstream: float, nose: float, 
     cone entry, the die profile, then the bearing radius over ``nose``. Element size ``h_die``
     around the die (default h), ``h`` elsewhere. Returns ``(mesh, cell_tags, facet_tags)``
     with :data:`DRAWING_TAGS`."""
-    from fxcontact.meshing import _finish, gmsh_session
+    from fxcontact.meshing import gmsh_model_mesh, gmsh_session
 
     if not (R0 > die.Rf and upstream > 0 and nose > 0 and h > 0):
         raise ValueError("drawing_bar needs R0 > exit radius and upstream, nose, h > 0")
@@ -172,7 +172,7 @@ def drawing_bar(comm, R0: float, die: DrawingDie, upstream: float, nose: float, 
             gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
             gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
             gmsh.model.mesh.generate(3)
-        return _finish(gmsh, comm, 3)
+        return gmsh_model_mesh(gmsh, comm, 3)
 
 
 def mean_strain_rate(R0: float, reduction: float, half_angle: float, entry_speed: float) -> float:

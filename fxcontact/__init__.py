@@ -23,6 +23,7 @@ from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Coulomb, Frictionless, Norton, ShearLimit, Tresca
 from fxcontact.contact.nodal import FORMULATIONS, FRICTION_MODES, SCHEMES, NodalContact
+from fxcontact.contact.view import ContactNodes
 from fxcontact.contact.penalty import Penalty, penalty_from_beta
 from fxcontact.contact.springs import NodalSprings
 from fxcontact.element.dual import DualStress
@@ -92,6 +93,8 @@ _API = {
     # contact
     "ContactBoundary": ("contact.boundary", "contact nodes and their lumped areas S_n (§1.3)"),
     "NodalContact": ("contact.nodal", "nodal penalty contact, four schemes (§2-§3)"),
+    "ContactNodes": ("contact.view", "read-only per-node view of a contact (NodalContact.nodes): "
+                     "gaps, normals, points, forces, tools, areas"),
     "SCHEMES": ("contact.nodal", "names of the contact time-integration schemes (§3)"),
     "penalty_from_beta": ("contact.penalty", "penalty rho from the dimensionless beta (§2.5)"),
     "FRICTION_MODES": ("contact.nodal", "implicit or explicit friction (§9.4)"),

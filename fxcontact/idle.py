@@ -110,7 +110,8 @@ def rolling_speed(contact, k: int, w_function) -> float:
     in contact with it, ω = Σ S (e × (P − a))·v / Σ S |P⊥ − a|², from ``w_function``
     (0 when no node touches the tool)."""
     tool = contact.tools[k]
-    sel = (contact._tool == k) & (contact._h > 0)
+    nv = contact.nodes
+    sel = (nv.tool == k) & nv.active
     e = unit_vector(tool.motion.axis, "tool axis")
     t = contact.t + contact.dt
     a = tool.motion.axis_point_at(t)
@@ -118,7 +119,7 @@ def rolling_speed(contact, k: int, w_function) -> float:
     if np.any(sel):
         v = np.zeros((int(np.sum(sel)), 3))
         v[:, : contact.gdim] = contact.boundary.velocities(w_function)[sel]
-        arm = contact._point[sel] - a
+        arm = nv.point[sel] - a
         arm -= np.outer(arm @ e, e)
         S = contact.boundary.areas[sel]
         num = float(np.sum(S * np.einsum("ni,ni->n", np.cross(e, arm), v)))
@@ -132,12 +133,13 @@ def _lever_arm_and_force(contact, k: int):
     """(|F|, mean lever arm) of tool k from the last evaluation (collective)."""
     tool = contact.tools[k]
     F = contact.tool_force(k)
-    sel = (contact._tool == k) & (contact._h > 0)
+    nv = contact.nodes
+    sel = (nv.tool == k) & nv.active
     e = unit_vector(tool.motion.axis, "tool axis")
     a = tool.motion.axis_point_at(contact.t + contact.dt)
     s = n = 0.0
     if np.any(sel):
-        arm = contact._point[sel] - a
+        arm = nv.point[sel] - a
         arm -= np.outer(arm @ e, e)
         s, n = float(np.sum(np.linalg.norm(arm, axis=1))), float(np.sum(sel))
     s, n = contact.boundary.comm.allreduce(np.array([s, n]), op=MPI.SUM)
@@ -318,12 +320,13 @@ class IdleRotation:
         c = self.contact
         d = c.gdim
         k = self.ks[j]
-        sel = (c._tool == k) & args["active"] & (args["law"] != LAW_NONE)
+        nv = c.nodes
+        sel = (nv.tool == k) & args["active"] & (args["law"] != LAW_NONE)
         if not np.any(sel):
             return sel, np.zeros((0, d)), np.zeros((0, d))
         tool = c.tools[k]
         e = unit_vector(tool.motion.axis, "tool axis")
-        P = c._point[sel]
+        P = nv.point[sel]
         m = np.cross(e, P - tool.motion.axis_point_at(t1))[:, :d]
         w_now = tool.motion.angular_velocity(t1)
         dv0 = v[sel] - (tool.velocity(P, t1)[:, :d] - w_now * m)
@@ -361,7 +364,8 @@ class IdleRotation:
         c = self.contact
         t1 = c.t + c.dt
         v = np.ascontiguousarray(c.boundary.velocities(w))
-        args = c.friction_arguments(c._h, c._g, c._tool)
+        nv = c.nodes
+        args = c.friction_arguments(nv.h, nv.grad_h, nv.tool)
         out, Ds = [], np.zeros(len(self.tools))
         for j in range(len(self.tools)):
             if self.frictionless_tools[j]:
@@ -418,7 +422,8 @@ class IdleRotation:
         comm = c.boundary.comm
         t1 = c.t + c.dt
         v = np.ascontiguousarray(c.boundary.velocities(w))
-        args = c.friction_arguments(c._h, c._g, c._tool)
+        nv = c.nodes
+        args = c.friction_arguments(nv.h, nv.grad_h, nv.tool)
         n = len(self.tools)
         nodes, base = [], np.zeros((n, 3))
         for j in range(n):
@@ -430,11 +435,11 @@ class IdleRotation:
             tool = c.tools[k]
             e = unit_vector(tool.motion.axis, "tool axis")
             a = tool.motion.axis_point_at(t1)
-            on = c._tool == k
+            on = nv.tool == k
             # torque of the normal forces (zero for a tool of revolution, kept for the sum)
             f = np.zeros((int(np.sum(on)), 3))
-            f[:, : c.gdim] = c._r[on]
-            arm = c._point[on] - a
+            f[:, : c.gdim] = nv.force[on]
+            arm = nv.point[on] - a
             base[j, 0] = float(np.sum(np.cross(arm, f) @ e)) if len(f) else 0.0
             armt = m          # |e × arm| = the lever arm
             base[j, 1] = float(np.sum(np.linalg.norm(armt, axis=1)))
@@ -569,7 +574,7 @@ class IdleRotation:
             F, R = _lever_arm_and_force(c, k)
             tol = rtol * F * R
             n_fr = c.boundary.comm.allreduce(
-                int(np.sum((c._tool == k) & (c._h > 0))), op=MPI.SUM)
+                int(np.sum((c.nodes.tool == k) & c.nodes.active)), op=MPI.SUM)
             if self.frictionless_tools[j]:
                 om = rolling_speed(c, k, sim.w)    # 0 without contact, as the outer method
                 mot.set_rates(self._t, angular_velocity=om)

@@ -38,7 +38,7 @@ import numpy as np
 from fxcontact.tools.base import Projection, unit_vector
 
 __all__ = ["CartesianUpdate", "CylindricalUpdate", "RingAxisUpdate", "AXIS_TOL",
-           "cartesian_update", "cylindrical_update", "gap_derivatives"]
+           "cartesian_update", "cylindrical_update", "gap_derivatives", "pad3"]
 
 logger = logging.getLogger(__name__)
 
@@ -282,7 +282,9 @@ def gap_derivatives(proj: Projection, J: np.ndarray, d2X: Optional[np.ndarray],
 
 # ---- the updates as objects (Simulation(kinematics=...), NodalContact)
 
-def _pad3(x: np.ndarray) -> np.ndarray:
+def pad3(x: np.ndarray) -> np.ndarray:
+    """(N, d) points (d <= 3) as a C-contiguous float64 (N, 3) array, zero in the missing
+    columns (the points of a 2D problem for the tools' 3D projections)."""
     if x.shape[1] == 3:
         return np.ascontiguousarray(x, dtype=np.float64)
     out = np.zeros((x.shape[0], 3))

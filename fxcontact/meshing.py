@@ -20,7 +20,7 @@ from fxcontact import compat
 
 __all__ = ["cylinder_billet", "ring", "structured_ring", "block", "drawing_bar", "sector_plane_normals",
            "gmsh_session", "BILLET_TAGS", "RING_TAGS", "RING_SECTORS", "BLOCK_TAGS",
-           "DRAWING_BAR_TAGS", "GMSH_MESH_DEFAULTS"]
+           "DRAWING_BAR_TAGS", "GMSH_MESH_DEFAULTS", "gmsh_model_mesh"]
 
 log = logging.getLogger(__name__)
 
@@ -90,7 +90,9 @@ def gmsh_session(name: str):
                 gmsh.option.setNumber(k, v)
 
 
-def _finish(gmsh, comm, gdim):
+def gmsh_model_mesh(gmsh, comm, gdim):
+    """``(mesh, cell_tags, facet_tags)`` of the current gmsh model (rank 0's), distributed
+    over ``comm``, with ``gdim`` coordinates (inside :func:`gmsh_session`)."""
     return compat.model_to_mesh(gmsh.model, comm, 0, gdim=gdim)
 
 
@@ -132,7 +134,7 @@ def cylinder_billet(comm: MPI.Comm, radius: float, height: float, h: float,
             gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
             gmsh.option.setNumber("Mesh.CharacteristicLengthMin", 0.5 * h)
             gmsh.model.mesh.generate(3)
-        return _finish(gmsh, comm, 3)
+        return gmsh_model_mesh(gmsh, comm, 3)
 
 
 def ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, height: float, h: float,
@@ -198,7 +200,7 @@ def ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, height: float
             gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
             gmsh.option.setNumber("Mesh.CharacteristicLengthMin", 0.5 * h)
             gmsh.model.mesh.generate(3)
-        return _finish(gmsh, comm, 3)
+        return gmsh_model_mesh(gmsh, comm, 3)
 
 
 def structured_ring(comm: MPI.Comm, outer_radius: float, inner_radius: float, height: float,
@@ -330,7 +332,7 @@ def block(comm: MPI.Comm, lower, upper, h: float, refine_box=None, h_fine: float
             else:
                 gmsh.option.setNumber("Mesh.CharacteristicLengthMax", h)
             gmsh.model.mesh.generate(dim)
-        return _finish(gmsh, comm, dim)
+        return gmsh_model_mesh(gmsh, comm, dim)
 
 
 def sector_plane_normals(sector: float) -> Dict[str, np.ndarray]:
@@ -492,7 +494,7 @@ def drawing_bar(comm: MPI.Comm, radius: float, length: float, h: float,
             gmsh.model.mesh.generate(3)
             if n_copies:
                 _mirror_and_replicate(gmsh, full_phi, n_copies, eps)
-        return _finish(gmsh, comm, 3)
+        return gmsh_model_mesh(gmsh, comm, 3)
 
 
 

@@ -89,7 +89,8 @@ def on_configuration(sim, X0, fn):
 
 def _tool_point_velocities(contact, t):
     """(N, gdim) velocity of each contact node's tool at its projection point at ``t``."""
-    return contact._tool_velocities(contact._point, contact._tool, t)
+    nodes = contact.nodes
+    return contact.tool_velocities(nodes.point, nodes.tool, t)
 
 
 def penalty_power(contact, v, t):
@@ -101,7 +102,8 @@ def penalty_power(contact, v, t):
     virtual-power identity."""
     b = contact.boundary
     if len(b.vertices):
-        P = float(np.sum(contact._r * (v[b.vertices] - _tool_point_velocities(contact, t))))
+        P = float(np.sum(contact.nodes.force * (v[b.vertices]
+                                                - _tool_point_velocities(contact, t))))
     else:
         P = 0.0
     return b.comm.allreduce(P, op=MPI.SUM)
@@ -116,8 +118,9 @@ def delivered_power(contact, t, k=None) -> float:
     b = contact.boundary
     P = 0.0
     if len(b.vertices):
-        sel = np.ones(len(b.vertices), bool) if k is None else contact._tool == k
-        r = (contact._r + contact._rf)[sel]
+        nodes = contact.nodes
+        sel = np.ones(len(b.vertices), bool) if k is None else nodes.tool == k
+        r = (nodes.force + nodes.friction_force)[sel]
         P = -float(np.sum(r * _tool_point_velocities(contact, t)[sel]))
     return b.comm.allreduce(P, op=MPI.SUM)
 

@@ -333,7 +333,8 @@ class SymmetryPlanes:
 
 
 def unit_normal(normal, gdim: int) -> np.ndarray:
-    """The unit vector of ``normal`` (length ``gdim``, finite, nonzero); ValueError otherwise."""
+    """``normal`` (length ``gdim``) normalised; ValueError if it is not a finite non-zero
+    vector of that length."""
     n = np.asarray(normal, dtype=np.float64).reshape(-1)
     if n.shape != (gdim,) or not np.all(np.isfinite(n)):
         raise ValueError(f"normal must be a finite vector of length {gdim}, got {normal!r}")

@@ -29,7 +29,7 @@ import fxcontact.compat  # noqa: E402,F401
 from helpers import box_mesh  # noqa: E402
 
 
-class _CutOnce:
+class CutOnce:
     """Stateless contributor that refuses increment 3 with the full dt: the run cuts back there,
     so the step-size state after a cut-back is checkpointed too."""
 
@@ -77,7 +77,7 @@ def build(out, comm=MPI.COMM_WORLD, perturb=0.1):
                                         scheme="implicit", friction=fx.Coulomb(0.2),
                                         friction_mode="explicit"))
     sim.add_contributor(fx.NodalSprings(fx.ContactBoundary(space, ft, 5), stiffness=0.5))
-    sim.add_contributor(_CutOnce())
+    sim.add_contributor(CutOnce())
     return sim
 
 

@@ -58,7 +58,8 @@ def gather_by_position(comm, x, values, decimals=9):
     return xs[idx][order], vs[idx][order]
 
 
-def _load_file(name, path):
+def load_file(name, path):
+    """Import the Python file ``path`` as a module named ``name``."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location(name, str(path))

@@ -264,14 +264,14 @@ def test_checkpoint_at_a_failed_increment():
     """An increment that fails for good leaves a checkpoint of the last accepted state."""
     from fxcontact.simulation import IncrementError
 
-    from checkpoint_driver import _CutOnce
+    from checkpoint_driver import CutOnce
     d = shared_tmpdir("fxc_ckpt_fail_")
     sim = build(d)
     sim.checkpoint_every = 100
     sim.run(0.2, 0.1)
     with pytest.raises(IncrementError, match="t = 0.2"):
         sim.run(0.4, 0.1, max_cutbacks=0)     # increment 3 needs a cut-back: none allowed
-    assert isinstance(sim.contributors[-1], _CutOnce)
+    assert isinstance(sim.contributors[-1], CutOnce)
     path = latest_checkpoint(os.path.join(d, "checkpoints"), "press")
     assert path is not None and path.endswith("press_000002")
     sim2 = build(d)

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from helpers import _load_file
+from helpers import load_file
 
-drawing = _load_file("drawing_case", Path(__file__).resolve().parents[1] / "benchmarks" /
-                     "drawing_case.py")
+drawing = load_file("drawing_case", Path(__file__).resolve().parents[1] / "benchmarks" /
+                    "drawing_case.py")
 
 #: the test size of tests/test_rigid_plastic.py: 2.5k dofs, m = 0.016, β = 1e3
 CASE = dict(R0=5.0, reduction=0.15, half_angle_deg=10.0, h=2.5, h_die=1.25, K=445.0, m=0.016,
@@ -33,8 +33,8 @@ def _random_rates(rng, n, scale=1.0):
 
 def _dual_relation(mat, eps, s):
     """G(s, ε̇) = z^(1−m) s − 2K dev ε̇, zero for the primal stress."""
-    from fxcontact.materials.laws import _dev_np
-    return mat._z(eps)[:, None, None] ** (1.0 - mat.m) * s - 2.0 * mat.K * _dev_np(eps)
+    from fxcontact.materials.laws import deviator_np
+    return mat._z(eps)[:, None, None] ** (1.0 - mat.m) * s - 2.0 * mat.K * deviator_np(eps)
 
 
 def test_dual_update_is_the_newton_step_of_the_dual_relation():
@@ -216,12 +216,12 @@ def test_auto_material_tangent():
     """"auto" is the primal–dual tangent for Norton–Hoff with m < 1 and the consistent one
     otherwise; a bad value and a material without the dual law are refused clearly."""
     from fxcontact.materials import LinearElastic
-    from fxcontact.materials.forms import uses_dual_stress as _uses_dual_stress
+    from fxcontact.materials.forms import uses_dual_stress
     from fxcontact.newton.solver import SolverOptions
-    assert _uses_dual_stress(_material(), "auto")
-    assert not _uses_dual_stress(_material(m=1.0), "auto")
-    assert not _uses_dual_stress(_material(), "consistent")
-    assert not _uses_dual_stress(LinearElastic(E=1.0, nu=0.3), "auto")
+    assert uses_dual_stress(_material(), "auto")
+    assert not uses_dual_stress(_material(m=1.0), "auto")
+    assert not uses_dual_stress(_material(), "consistent")
+    assert not uses_dual_stress(LinearElastic(E=1.0, nu=0.3), "auto")
     with pytest.raises(ValueError, match="material tangent"):
         SolverOptions(material_tangent="dual")
     from fxcontact.element.dual import DualStress
@@ -239,7 +239,7 @@ def test_written_out_jacobian_only_for_the_plain_norton_hoff_residual():
     import ufl
 
     from fxcontact.materials import NortonHoff
-    from fxcontact.materials.forms import standard_norton_hoff as _standard_norton_hoff
+    from fxcontact.materials.forms import standard_norton_hoff
 
     class OwnStress(NortonHoff):
         def stress_ufl(self, eps):
@@ -249,9 +249,9 @@ def test_written_out_jacobian_only_for_the_plain_norton_hoff_residual():
         def exponent_ufl(self):
             return 0.5 * self.m
 
-    assert _standard_norton_hoff(_material())
-    assert not _standard_norton_hoff(OwnStress(K=100.0, m=0.1))
-    assert _standard_norton_hoff(OwnExponent(K=100.0, m=0.1))
+    assert standard_norton_hoff(_material())
+    assert not standard_norton_hoff(OwnStress(K=100.0, m=0.1))
+    assert standard_norton_hoff(OwnExponent(K=100.0, m=0.1))
     # the written-out tangent follows exponent_ufl: at the primal stress it is the derivative
     # of OwnExponent's stress
     mat = OwnExponent(K=100.0, m=0.1)

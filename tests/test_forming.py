@@ -125,7 +125,7 @@ def test_ring_bad_input():
 def test_ring_power_slope_by_finite_differences():
     """The analytic slope dJ/d(R_n²) used to polish the minimiser, against central differences
     of the closed-form J (R_n below and inside the ring, several friction factors)."""
-    from fxcontact.theory.forming import _ring_power_slope
+    from fxcontact.theory.forming import ring_power_slope
 
     Ri, Ro, T = 15.0, 30.0, 20.0
     for mbar in (0.0, 0.4, 1.0):
@@ -133,7 +133,7 @@ def test_ring_power_slope_by_finite_differences():
             b, db = Rn * Rn, 1e-4 * Rn * Rn
             fd = (ring_power(math.sqrt(b + db), Ri, Ro, T, mbar)
                   - ring_power(math.sqrt(b - db), Ri, Ro, T, mbar)) / (2 * db)
-            assert _ring_power_slope(Rn, Ri, Ro, T, mbar) == pytest.approx(fd, rel=1e-6, abs=1e-9)
+            assert ring_power_slope(Rn, Ri, Ro, T, mbar) == pytest.approx(fd, rel=1e-6, abs=1e-9)
 
 
 # ------------------------------------------------------------------------------ ring rolling

@@ -306,13 +306,14 @@ def test_ring_three_idle_tools(monkeypatch):
     round-off, and each idle roll turns at the body's rolling speed (surface slip of the order
     of the slip regularisation v₀ = 1e-3 of the roll speed, not a free-wheeling mismatch)."""
     from fxcontact import idle as mill
+    from fxcontact.processes.ring_rolling import process as ring_process
     made = []
 
     class Captured(mill.IdleRotation):
         def __init__(self, *a, **k):
             super().__init__(*a, **k)
             made.append(self)
-    monkeypatch.setattr(ring_rolling, "IdleRotation", Captured)
+    monkeypatch.setattr(ring_process, "IdleRotation", Captured)
     res = ring_rolling.run(replace(ONE, idle_guides=True, guide_clearance=-0.2))
     assert res.status == "done"
     idle, = made

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from helpers import _load_file
+from helpers import load_file
 
-drawing = _load_file("drawing_case", Path(__file__).resolve().parents[1] / "benchmarks" /
-                     "drawing_case.py")
+drawing = load_file("drawing_case", Path(__file__).resolve().parents[1] / "benchmarks" /
+                    "drawing_case.py")
 
 #: the test size of tests/test_rigid_plastic.py: 2.5k dofs, m = 0.016, β = 1e3
 CASE = dict(R0=5.0, reduction=0.15, half_angle_deg=10.0, h=2.5, h_die=1.25, K=445.0, m=0.016,

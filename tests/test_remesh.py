@@ -14,7 +14,7 @@ from fxcontact import compat
 from fxcontact.mesh_health import simplex_measures
 from fxcontact.remesh import criteria
 from fxcontact.remesh.surface import gather_boundary
-from fxcontact.remesh.transfer import (PointLocation, _physical, _quadrature,
+from fxcontact.remesh.transfer import (PointLocation, physical_points, quadrature_rule,
                                        cell_vertex_coordinates, cellwise_integral,
                                        interpolate_from, transfer_cellwise)
 from fxcontact.remesh.volume import SizeZone, size_field, volume_mesh
@@ -71,8 +71,8 @@ def _quadrature_function(msh, degree, f):
     Q = dolfinx.fem.FunctionSpace(msh, ufl.FiniteElement("Quadrature", msh.ufl_cell(), degree,
                                                          quad_scheme="default"))
     q = dolfinx.fem.Function(Q)
-    pts, _ = _quadrature(msh, degree)
-    X = _physical(cell_vertex_coordinates(msh, _all_cells(msh)), pts)
+    pts, _ = quadrature_rule(msh, degree)
+    X = physical_points(cell_vertex_coordinates(msh, _all_cells(msh)), pts)
     q.x.array[compat.dofmap_array(Q)] = f(X)
     return q
 

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from helpers import _load_file
+from helpers import load_file
 
-drawing = _load_file("drawing_case", Path(__file__).resolve().parents[1] / "benchmarks" /
-                     "drawing_case.py")
+drawing = load_file("drawing_case", Path(__file__).resolve().parents[1] / "benchmarks" /
+                    "drawing_case.py")
 
 R0, REDUCTION, ALPHA, SPEED, K, M = 5.0, 0.15, math.radians(10.0), 10.0, 445.0, 0.016
 #: test size: 2.5k dofs, a pull of 0.25 mm (a fifth of the element size at the die) per increment

@@ -16,10 +16,10 @@ import pytest
 from mpi4py import MPI
 
 import fxcontact as fx
-from fxcontact.checkpoint import CheckpointError, list_checkpoints
-from fxcontact.idle import ControlledMotion, IdleRotation, RingAxisUpdate
+from fxcontact.checkpoint import CheckpointError, list_checkpoints, plain_state
+from fxcontact.idle import ControlledMotion, IdleRotation
+from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.processes import ring_rolling
-from fxcontact.checkpoint import plain_state as _plain_state
 
 from checkpoint_driver import build
 from helpers import shared_tmpdir
@@ -70,7 +70,7 @@ def test_idle_rotation_and_axis_update_state_round_trip():
         idle("guide", 0.0).restore_state(a.checkpoint_state())
     u = RingAxisUpdate((1.0, 2.0, 0.0))
     v = RingAxisUpdate()
-    v.restore_state(_json_round_trip(_plain_state(u.checkpoint_state())))
+    v.restore_state(_json_round_trip(plain_state(u.checkpoint_state())))
     assert np.array_equal(v.center, u.center)
     with pytest.raises(ValueError, match="ring axis"):
         RingAxisUpdate(axis=(1, 0, 0)).restore_state(u.checkpoint_state())

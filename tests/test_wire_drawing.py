@@ -20,11 +20,11 @@ from mpi4py import MPI
 from fxcontact.processes import DrawingCase, run_drawing
 from fxcontact.processes.die import die_tool
 
-from helpers import _load_file
+from helpers import load_file
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-bench = _load_file("bench_thesis_wire_drawing",
-                   os.path.join(ROOT, "benchmarks", "bench_thesis_wire_drawing.py"))
+bench = load_file("bench_thesis_wire_drawing",
+                  os.path.join(ROOT, "benchmarks", "bench_thesis_wire_drawing.py"))
 
 
 def _run(comm=None, **kw):

@@ -52,7 +52,7 @@ from fxcontact.collective import together
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import (LAW_NONE, friction_kernel, friction_kernel_numpy,
                                         laws_per_tool, shear_flow_stress)
-from fxcontact.contact.nodal_io import STICK_FACTOR, NodalContactIO, flip_hint
+from fxcontact.contact.nodal_io import STICK_FACTOR, NodalContactIO
 from fxcontact.contact.penalty import (  # noqa: F401
     DEFAULT_BETA,
     Penalty,
@@ -60,7 +60,8 @@ from fxcontact.contact.penalty import (  # noqa: F401
     penalty_kernel,
     penalty_kernel_numpy,
 )
-from fxcontact.kinematics import CartesianUpdate, gap_derivatives
+from fxcontact.contact.view import ContactNodes
+from fxcontact.kinematics import CartesianUpdate, gap_derivatives, pad3
 from fxcontact.materials import NortonHoff
 from fxcontact.newton.problem import ContributorError, NodalTerms
 from fxcontact.tools.base import Tool
@@ -80,14 +81,6 @@ FORMULATIONS = ("velocity", "displacement")
 #: default slip-speed regularisation v₀ relative to the characteristic speed of the process
 #: (THEORY §9: 1e-3 – 1e-2 of the typical sliding speed)
 DEFAULT_SLIP_VELOCITY_REL = 1e-3
-
-def _pad3(x: np.ndarray) -> np.ndarray:
-    if x.shape[1] == 3:
-        return np.ascontiguousarray(x)
-    out = np.zeros((x.shape[0], 3))
-    out[:, : x.shape[1]] = x
-    return out
-
 
 class _DisplacementBody:
     """Stands for the body of a displacement-form problem (no fxcontact material): penalties
@@ -308,6 +301,8 @@ class NodalContact(NodalContactIO):
         self._dvt = np.zeros((n, self.gdim))
         self._branch = np.zeros(n, dtype=np.int8)
         self._point = np.zeros((n, 3))
+        self._g = self._X = np.zeros((n, self.gdim))
+        self._nodes = ContactNodes.of(self, self._X, self._X)
 
     # ------------------------------------------------------------------ friction set-up
     def _begin_friction(self, sim, t: float, dt: float):
@@ -372,7 +367,7 @@ class NodalContact(NodalContactIO):
         rate = sim.mean_strain_rate()
         v = self.boundary.velocities(sim.w)
         speed = max(float(np.max(np.linalg.norm(
-            v - tool.velocity(_pad3(self.x_t), self.t)[:, : self.gdim], axis=1),
+            v - tool.velocity(pad3(self.x_t), self.t)[:, : self.gdim], axis=1),
             initial=0.0)) for tool in self.tools)
         speed = self.boundary.comm.allreduce(speed, op=MPI.MAX)
         rate_kin = speed / sim.volume() ** (1.0 / self.gdim)
@@ -386,7 +381,7 @@ class NodalContact(NodalContactIO):
 
     def _project_all(self, X: np.ndarray, t: float, hessian: bool):
         """Project on every tool; per node keep the tool with the smallest gap."""
-        X3 = _pad3(X)
+        X3 = pad3(X)
         best = None
         tool_idx = np.zeros(len(X), dtype=np.int32)
         for k, tool in enumerate(self.tools):
@@ -452,7 +447,7 @@ class NodalContact(NodalContactIO):
         if self.scheme == "explicit":
             self._fixed = pr0
             self._fixed_tool = tool0
-            self._v_ref = self._tool_velocities(pr0.point, tool0, t)
+            self._v_ref = self.tool_velocities(pr0.point, tool0, t)
             self._v_tool_fixed = self._v_ref
         elif self.scheme == "quasi-implicit":
             v_hat = sim.w_prev.x.array[b.dofs]
@@ -461,30 +456,9 @@ class NodalContact(NodalContactIO):
             self._fixed = pr
             self._fixed_tool = tool_idx
             self._v_ref = v_hat.copy()
-            self._v_tool_fixed = self._tool_velocities(pr.point, tool_idx, t + dt)
+            self._v_tool_fixed = self.tool_velocities(pr.point, tool_idx, t + dt)
         if self.has_friction:
             self._begin_friction(sim, t, dt)
-
-    def _check_placement(self, x_body: np.ndarray, t: float):
-        """ValueError (on every rank) if a tool holds the whole body at the first increment:
-        every vertex of the body is on the tool's side of its surface, none further out than
-        the burial limit and some deeper in than it (a Plane whose normal points into the body,
-        a curved tool with the wrong ``inside``). The contact could never act: no node would
-        ever be in contact, the force would stay 0."""
-        lim = self.max_initial_penetration
-        comm = self.boundary.comm
-        for tool in self.tools:
-            gap = tool.project(_pad3(x_body), t, hessian=False).gap
-            hi = comm.allreduce(float(np.max(gap, initial=-np.inf)), op=MPI.MAX)
-            lo = comm.allreduce(float(np.min(gap, initial=np.inf)), op=MPI.MIN)
-            if hi <= lim and lo < -lim:
-                raise ValueError(
-                    f"tool '{tool.name}' of contact '{self.name}' holds the whole body at t = "
-                    f"{t:.6g}: every node of the body is on the tool's side of its surface (down "
-                    f"to {-lo:.3g} deep), so the contact could never act (no contact node, zero "
-                    f"force). The tool's surface is turned the wrong way: "
-                    f"{flip_hint(tool)}")
-        self._placement_checked = True
 
     def begin_step(self, t: float, dt: float, u):
         """Start a load step t → t + dt of the displacement formulation from the displacement
@@ -523,8 +497,10 @@ class NodalContact(NodalContactIO):
         self._true_pen = float(np.max(-pr.gap, initial=-np.inf))
         self._p_prev = self.pressures().copy()
 
-    def _tool_velocities(self, points: np.ndarray, tool_idx: np.ndarray, t: float):
-        """(N, gdim) material velocity of each node's tool at its projection point."""
+    def tool_velocities(self, points: np.ndarray, tool_idx: np.ndarray, t: float):
+        """(N, gdim) material velocity (mm/s) at time ``t`` of each node's tool (``tool_idx``:
+        indices in :attr:`tools`) at the points ``points`` (N, 3) (mm), e.g. the projections
+        ``nodes.point`` with ``nodes.tool``."""
         vt = np.zeros((len(points), 3))
         for k, tool in enumerate(self.tools):
             sel = tool_idx == k
@@ -555,7 +531,7 @@ class NodalContact(NodalContactIO):
             pr = self._fixed
             nrm = pr.normal[:, :d]
             h = -pr.gap / dt - np.einsum("ni,ni->n", v - self._v_ref, nrm)
-            self._cur_proj = pr
+            self._cur_proj, self._X = pr, self.kin.positions(self.x_t, v, dt)
             return h, -nrm, empty, self._fixed_tool, pr.feature, pr.flag
         # exact tangent once the active set has settled (see the module docstring)
         exact = self.scheme == "implicit-exact" and self._settled
@@ -573,8 +549,8 @@ class NodalContact(NodalContactIO):
             if not (exact and jacobian):
                 # Gauss–Newton: keep ∇h exact, drop the curvature of d (but J is exact)
                 Hh = empty
-        self._last_proj = pr
-        self._cur_proj = pr
+        self._last_proj = self._cur_proj = pr
+        self._X = X
         return h, g, Hh, tool_idx, pr.feature, pr.flag
 
     def evaluate(self, w, jacobian: bool) -> NodalTerms:
@@ -630,6 +606,7 @@ class NodalContact(NodalContactIO):
             if jacobian:
                 K = K + Kf
         self._r_all = r
+        self._nodes = ContactNodes.of(self, self._X, self._cur_proj.normal[:, : self.gdim])
         if jacobian and self.formulation == "displacement":
             K = K / self.dt
         return NodalTerms(b.dofs, r, K if jacobian else None)
@@ -693,7 +670,7 @@ class NodalContact(NodalContactIO):
         if self.scheme in ("explicit", "quasi-implicit"):
             v_tool = self._v_tool_fixed
         else:
-            v_tool = self._tool_velocities(pr.point, tool_idx, self.t + self.dt)
+            v_tool = self.tool_velocities(pr.point, tool_idx, self.t + self.dt)
         dv = np.ascontiguousarray(v - v_tool)
         a = self.friction_arguments(h, g, tool_idx)
         rf, Kf, tau, branch = self.friction_kernel(

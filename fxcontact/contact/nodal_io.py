@@ -1,10 +1,12 @@
-"""What a :class:`~fxcontact.contact.NodalContact` gives out and takes back: history columns,
-tool forces and torques, VTK fields, its line of the run's summary, the message naming what
-changes over a Newton cycle or how to turn a misplaced tool, the checkpoint state and the
-set-up signature, and the state carried to a new mesh of the body (``remesh``).
+"""What a :class:`~fxcontact.contact.NodalContact` gives out and takes back: the per-node view
+of its state (:attr:`~NodalContactIO.nodes`), history columns, tool forces and torques, VTK
+fields, its line of the run's summary, the message naming what changes over a Newton cycle or
+how to turn a misplaced tool, the checkpoint state and the set-up signature, and the state
+carried to a new mesh of the body (``remesh``).
 
 :class:`NodalContactIO` is a mixin of :class:`~fxcontact.contact.NodalContact`: its methods read
-the contact's state of the last evaluation (``_h``, ``_tool``, ``_r``, ``_rf``, ``_tau`` …).
+the contact's state of the last evaluation (``_h``, ``_tool``, ``_r``, ``_rf``, ``_tau`` …);
+code outside :mod:`fxcontact.contact` reads it through :attr:`~NodalContactIO.nodes`.
 """
 
 from __future__ import annotations
@@ -18,7 +20,9 @@ from mpi4py import MPI
 from fxcontact import compat
 from fxcontact.collective import describe
 from fxcontact.contact.friction import LAW_NONE
+from fxcontact.contact.view import ContactNodes
 from fxcontact.io.keys import CheckpointError, PerVertex
+from fxcontact.kinematics import pad3
 from fxcontact.tools.base import unit_vector
 
 __all__ = ["NodalContactIO", "STICK_FACTOR"]
@@ -42,6 +46,14 @@ class NodalContactIO:
     """Outputs, messages and checkpoints of a nodal contact (mixin of ``NodalContact``)."""
 
     # ------------------------------------------------------------------ diagnostics / output
+    @property
+    def nodes(self) -> ContactNodes:
+        """The contact nodes this rank owns and their state at the last evaluation: positions,
+        gaps (mm, negative: penetration), normals, closest points on the tools, normal and
+        friction forces per node (N), tools, nodal areas (mm²) — a
+        :class:`~fxcontact.contact.view.ContactNodes` of read-only arrays (no copy)."""
+        return self._nodes
+
     def pressures(self) -> np.ndarray:
         """(N,) nodal contact pressures ρ[h]₊ of the last evaluation."""
         if self.rho is None:  # before the first increment resolves ρ from β
@@ -150,6 +162,27 @@ class NodalContactIO:
         return text
 
     # ------------------------------------------------------------------ messages
+    def _check_placement(self, x_body: np.ndarray, t: float):
+        """ValueError (on every rank) if a tool holds the whole body at the first increment:
+        every vertex of the body is on the tool's side of its surface, none further out than
+        the burial limit and some deeper in than it (a Plane whose normal points into the body,
+        a curved tool with the wrong ``inside``). The contact could never act: no node would
+        ever be in contact, the force would stay 0."""
+        lim = self.max_initial_penetration
+        comm = self.boundary.comm
+        for tool in self.tools:
+            gap = tool.project(pad3(x_body), t, hessian=False).gap
+            hi = comm.allreduce(float(np.max(gap, initial=-np.inf)), op=MPI.MAX)
+            lo = comm.allreduce(float(np.min(gap, initial=np.inf)), op=MPI.MIN)
+            if hi <= lim and lo < -lim:
+                raise ValueError(
+                    f"tool '{tool.name}' of contact '{self.name}' holds the whole body at t = "
+                    f"{t:.6g}: every node of the body is on the tool's side of its surface (down "
+                    f"to {-lo:.3g} deep), so the contact could never act (no contact node, zero "
+                    f"force). The tool's surface is turned the wrong way: "
+                    f"{flip_hint(tool)}")
+        self._placement_checked = True
+
     def cycle_hint(self, period: int = 1) -> str:
         """What changes over a cycle of ``period`` Newton iterations (counted over the whole
         cycle, each node once), and the usual cure: nodes entering and leaving contact,

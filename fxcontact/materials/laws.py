@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import ufl
 
-__all__ = ["NortonHoff", "LinearElastic", "Material"]
+__all__ = ["NortonHoff", "LinearElastic", "Material", "deviator_np"]
 
 
 def _check_positive(name, value):
@@ -27,7 +27,8 @@ def _dev(e):
     return e - ufl.tr(e) / d * ufl.Identity(d)
 
 
-def _dev_np(e):
+def deviator_np(e):
+    """Deviatoric part of the (..., d, d) tensors ``e`` (numpy; the reference laws)."""
     d = e.shape[-1]
     return e - np.trace(e, axis1=-2, axis2=-1)[..., None, None] / d * np.eye(d)
 
@@ -185,7 +186,7 @@ class NortonHoff(Material):
 
     # -- numpy reference ------------------------------------------------------------------
     def _z(self, eps):
-        e = _dev_np(eps)
+        e = deviator_np(eps)
         return np.sqrt(2.0 * np.einsum("...ij,...ij", e, e) + 3.0 * self.regularization**2)
 
     def potential(self, eps: np.ndarray) -> np.ndarray:
@@ -193,13 +194,13 @@ class NortonHoff(Material):
         return self.K / (self.m + 1.0) * self._z(eps) ** (self.m + 1.0)
 
     def stress(self, eps: np.ndarray) -> np.ndarray:
-        return 2.0 * self.K * self._z(eps)[..., None, None] ** (self.m - 1.0) * _dev_np(eps)
+        return 2.0 * self.K * self._z(eps)[..., None, None] ** (self.m - 1.0) * deviator_np(eps)
 
     def dual_update(self, eps_old: np.ndarray, eps_new: np.ndarray,
                     s_dual: np.ndarray) -> np.ndarray:
         """numpy twin of :meth:`dual_update_ufl`."""
-        e = _dev_np(eps_old)
-        de = _dev_np(eps_new - eps_old)
+        e = deviator_np(eps_old)
+        de = deviator_np(eps_new - eps_old)
         z = self._z(eps_old)[..., None, None]
         ede = np.einsum("...ij,...ij", e, de)[..., None, None]
         s_new = (self.stress(eps_old) + 2.0 * self.K * z ** (self.m - 1.0) * de
@@ -213,7 +214,7 @@ class NortonHoff(Material):
         """The primal–dual tangent (d×d×d×d, symmetrised), numpy twin of
         :meth:`dual_tangent_ufl` (the consistent tangent plus
         :meth:`dual_tangent_correction_ufl`)."""
-        e = _dev_np(eps)
+        e = deviator_np(eps)
         z = self._z(eps)
         sp = self.stress(eps)
         P = _pdev_np(eps.shape[-1])
@@ -227,7 +228,7 @@ class NortonHoff(Material):
     def tangent(self, eps: np.ndarray) -> np.ndarray:
         """Consistent tangent ∂s/∂ε (d×d×d×d), acting on symmetric increments."""
         d = eps.shape[-1]
-        e = _dev_np(eps)
+        e = deviator_np(eps)
         z = self._z(eps)
         Pdev = _pdev_np(d)
         return 2.0 * self.K * z ** (self.m - 1.0) * (

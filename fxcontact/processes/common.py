@@ -29,7 +29,7 @@ from fxcontact.steady import steady_window
 
 __all__ = ["CaseBase", "script_main", "gather", "numerics_columns", "run_summary", "steady_values", "run_increments",
            "ProcessResult", "meridian_section", "vertex_field", "plot_sections",
-           "plot_curves", "write_rows"]
+           "plot_curves", "write_rows", "agg_pyplot"]
 
 
 class _ClassOrCase:
@@ -290,7 +290,8 @@ def meridian_section(comm, sim, facet_tags, tag, fields) -> tuple:
     return gather(comm, zr.reshape(-1, 3, 2)), [gather(comm, v) for v in vals]
 
 
-def _pyplot():
+def agg_pyplot():
+    """matplotlib.pyplot with the non-interactive Agg backend (pictures written to files)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -303,7 +304,7 @@ def plot_sections(path, zr, panels, outline=None, title="", r_max=None, dpi=120,
     label, colormap, (vmin, vmax))`` of the triangles ``zr`` of :func:`meridian_section`, each
     with the ``outline`` curve ``(s, r, label)`` (a tool's profile), equal axes, the figure
     sized to the section; saved to ``path``."""
-    plt = _pyplot()
+    plt = agg_pyplot()
     from matplotlib.collections import PolyCollection
 
     z0, z1 = zr[..., 0].min() - 1, zr[..., 0].max() + 1

@@ -294,7 +294,7 @@ def contact_arc(contact, sim):
     comm = contact.boundary.comm
     b = contact.boundary
     x = sim.vertex_positions()[b.vertices]
-    tau_x = -contact._rf[:, 0] / np.maximum(b.areas, 1e-300)
+    tau_x = -contact.nodes.friction_force[:, 0] / np.maximum(b.areas, 1e-300)
     return gather(comm, x), gather(comm, contact.pressures()), gather(comm, tau_x)
 
 

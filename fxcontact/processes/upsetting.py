@@ -71,7 +71,7 @@ from fxcontact.materials import NortonHoff
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
-from fxcontact.processes.common import (CaseBase, ProcessResult, _pyplot, finish_run,
+from fxcontact.processes.common import (CaseBase, ProcessResult, agg_pyplot, finish_run,
                                         meridian_section, numerics_columns, plot_curves,
                                         run_summary)
 from fxcontact.remesh.criteria import RemeshCriteria
@@ -434,7 +434,7 @@ def _pictures(comm, s: UpsettingSetup, res: UpsettingResult, out: str):
     f2 = os.path.join(out, "upsetting_pressure.png")
     if comm.rank != 0:
         return [f1, f2]
-    plt = _pyplot()
+    plt = agg_pyplot()
     from matplotlib.collections import PolyCollection
 
     rd, zd = res.radii, _die_z(c, sim.t)

@@ -42,6 +42,7 @@ from mpi4py import MPI
 
 from fxcontact import compat
 from fxcontact.collective import together
+from fxcontact.contact.view import ContactNodes
 from fxcontact.io.keys import as_records, vertex_keys
 from fxcontact.io.outputs import Outputs
 from fxcontact.protocols import Remeshable
@@ -239,11 +240,12 @@ def _contact_zones(sim) -> dict:
     out = {}
     for c in sim.contributors:
         b = getattr(c, "boundary", None)
-        if b is None or not hasattr(c, "_tool"):
+        nodes = getattr(c, "nodes", None)
+        if b is None or not isinstance(nodes, ContactNodes):
             continue
         fv = np.asarray(f2v.array).reshape(-1, fdim + 1)[b.facets]
         for k, tool in enumerate(c.tools):
-            verts = b.vertices[(c._h > 0) & (c._tool == k)]
+            verts = nodes.vertices[nodes.active & (nodes.tool == k)]
             near = np.isin(fv, verts).any(axis=1)
             out[tool.name] = (X[verts], X[fv[near]])
     return out

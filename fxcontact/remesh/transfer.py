@@ -45,7 +45,7 @@ from fxcontact import compat
 from fxcontact.collective import check_together
 
 __all__ = ["PointLocation", "interpolate_from", "transfer_cellwise", "cell_vertex_coordinates",
-           "CONSERVE"]
+           "CONSERVE", "physical_points", "quadrature_rule"]
 
 #: the integral corrections of :func:`transfer_cellwise`
 CONSERVE = ("scale", "shift", None)
@@ -208,12 +208,14 @@ def interpolate_from(old, new, location: Optional[PointLocation] = None) -> Poin
 
 
 # ------------------------------------------------------------------------- cellwise fields
-def _quadrature(msh, degree: int):
+def quadrature_rule(msh, degree: int):
+    """(points (q, tdim), weights (q,)) of basix's quadrature of ``degree`` on the
+    reference cell of ``msh``."""
     cell = basix.cell.string_to_type(msh.topology.cell_type.name)
     return basix.make_quadrature(cell, int(degree))
 
 
-def _physical(P: np.ndarray, ref: np.ndarray) -> np.ndarray:
+def physical_points(P: np.ndarray, ref: np.ndarray) -> np.ndarray:
     """(N, q, 3) physical points of reference points ``ref`` (q, tdim) in simplices P (N, d+1, 3)."""
     J = P[:, 1:] - P[:, :1]                      # (N, tdim, 3)
     return P[:, None, 0] + np.einsum("qi,nij->nqj", ref, J)
@@ -251,7 +253,7 @@ def _cell_values(f):
         pts = np.full((1, msh.topology.dim), 1.0 / (msh.topology.dim + 1))
         wts = np.array([1.0 / math.factorial(msh.topology.dim)])
     else:
-        pts, wts = _quadrature(msh, degree)
+        pts, wts = quadrature_rule(msh, degree)
     return vals, np.asarray(wts), np.asarray(pts)
 
 
@@ -262,7 +264,7 @@ def _affine_fit(P: np.ndarray, vals: np.ndarray, ref: np.ndarray):
     n, q, k = vals.shape
     if q < P.shape[1]:
         return vals.mean(axis=1), np.zeros((n, k, 3)), xc
-    Xq = _physical(P, ref) - xc[:, None]                  # (N, q, 3)
+    Xq = physical_points(P, ref) - xc[:, None]                  # (N, q, 3)
     M = np.concatenate([np.ones((n, q, 1)), Xq], axis=2)  # (N, q, 4)
     coef = np.linalg.pinv(M) @ vals                       # (N, 4, k)
     return coef[:, 0], np.swapaxes(coef[:, 1:], 1, 2), xc
@@ -297,8 +299,8 @@ def transfer_cellwise(old, new, conserve: Optional[str] = "scale",
     I_old = cellwise_integral(old)
     kind, degree = _cellwise_kind(new.function_space)
     Pn = cell_vertex_coordinates(new_msh)
-    qpts, qw = _quadrature(new_msh, quadrature_degree if kind == "dg0" else degree)
-    X = _physical(Pn, qpts)                               # (nc, q, 3)
+    qpts, qw = quadrature_rule(new_msh, quadrature_degree if kind == "dg0" else degree)
+    X = physical_points(Pn, qpts)                               # (nc, q, 3)
     loc = PointLocation(old_msh, X.reshape(-1, 3))
     k = a.shape[1]
 

@@ -45,7 +45,8 @@ from scipy import integrate, optimize
 from fxcontact.theory.flat_rolling import theory_band as flat_rolling_theory
 
 __all__ = ["flow_stress", "upsetting_upper_bound", "upsetting_slab_coulomb", "ring_power",
-           "ring_power_quadrature", "ring_neutral_radius", "ring_compression_upper_bound",
+           "ring_power_slope", "ring_power_quadrature", "ring_neutral_radius",
+           "ring_compression_upper_bound",
            "ring_rolling_curvature", "ring_rolling_contact_length", "ring_rolling_feed_window",
            "ring_rolling_feed_speed", "ring_rolling_mean_diameter", "ring_rolling_force",
            "drawing_ideal_stress", "drawing_sachs_stress", "avitzur_f", "drawing_upper_bound",
@@ -192,7 +193,7 @@ def ring_power_quadrature(neutral_radius: float, inner_radius: float, outer_radi
     return plastic + friction
 
 
-def _ring_power_slope(Rn: float, Ri: float, Ro: float, T: float, mbar: float) -> float:
+def ring_power_slope(Rn: float, Ri: float, Ro: float, T: float, mbar: float) -> float:
     """dJ/d(R_n²) of :func:`ring_power` (R_i > 0): with g(r) = (b + √(3r⁴ + b²))/r², b = R_n²,
     (π/√3) ln(g(R_i)/g(R_o)) + (2π m̄/(√3 T)) d/db ∫|r² − b| dr (∂F/∂b = −ln((b + S)/u))."""
     b = Rn * Rn
@@ -229,7 +230,7 @@ def ring_neutral_radius(inner_radius: float, outer_radius: float, height: float,
     def J(Rn):
         return ring_power(Rn, Ri, Ro, T, mbar)
 
-    if _ring_power_slope(0.0, Ri, Ro, T, mbar) >= 0.0:
+    if ring_power_slope(0.0, Ri, Ro, T, mbar) >= 0.0:
         # J rises from R_n = 0 (m̄ = 0): 0 is the minimiser; Brent's answer would only be the
         # end of the region where J is flat to round-off (J − J(0) ~ R_n⁴)
         return 0.0
@@ -242,7 +243,7 @@ def ring_neutral_radius(inner_radius: float, outer_radius: float, height: float,
             best, Jbest = x, J(x)
     if 0.0 < best < Ro:
         def slope(Rn):
-            return _ring_power_slope(Rn, Ri, Ro, T, mbar)
+            return ring_power_slope(Rn, Ri, Ro, T, mbar)
 
         d = 1e-6 * Ro
         lo, hi = max(best - d, 0.0), min(best + d, Ro)

@@ -56,7 +56,8 @@ import numpy as np
 
 from fxcontact.tools.base import Projection, RigidMotion, Tool, as_points, unit_vector
 
-__all__ = ["AXIS_TOL", "Plane", "Sphere", "Cylinder", "Cone"]
+__all__ = ["AXIS_TOL", "Plane", "Sphere", "Cylinder", "Cone", "AnalyticTool", "finite_vector",
+           "check_flag", "readonly_copy", "fixed_perpendicular", "float_tuple"]
 
 logger = logging.getLogger(__name__)
 
@@ -72,7 +73,9 @@ _Arrays = Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.n
 # helpers
 # --------------------------------------------------------------------------------------------
 
-def _finite_vector(value, name: str) -> np.ndarray:
+def finite_vector(value, name: str) -> np.ndarray:
+    """``value`` as a float64 3-vector; ValueError naming ``name`` if it is not a finite
+    3-vector."""
     a = np.asarray(value, dtype=np.float64).reshape(-1)
     if a.shape != (3,) or not np.all(np.isfinite(a)):
         raise ValueError(f"{name} must be a finite 3-vector, got {value!r}")
@@ -89,7 +92,8 @@ def _positive_length(value, name: str) -> float:
     return r
 
 
-def _check_flag(value, name: str) -> bool:
+def check_flag(value, name: str) -> bool:
+    """``value`` as a bool; ValueError naming ``name`` if it is not a bool."""
     if not isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name} must be a bool, got {value!r}")
     return bool(value)
@@ -107,13 +111,14 @@ def _check_name(name) -> str:
     return name
 
 
-def _readonly(a: np.ndarray) -> np.ndarray:
+def readonly_copy(a: np.ndarray) -> np.ndarray:
+    """A read-only float64 copy of ``a`` (the geometry arrays of an immutable tool)."""
     a = np.array(a, dtype=np.float64)
     a.flags.writeable = False
     return a
 
 
-def _fixed_perpendicular(w: np.ndarray) -> np.ndarray:
+def fixed_perpendicular(w: np.ndarray) -> np.ndarray:
     """Deterministic unit vector orthogonal to the unit vector ``w``.
 
     The Cartesian basis vector with the smallest ``|w_k|`` (lowest index on ties), made orthogonal
@@ -430,7 +435,7 @@ _IMPLEMENTATIONS = {
 # tool classes
 # --------------------------------------------------------------------------------------------
 
-class _AnalyticTool(Tool):
+class AnalyticTool(Tool):
     """Immutable analytic tool: attributes are read-only once the constructor has run."""
 
     _kind: str = ""
@@ -472,11 +477,12 @@ class _AnalyticTool(Tool):
                 f"backend={self.backend!r})")
 
 
-def _tup(a: np.ndarray) -> tuple:
+def float_tuple(a: np.ndarray) -> tuple:
+    """The entries of ``a`` as a tuple of Python floats (motions, representations)."""
     return tuple(float(v) for v in a)
 
 
-class Plane(_AnalyticTool):
+class Plane(AnalyticTool):
     """Half-space tool bounded by a plane.
 
     The tool occupies the side opposite to ``normal``: ``d = (x − p₀)·n₀``, ``∇²d = 0``.
@@ -496,21 +502,22 @@ class Plane(_AnalyticTool):
 
     def __init__(self, point, normal, velocity=(0.0, 0.0, 0.0), name: str = "plane",
                  backend: str = "numba"):
-        self.point = _readonly(_finite_vector(point, "Plane point"))
-        self.normal = _readonly(unit_vector(normal, "Plane normal"))
+        self.point = readonly_copy(finite_vector(point, "Plane point"))
+        self.normal = readonly_copy(unit_vector(normal, "Plane normal"))
         self._init_common(name, backend,
                           RigidMotion(velocity=velocity, angular_velocity=0.0,
-                                      axis_point=_tup(self.point), axis=_tup(self.normal)))
+                                      axis_point=float_tuple(self.point),
+                                      axis=float_tuple(self.normal)))
         self._frozen = True
 
     def _params(self):
         return (self.point, self.normal)
 
     def _repr_fields(self):
-        return f"point={_tup(self.point)}, normal={_tup(self.normal)}"
+        return f"point={float_tuple(self.point)}, normal={float_tuple(self.normal)}"
 
 
-class Sphere(_AnalyticTool):
+class Sphere(AnalyticTool):
     """Ball tool or spherical cavity.
 
     ``inside=False``: the tool is the ball, ``d = |x − c| − R``. ``inside=True``: spherical cavity
@@ -537,24 +544,25 @@ class Sphere(_AnalyticTool):
     def __init__(self, center, radius, inside: bool = False, velocity=(0.0, 0.0, 0.0),
                  angular_velocity=0.0, axis=(0.0, 0.0, 1.0), name: str = "sphere",
                  backend: str = "numba"):
-        self.center = _readonly(_finite_vector(center, "Sphere center"))
+        self.center = readonly_copy(finite_vector(center, "Sphere center"))
         self.radius = _positive_length(radius, "Sphere radius")
-        self.inside = _check_flag(inside, "inside")
-        self.axis = _readonly(unit_vector(axis, "Sphere spin axis"))
-        self.e_fixed = _readonly(_fixed_perpendicular(self.axis))
+        self.inside = check_flag(inside, "inside")
+        self.axis = readonly_copy(unit_vector(axis, "Sphere spin axis"))
+        self.e_fixed = readonly_copy(fixed_perpendicular(self.axis))
         self._init_common(name, backend,
                           RigidMotion(velocity=velocity, angular_velocity=angular_velocity,
-                                      axis_point=_tup(self.center), axis=_tup(self.axis)))
+                                      axis_point=float_tuple(self.center),
+                                      axis=float_tuple(self.axis)))
         self._frozen = True
 
     def _params(self):
         return (self.center, self.radius, -1.0 if self.inside else 1.0, self.e_fixed, AXIS_TOL)
 
     def _repr_fields(self):
-        return f"center={_tup(self.center)}, radius={self.radius}, inside={self.inside}"
+        return f"center={float_tuple(self.center)}, radius={self.radius}, inside={self.inside}"
 
 
-class Cylinder(_AnalyticTool):
+class Cylinder(AnalyticTool):
     """Infinite circular cylinder (roll, mandrel) or bore.
 
     ``inside=False``: the tool is the solid cylinder, ``d = ρ − R``; ``inside=True``: bore (the
@@ -579,14 +587,15 @@ class Cylinder(_AnalyticTool):
 
     def __init__(self, point, axis, radius, inside: bool = False, velocity=(0.0, 0.0, 0.0),
                  angular_velocity=0.0, name: str = "cylinder", backend: str = "numba"):
-        self.point = _readonly(_finite_vector(point, "Cylinder point"))
-        self.axis = _readonly(unit_vector(axis, "Cylinder axis"))
+        self.point = readonly_copy(finite_vector(point, "Cylinder point"))
+        self.axis = readonly_copy(unit_vector(axis, "Cylinder axis"))
         self.radius = _positive_length(radius, "Cylinder radius")
-        self.inside = _check_flag(inside, "inside")
-        self.e_fixed = _readonly(_fixed_perpendicular(self.axis))
+        self.inside = check_flag(inside, "inside")
+        self.e_fixed = readonly_copy(fixed_perpendicular(self.axis))
         self._init_common(name, backend,
                           RigidMotion(velocity=velocity, angular_velocity=angular_velocity,
-                                      axis_point=_tup(self.point), axis=_tup(self.axis)))
+                                      axis_point=float_tuple(self.point),
+                                      axis=float_tuple(self.axis)))
         self._frozen = True
 
     def _params(self):
@@ -594,11 +603,11 @@ class Cylinder(_AnalyticTool):
                 AXIS_TOL)
 
     def _repr_fields(self):
-        return (f"point={_tup(self.point)}, axis={_tup(self.axis)}, radius={self.radius}, "
-                f"inside={self.inside}")
+        return (f"point={float_tuple(self.point)}, axis={float_tuple(self.axis)}, "
+                f"radius={self.radius}, inside={self.inside}")
 
 
-class Cone(_AnalyticTool):
+class Cone(AnalyticTool):
     """Infinite single-nappe circular cone (axial roll) or conical bore (drawing die).
 
     ``inside=False``: the tool is the solid cone ``{s ≥ 0, ρ ≤ s tan α}``; on the nappe
@@ -624,8 +633,8 @@ class Cone(_AnalyticTool):
 
     def __init__(self, apex, axis, half_angle, inside: bool = False, velocity=(0.0, 0.0, 0.0),
                  angular_velocity=0.0, name: str = "cone", backend: str = "numba"):
-        self.apex = _readonly(_finite_vector(apex, "Cone apex"))
-        self.axis = _readonly(unit_vector(axis, "Cone axis"))
+        self.apex = readonly_copy(finite_vector(apex, "Cone apex"))
+        self.axis = readonly_copy(unit_vector(axis, "Cone axis"))
         try:
             alpha = float(half_angle)
         except (TypeError, ValueError):
@@ -634,11 +643,12 @@ class Cone(_AnalyticTool):
             raise ValueError(f"Cone half_angle must satisfy 0 < α < π/2 (radians), "
                              f"got {half_angle!r}")
         self.half_angle = alpha
-        self.inside = _check_flag(inside, "inside")
-        self.e_fixed = _readonly(_fixed_perpendicular(self.axis))
+        self.inside = check_flag(inside, "inside")
+        self.e_fixed = readonly_copy(fixed_perpendicular(self.axis))
         self._init_common(name, backend,
                           RigidMotion(velocity=velocity, angular_velocity=angular_velocity,
-                                      axis_point=_tup(self.apex), axis=_tup(self.axis)))
+                                      axis_point=float_tuple(self.apex),
+                                      axis=float_tuple(self.axis)))
         self._frozen = True
 
     def _params(self):
@@ -646,5 +656,5 @@ class Cone(_AnalyticTool):
                 -1.0 if self.inside else 1.0, self.e_fixed, AXIS_TOL)
 
     def _repr_fields(self):
-        return (f"apex={_tup(self.apex)}, axis={_tup(self.axis)}, "
+        return (f"apex={float_tuple(self.apex)}, axis={float_tuple(self.axis)}, "
                 f"half_angle={self.half_angle}, inside={self.inside}")

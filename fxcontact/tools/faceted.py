@@ -57,11 +57,11 @@ from scipy.spatial import cKDTree
 from fxcontact.console import ALL_RANKS
 from fxcontact.tools.base import Projection, RigidMotion, Tool, as_points
 from fxcontact.tools.faceted_input import CheckedSurface, check_surface, read_surface
-from fxcontact.tools.faceted_projection import (_flat_kernel, _nagata_kernel, flat_project_ref,
+from fxcontact.tools.faceted_projection import (flat_kernel, flat_project_ref, nagata_kernel,
                                                 nagata_project_ref)
-from fxcontact.tools.faceted_search import (_candidates_kernel, _kdtree_hierarchy, _refit_boxes,
-                                            closest_point_triangle, closest_point_triangle_nb,
-                                            closest_point_triangle_ref)
+from fxcontact.tools.faceted_search import (candidates_kernel, closest_point_triangle,
+                                            closest_point_triangle_nb, closest_point_triangle_ref,
+                                            kdtree_hierarchy, refit_boxes)
 from fxcontact.tools.nagata import (patch_derivatives, patch_edge_coefficients, patch_monomials,
                                     patch_normals)
 from fxcontact.tools.normals import (FacetVertexNormals, corner_angles, facet_normals,
@@ -182,7 +182,7 @@ class FacetedTool(Tool):
         self._tie_scale = float(np.max(np.abs(V)) + np.linalg.norm(V.max(0) - V.min(0)))
         tree = cKDTree(centroids, leafsize=int(leafsize))
         self._perm = np.ascontiguousarray(tree.indices, dtype=np.int64)
-        self._left, self._right, self._nstart, self._nend, self._depth = _kdtree_hierarchy(tree)
+        self._left, self._right, self._nstart, self._nend, self._depth = kdtree_hierarchy(tree)
         # facet data in leaf order: vertices, bounding-sphere centre and radius
         self._tv = np.ascontiguousarray(V[T[self._perm]])
         self._cen = np.ascontiguousarray(centroids[self._perm])
@@ -213,9 +213,9 @@ class FacetedTool(Tool):
             self._A = patch_monomials(V, T, self._C)
             self._infl = np.zeros(T.shape[0])
             self._npn = self._vpn
-        self._blo, self._bhi, self._binfl = _refit_boxes(self._left, self._nstart, self._nend,
-                                                         self._perm, self._V, self._T,
-                                                         self._infl)
+        self._blo, self._bhi, self._binfl = refit_boxes(self._left, self._nstart, self._nend,
+                                                        self._perm, self._V, self._T,
+                                                        self._infl)
         logger.info("%s: %d vertices, %d triangles, %s surface, mode %s, max|c|/3 = %.3g",
                     name, V.shape[0], T.shape[0], "closed" if self.closed else "open", mode,
                     float(self._infl.max()))
@@ -341,7 +341,7 @@ class FacetedTool(Tool):
         Nagata patch (nagata mode) can hold the closest point (see the module docstring)."""
         y = np.ascontiguousarray(y, dtype=np.float64)
         infl = np.zeros(self._T.shape[0]) if flat else self._infl
-        return _candidates_kernel(y, *self._bvh(), self._T, infl, self._tie_scale, self._depth)
+        return candidates_kernel(y, *self._bvh(), self._T, infl, self._tie_scale, self._depth)
 
     # -- projection ----------------------------------------------------------------------
 
@@ -353,8 +353,8 @@ class FacetedTool(Tool):
         n = y.shape[0]
         out = [np.empty(n), np.empty((n, 3)), np.empty((n, 3)), np.empty(n, dtype=np.int64),
                np.empty(n)]
-        _flat_kernel(y, *self._bvh(), self._depth, self._V, self._T, self._fn, self._epn,
-                     self._vpn, self._tie_scale, *out)
+        flat_kernel(y, *self._bvh(), self._depth, self._V, self._T, self._fn, self._epn,
+                    self._vpn, self._tie_scale, *out)
         return out[4]
 
     def _project_reference(self, y: np.ndarray, hessian: bool) -> Projection:
@@ -370,16 +370,16 @@ class FacetedTool(Tool):
             return Projection(gap, normal, point, np.zeros((0, 3, 3)) if hessian else None,
                               feature, flag)
         if self.mode == "flat":
-            _flat_kernel(y, *self._bvh(), self._depth, self._V, self._T, self._fn, self._epn,
-                         self._vpn, self._tie_scale, gap, normal, point, feature, sdist)
+            flat_kernel(y, *self._bvh(), self._depth, self._V, self._T, self._fn, self._epn,
+                        self._vpn, self._tie_scale, gap, normal, point, feature, sdist)
             hess = np.zeros((n, 3, 3)) if hessian else None
             self.last_fallbacks = 0
             return Projection(gap, normal, point, hess, feature, flag)
         hess = np.zeros((n, 3, 3)) if hessian else np.zeros((1, 3, 3))
-        _nagata_kernel(y, *self._bvh(), self._depth, self._V, self._T, self._fn, self._epn,
-                       self._vpn, self._A, self._infl, self._nbr, self._nbr_edge, self._npn,
-                       self._tie_scale, self.max_iter, self.max_halvings, bool(hessian), gap,
-                       normal, point, hess, feature, flag, sdist)
+        nagata_kernel(y, *self._bvh(), self._depth, self._V, self._T, self._fn, self._epn,
+                      self._vpn, self._A, self._infl, self._nbr, self._nbr_edge, self._npn,
+                      self._tie_scale, self.max_iter, self.max_halvings, bool(hessian), gap,
+                      normal, point, hess, feature, flag, sdist)
         nfb = int(np.count_nonzero(flag))
         self.last_fallbacks = nfb
         self.total_fallbacks += nfb

@@ -9,13 +9,13 @@ import math
 import numba
 import numpy as np
 
-from fxcontact.tools.faceted_search import _search, closest_point_triangle_ref
-from fxcontact.tools.nagata import (_GT, _LOOSE, _TOLA, _pt, _RefPatch, _xe, _xz, patch_gap_nb,
+from fxcontact.tools.faceted_search import closest_point_triangle_ref, facet_search
+from fxcontact.tools.nagata import (ACCEPT_TOL, ACTIVE_TOL, GRADIENT_TOL, RefPatch, patch_gap_nb,
                                     patch_gap_ref, patch_normals, project_patch_nb,
-                                    project_patch_ref)
+                                    project_patch_ref, pt_nb, xe_nb, xz_nb)
 from fxcontact.tools.normals import LOCAL_EDGES
 
-__all__ = ["flat_project_ref", "nagata_project_ref"]
+__all__ = ["flat_project_ref", "nagata_project_ref", "flat_kernel", "nagata_kernel"]
 
 
 @numba.njit(cache=True)
@@ -68,8 +68,13 @@ def _flat_select(p, nc, cf, cd, creg, cq, V, T, fn, epn, vpn, tie_scale):
 
 
 @numba.njit(cache=True)
-def _flat_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, depth, V, T,
-                 fn, epn, vpn, tie_scale, gap, normal, point, feature, sdist):
+def flat_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, depth, V, T,
+                fn, epn, vpn, tie_scale, gap, normal, point, feature, sdist):
+    """Flat projection of the points ``P`` (N, 3) on the facets ``T`` of the vertices ``V``
+    through the facet hierarchy (:func:`~fxcontact.tools.faceted_search.facet_search`): the
+    closest facet, signed by its pseudo-normal; writes ``gap``, ``normal``, ``point``,
+    ``feature`` (the facet) and ``sdist`` of every point (numba; the reference twin is
+    :func:`flat_project_ref`; called by :class:`~fxcontact.tools.faceted.FacetedTool`)."""
     n = P.shape[0]
     M = T.shape[0]
     infl = np.zeros(M)
@@ -81,8 +86,8 @@ def _flat_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, r
     cb = np.empty((M, 3))
     for i in range(n):
         p = P[i]
-        nc = _search(p, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, infl,
-                     tie_scale, stack, cf, cd, creg, cq, cb)
+        nc = facet_search(p, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, infl,
+                          tie_scale, stack, cf, cd, creg, cq, cb)
         f, g, sd = _flat_select(p, nc, cf, cd, creg, cq, V, T, fn, epn, vpn, tie_scale)
         gap[i] = g
         sdist[i] = sd
@@ -94,9 +99,9 @@ def _flat_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, r
 
 @numba.njit(cache=True)
 def _patch_normal_at(a, e, z):
-    m0 = _xe(a, e, z, 1) * _xz(a, e, z, 2) - _xe(a, e, z, 2) * _xz(a, e, z, 1)
-    m1 = _xe(a, e, z, 2) * _xz(a, e, z, 0) - _xe(a, e, z, 0) * _xz(a, e, z, 2)
-    m2 = _xe(a, e, z, 0) * _xz(a, e, z, 1) - _xe(a, e, z, 1) * _xz(a, e, z, 0)
+    m0 = xe_nb(a, e, z, 1) * xz_nb(a, e, z, 2) - xe_nb(a, e, z, 2) * xz_nb(a, e, z, 1)
+    m1 = xe_nb(a, e, z, 2) * xz_nb(a, e, z, 0) - xe_nb(a, e, z, 0) * xz_nb(a, e, z, 2)
+    m2 = xe_nb(a, e, z, 0) * xz_nb(a, e, z, 1) - xe_nb(a, e, z, 1) * xz_nb(a, e, z, 0)
     mn = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
     if mn == 0.0:
         return 0.0, 0.0, 0.0
@@ -106,18 +111,24 @@ def _patch_normal_at(a, e, z):
 @numba.njit(cache=True)
 def _regular_at(a, e, z):
     """True if ``|x_η × x_ζ| > 1e-8 |x_η||x_ζ|`` at (η, ζ) (non-degenerate parametrisation)."""
-    m0 = _xe(a, e, z, 1) * _xz(a, e, z, 2) - _xe(a, e, z, 2) * _xz(a, e, z, 1)
-    m1 = _xe(a, e, z, 2) * _xz(a, e, z, 0) - _xe(a, e, z, 0) * _xz(a, e, z, 2)
-    m2 = _xe(a, e, z, 0) * _xz(a, e, z, 1) - _xe(a, e, z, 1) * _xz(a, e, z, 0)
-    ne = _xe(a, e, z, 0) ** 2 + _xe(a, e, z, 1) ** 2 + _xe(a, e, z, 2) ** 2
-    nz = _xz(a, e, z, 0) ** 2 + _xz(a, e, z, 1) ** 2 + _xz(a, e, z, 2) ** 2
+    m0 = xe_nb(a, e, z, 1) * xz_nb(a, e, z, 2) - xe_nb(a, e, z, 2) * xz_nb(a, e, z, 1)
+    m1 = xe_nb(a, e, z, 2) * xz_nb(a, e, z, 0) - xe_nb(a, e, z, 0) * xz_nb(a, e, z, 2)
+    m2 = xe_nb(a, e, z, 0) * xz_nb(a, e, z, 1) - xe_nb(a, e, z, 1) * xz_nb(a, e, z, 0)
+    ne = xe_nb(a, e, z, 0) ** 2 + xe_nb(a, e, z, 1) ** 2 + xe_nb(a, e, z, 2) ** 2
+    nz = xz_nb(a, e, z, 0) ** 2 + xz_nb(a, e, z, 1) ** 2 + xz_nb(a, e, z, 2) ** 2
     return m0 * m0 + m1 * m1 + m2 * m2 > 1e-16 * ne * nz
 
 
 @numba.njit(cache=True)
-def _nagata_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, depth, V,
-                   T, fn, epn, vpn, A, infl, nbr, nbr_edge, npn, tie_scale, max_iter,
-                   max_halvings, want_h, gap, normal, point, hess, feature, flag, sdist_flat):
+def nagata_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, depth, V,
+                  T, fn, epn, vpn, A, infl, nbr, nbr_edge, npn, tie_scale, max_iter,
+                  max_halvings, want_h, gap, normal, point, hess, feature, flag, sdist_flat):
+    """Nagata projection of the points ``P`` (N, 3) on the patches ``A`` of the facets ``T``
+    (candidates from the facet hierarchy, Newton on each patch, the flat facet as fall-back,
+    flagged): writes ``gap``, ``normal``, ``point``, the gap Hessian ``hess`` (with
+    ``want_h``), ``feature``, ``flag`` and the flat signed distance ``sdist_flat`` (numba;
+    the reference twin is :func:`nagata_project_ref`; called by
+    :class:`~fxcontact.tools.faceted.FacetedTool`)."""
     n = P.shape[0]
     M = T.shape[0]
     stack = np.empty(2 * depth + 8, dtype=np.int64)
@@ -130,8 +141,8 @@ def _nagata_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen,
     hh = np.zeros((3, 3))
     for i in range(n):
         p = P[i]
-        nc = _search(p, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, infl,
-                     tie_scale, stack, cf, cd, creg, cq, cb)
+        nc = facet_search(p, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, infl,
+                          tie_scale, stack, cf, cd, creg, cq, cb)
         ub = np.inf
         for j in range(nc):
             ub = min(ub, cd[j] + infl[cf[j]])
@@ -150,19 +161,19 @@ def _nagata_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen,
             a = A[f]
             e, z, st, _ = project_patch_nb(a, p, cb[j, 1] + cb[j, 2], cb[j, 2], max_iter,
                                            max_halvings, True)
-            x0, x1, x2 = _pt(a, e, z)
+            x0, x1, x2 = pt_nb(a, e, z)
             dj = math.sqrt((x0 - p[0]) ** 2 + (x1 - p[1]) ** 2 + (x2 - p[2]) ** 2)
             conv = st == 1
             # stationary (unconstrained gradient zero): interior-type projection
             r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
-            g0 = _xe(a, e, z, 0) * r0 + _xe(a, e, z, 1) * r1 + _xe(a, e, z, 2) * r2
-            g1 = _xz(a, e, z, 0) * r0 + _xz(a, e, z, 1) * r1 + _xz(a, e, z, 2) * r2
+            g0 = xe_nb(a, e, z, 0) * r0 + xe_nb(a, e, z, 1) * r1 + xe_nb(a, e, z, 2) * r2
+            g1 = xz_nb(a, e, z, 0) * r0 + xz_nb(a, e, z, 1) * r1 + xz_nb(a, e, z, 2) * r2
             xx = 0.0
             for k in range(3):
-                xx += _xe(a, e, z, k) ** 2 + _xz(a, e, z, k) ** 2
+                xx += xe_nb(a, e, z, k) ** 2 + xz_nb(a, e, z, k) ** 2
             scale = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) + math.sqrt(
                 p[0] ** 2 + p[1] ** 2 + p[2] ** 2)
-            gt = max(_GT * 2.0 * math.sqrt(xx) * (dj + scale), _LOOSE * xx)
+            gt = max(GRADIENT_TOL * 2.0 * math.sqrt(xx) * (dj + scale), ACCEPT_TOL * xx)
             stat = math.sqrt(g0 * g0 + g1 * g1) <= gt and _regular_at(a, e, z)
             better = False
             if bj < 0 or dj < bd - tol:
@@ -194,7 +205,7 @@ def _nagata_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen,
         a = A[f]
         flag[i] = 0
         feature[i] = f
-        x0, x1, x2 = _pt(a, be, bz)
+        x0, x1, x2 = pt_nb(a, be, bz)
         point[i, 0], point[i, 1], point[i, 2] = x0, x1, x2
         if bstat:
             d = patch_gap_nb(a, p, be, bz, want_h, nrm, hh)
@@ -207,9 +218,9 @@ def _nagata_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen,
                         hess[i, k, m] = hh[k, m]
             continue
         # projection on a patch edge or vertex: pseudo-normal sign, edge/vertex derivatives
-        a0 = bz <= _TOLA
-        a1 = be >= 1.0 - _TOLA
-        a2 = (be - bz) <= _TOLA
+        a0 = bz <= ACTIVE_TOL
+        a1 = be >= 1.0 - ACTIVE_TOL
+        a2 = (be - bz) <= ACTIVE_TOL
         nact = int(a0) + int(a1) + int(a2)
         kk = -1
         if nact >= 2:
@@ -266,15 +277,15 @@ def _nagata_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen,
             if kk >= 0:
                 # distance to the edge curve: subtract x_s x_sᵀ / H1
                 if kk == 0:
-                    xs0, xs1, xs2 = (_xe(a, be, bz, 0), _xe(a, be, bz, 1), _xe(a, be, bz, 2))
+                    xs0, xs1, xs2 = (xe_nb(a, be, bz, 0), xe_nb(a, be, bz, 1), xe_nb(a, be, bz, 2))
                     c0, c1, c2 = 2.0 * a[4, 0], 2.0 * a[4, 1], 2.0 * a[4, 2]
                 elif kk == 1:
-                    xs0, xs1, xs2 = (_xz(a, be, bz, 0), _xz(a, be, bz, 1), _xz(a, be, bz, 2))
+                    xs0, xs1, xs2 = (xz_nb(a, be, bz, 0), xz_nb(a, be, bz, 1), xz_nb(a, be, bz, 2))
                     c0, c1, c2 = 2.0 * a[5, 0], 2.0 * a[5, 1], 2.0 * a[5, 2]
                 else:
-                    xs0 = _xe(a, be, bz, 0) + _xz(a, be, bz, 0)
-                    xs1 = _xe(a, be, bz, 1) + _xz(a, be, bz, 1)
-                    xs2 = _xe(a, be, bz, 2) + _xz(a, be, bz, 2)
+                    xs0 = xe_nb(a, be, bz, 0) + xz_nb(a, be, bz, 0)
+                    xs1 = xe_nb(a, be, bz, 1) + xz_nb(a, be, bz, 1)
+                    xs2 = xe_nb(a, be, bz, 2) + xz_nb(a, be, bz, 2)
                     c0 = 2.0 * (a[4, 0] + a[3, 0] + a[5, 0])
                     c1 = 2.0 * (a[4, 1] + a[3, 1] + a[5, 1])
                     c2 = 2.0 * (a[4, 2] + a[3, 2] + a[5, 2])
@@ -363,13 +374,13 @@ def nagata_project_ref(tool, P: np.ndarray, ptr: np.ndarray, idx: np.ndarray,
                 continue
             e, z, st, _ = project_patch_ref(A[f], p, bary[j, 1] + bary[j, 2], bary[j, 2],
                                             tool.max_iter, tool.max_halvings, True)
-            Pf = _RefPatch(A[f])
+            Pf = RefPatch(A[f])
             x = Pf.x(e, z)
             dj = np.linalg.norm(x - p)
             X = np.stack([Pf.xe(e, z), Pf.xz(e, z)], axis=1)
             xx = np.sum(X * X)
             scale = np.linalg.norm(x) + np.linalg.norm(p)
-            gt = max(_GT * 2.0 * np.sqrt(xx) * (dj + scale), _LOOSE * xx)
+            gt = max(GRADIENT_TOL * 2.0 * np.sqrt(xx) * (dj + scale), ACCEPT_TOL * xx)
             m = np.cross(X[:, 0], X[:, 1])
             regular = m @ m > 1e-16 * (X[:, 0] @ X[:, 0]) * (X[:, 1] @ X[:, 1])
             stat = np.linalg.norm(X.T @ (x - p)) <= gt and regular
@@ -386,14 +397,14 @@ def nagata_project_ref(tool, P: np.ndarray, ptr: np.ndarray, idx: np.ndarray,
             continue
         f, dj, key, e, z = best
         feature[i] = f
-        Pf = _RefPatch(A[f])
+        Pf = RefPatch(A[f])
         point[i] = Pf.x(e, z)
         if key & 1:
             gap[i], normal[i], h = patch_gap_ref(A[f], p, e, z, want_hessian)
             if want_hessian:
                 hess[i] = h
             continue
-        act = [z <= _TOLA, e >= 1.0 - _TOLA, (e - z) <= _TOLA]
+        act = [z <= ACTIVE_TOL, e >= 1.0 - ACTIVE_TOL, (e - z) <= ACTIVE_TOL]
         kk = -1
         if sum(act) >= 2:
             lv = 0 if (act[0] and act[2]) else (1 if (act[0] and act[1]) else 2)

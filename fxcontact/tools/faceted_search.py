@@ -10,7 +10,8 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["closest_point_triangle", "closest_point_triangle_nb", "closest_point_triangle_ref"]
+__all__ = ["closest_point_triangle", "closest_point_triangle_nb", "closest_point_triangle_ref",
+           "facet_search", "candidates_kernel", "kdtree_hierarchy", "refit_boxes"]
 
 
 # ------------------------------------------------------------------------------------------
@@ -128,7 +129,7 @@ def closest_point_triangle(p, a, b, c):
 # ------------------------------------------------------------------------------------------
 
 
-def _kdtree_hierarchy(tree: cKDTree):
+def kdtree_hierarchy(tree: cKDTree):
     """Flatten the node structure of a :class:`scipy.spatial.cKDTree` built on the facet
     centroids: arrays ``left, right`` (-1 for leaves), ``start, end`` (ranges in
     ``tree.indices``) and the maximum depth."""
@@ -153,7 +154,7 @@ def _kdtree_hierarchy(tree: cKDTree):
 
 
 @numba.njit(cache=True)
-def _refit_boxes(left, start, end, perm, V, T, infl):
+def refit_boxes(left, start, end, perm, V, T, infl):
     """Axis-aligned box of the facets of every node and the largest facet inflation in it."""
     nn = left.shape[0]
     lo = np.empty((nn, 3))
@@ -186,8 +187,8 @@ def _box_dist(p, lo, hi, nd):
 
 
 @numba.njit(cache=True)
-def _search(p, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, infl, tie_scale,
-            stack, cf, cd, creg, cq, cb):
+def facet_search(p, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, infl, tie_scale,
+                 stack, cf, cd, creg, cq, cb):
     """Exact branch-and-bound candidate search for one point.
 
     Visits the hierarchy nearest child first and prunes a node when its box distance minus its
@@ -260,8 +261,8 @@ def _search(p, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, i
 
 
 @numba.njit(cache=True)
-def _candidates_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, T,
-                       infl, tie_scale, depth):
+def candidates_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, T,
+                      infl, tie_scale, depth):
     """CSR candidate lists of all points (for inspection and the reference twins)."""
     n = P.shape[0]
     M = T.shape[0]
@@ -274,8 +275,8 @@ def _candidates_kernel(P, left, right, nstart, nend, blo, bhi, binfl, perm, tv, 
     ptr = np.zeros(n + 1, dtype=np.int64)
     out = np.empty(max(16, 8 * n), dtype=np.int64)
     for i in range(n):
-        nc = _search(P[i], left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad, infl,
-                     tie_scale, stack, cf, cd, creg, cq, cb)
+        nc = facet_search(P[i], left, right, nstart, nend, blo, bhi, binfl, perm, tv, cen, rad,
+                          infl, tie_scale, stack, cf, cd, creg, cq, cb)
         if ptr[i] + nc > out.shape[0]:
             bigger = np.empty(2 * (ptr[i] + nc), dtype=np.int64)
             bigger[:ptr[i]] = out[:ptr[i]]

@@ -49,16 +49,23 @@ __all__ = [
     "patch_gap_ref",
     "STATUS_CONVERGED",
     "STATUS_FAILED",
+    "GRADIENT_TOL",
+    "ACCEPT_TOL",
+    "ACTIVE_TOL",
+    "pt_nb",
+    "xe_nb",
+    "xz_nb",
+    "RefPatch",
 ]
 
 STATUS_FAILED = 0
 STATUS_CONVERGED = 1
 
 _EPS = float(np.finfo(np.float64).eps)
-_GT = 64.0 * _EPS  # rounding-level gradient tolerance factor
+GRADIENT_TOL = 64.0 * _EPS  # rounding-level gradient tolerance factor
 _STEP_TOL = 1e-13  # |Δξ| convergence
-_LOOSE = 1e-10  # final acceptance: projected gradient ≤ 1e-10 |X_ξ|²
-_TOLA = 1e-13  # active-constraint tolerance in parameter space
+ACCEPT_TOL = 1e-10  # final acceptance: projected gradient ≤ 1e-10 |X_ξ|²
+ACTIVE_TOL = 1e-13  # active-constraint tolerance in parameter space
 _S2 = 1.0 / math.sqrt(2.0)
 
 
@@ -114,7 +121,8 @@ def domain_samples(n: int = 20) -> Tuple[np.ndarray, np.ndarray]:
 
 
 @numba.njit(cache=True)
-def _pt(a, e, z):
+def pt_nb(a, e, z):
+    """The point x(η, ζ) = (x0, x1, x2) of the patch ``a`` (6, 3) (numba)."""
     x0 = a[0, 0] + a[1, 0] * e + a[2, 0] * z + a[3, 0] * e * z + a[4, 0] * e * e + a[5, 0] * z * z
     x1 = a[0, 1] + a[1, 1] * e + a[2, 1] * z + a[3, 1] * e * z + a[4, 1] * e * e + a[5, 1] * z * z
     x2 = a[0, 2] + a[1, 2] * e + a[2, 2] * z + a[3, 2] * e * z + a[4, 2] * e * e + a[5, 2] * z * z
@@ -122,12 +130,14 @@ def _pt(a, e, z):
 
 
 @numba.njit(cache=True)
-def _xe(a, e, z, k):
+def xe_nb(a, e, z, k):
+    """Component ``k`` of ∂x/∂η at (η, ζ) of the patch ``a`` (numba)."""
     return a[1, k] + a[3, k] * z + 2.0 * a[4, k] * e
 
 
 @numba.njit(cache=True)
-def _xz(a, e, z, k):
+def xz_nb(a, e, z, k):
+    """Component ``k`` of ∂x/∂ζ at (η, ζ) of the patch ``a`` (numba)."""
     return a[2, k] + a[3, k] * e + 2.0 * a[5, k] * z
 
 
@@ -157,9 +167,9 @@ def proj_domain(e, z):
 def proj_grad_norm(e, z, g0, g1):
     """Norm of the projection of −g on the tangent cone of the domain at (η, ζ) (KKT test)."""
     v0, v1 = -g0, -g1
-    a0 = z <= _TOLA
-    a1 = e >= 1.0 - _TOLA
-    a2 = (e - z) <= _TOLA
+    a0 = z <= ACTIVE_TOL
+    a1 = e >= 1.0 - ACTIVE_TOL
+    a2 = (e - z) <= ACTIVE_TOL
     nact = int(a0) + int(a1) + int(a2)
     if nact == 0:
         return math.sqrt(v0 * v0 + v1 * v1)
@@ -211,11 +221,11 @@ def _edge_tangent(a, k, s, out):
     e, z = _edge_point(k, s)
     for i in range(3):
         if k == 0:
-            out[i] = _xe(a, e, z, i)
+            out[i] = xe_nb(a, e, z, i)
         elif k == 1:
-            out[i] = _xz(a, e, z, i)
+            out[i] = xz_nb(a, e, z, i)
         else:
-            out[i] = _xe(a, e, z, i) + _xz(a, e, z, i)
+            out[i] = xe_nb(a, e, z, i) + xz_nb(a, e, z, i)
 
 
 @numba.njit(cache=True)
@@ -233,7 +243,7 @@ def _edge_step(a, p, k, s, f, max_halvings, scale):
         c1 = 2.0 * (a[4, 1] + a[3, 1] + a[5, 1])
         c2 = 2.0 * (a[4, 2] + a[3, 2] + a[5, 2])
     e, z = _edge_point(k, s)
-    x0, x1, x2 = _pt(a, e, z)
+    x0, x1, x2 = pt_nb(a, e, z)
     r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
     _edge_tangent(a, k, s, xs)
     g = xs[0] * r0 + xs[1] * r1 + xs[2] * r2
@@ -249,7 +259,7 @@ def _edge_step(a, p, k, s, f, max_halvings, scale):
     for m in range(max_halvings + 1):
         sn = min(max(s + alpha * ds, 0.0), 1.0)
         en, zn = _edge_point(k, sn)
-        y0, y1, y2 = _pt(a, en, zn)
+        y0, y1, y2 = pt_nb(a, en, zn)
         fn = 0.5 * ((y0 - p[0]) ** 2 + (y1 - p[1]) ** 2 + (y2 - p[2]) ** 2)
         if fn < f or (m == 0 and fn <= f + ftol):
             return sn, fn, True
@@ -264,9 +274,9 @@ def _binding_edge(e, z, g0, g1):
     the steepest-descent direction −g points out of the domain through it; at a domain vertex
     with both constraints binding, the edge whose ray carries the largest descent is chosen."""
     v0, v1 = -g0, -g1
-    b0 = z <= _TOLA and -v1 > 0.0
-    b1 = e >= 1.0 - _TOLA and v0 > 0.0
-    b2 = (e - z) <= _TOLA and (-v0 + v1) > 0.0
+    b0 = z <= ACTIVE_TOL and -v1 > 0.0
+    b1 = e >= 1.0 - ACTIVE_TOL and v0 > 0.0
+    b2 = (e - z) <= ACTIVE_TOL and (-v0 + v1) > 0.0
     nb = int(b0) + int(b1) + int(b2)
     if nb == 0:
         return -1
@@ -283,15 +293,15 @@ def _binding_edge(e, z, g0, g1):
 @numba.njit(cache=True)
 def _grad_at(a, p, e, z):
     """(g0, g1, |x_η|² + |x_ζ|², gtol) at (η, ζ)."""
-    x0, x1, x2 = _pt(a, e, z)
+    x0, x1, x2 = pt_nb(a, e, z)
     r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
-    g0 = _xe(a, e, z, 0) * r0 + _xe(a, e, z, 1) * r1 + _xe(a, e, z, 2) * r2
-    g1 = _xz(a, e, z, 0) * r0 + _xz(a, e, z, 1) * r1 + _xz(a, e, z, 2) * r2
-    xee = _xe(a, e, z, 0) ** 2 + _xe(a, e, z, 1) ** 2 + _xe(a, e, z, 2) ** 2
-    xzz = _xz(a, e, z, 0) ** 2 + _xz(a, e, z, 1) ** 2 + _xz(a, e, z, 2) ** 2
+    g0 = xe_nb(a, e, z, 0) * r0 + xe_nb(a, e, z, 1) * r1 + xe_nb(a, e, z, 2) * r2
+    g1 = xz_nb(a, e, z, 0) * r0 + xz_nb(a, e, z, 1) * r1 + xz_nb(a, e, z, 2) * r2
+    xee = xe_nb(a, e, z, 0) ** 2 + xe_nb(a, e, z, 1) ** 2 + xe_nb(a, e, z, 2) ** 2
+    xzz = xz_nb(a, e, z, 0) ** 2 + xz_nb(a, e, z, 1) ** 2 + xz_nb(a, e, z, 2) ** 2
     rn = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
     scale = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) + math.sqrt(p[0] ** 2 + p[1] ** 2 + p[2] ** 2)
-    gtol = _GT * (math.sqrt(xee) + math.sqrt(xzz)) * (rn + scale)
+    gtol = GRADIENT_TOL * (math.sqrt(xee) + math.sqrt(xzz)) * (rn + scale)
     return g0, g1, xee + xzz, gtol
 
 
@@ -318,23 +328,23 @@ def project_patch_nb(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard=
         ``(eta, zeta, status, iterations)``, status 1 = converged, 0 = failed.
     """
     e, z = proj_domain(eta0, zeta0)
-    x0, x1, x2 = _pt(a, e, z)
+    x0, x1, x2 = pt_nb(a, e, z)
     f = 0.5 * ((x0 - p[0]) ** 2 + (x1 - p[1]) ** 2 + (x2 - p[2]) ** 2)
     pn = math.sqrt(p[0] ** 2 + p[1] ** 2 + p[2] ** 2)
     it = 0
     while it < max_iter:
         it += 1
-        x0, x1, x2 = _pt(a, e, z)
+        x0, x1, x2 = pt_nb(a, e, z)
         r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
-        xe0, xe1, xe2 = _xe(a, e, z, 0), _xe(a, e, z, 1), _xe(a, e, z, 2)
-        xz0, xz1, xz2 = _xz(a, e, z, 0), _xz(a, e, z, 1), _xz(a, e, z, 2)
+        xe0, xe1, xe2 = xe_nb(a, e, z, 0), xe_nb(a, e, z, 1), xe_nb(a, e, z, 2)
+        xz0, xz1, xz2 = xz_nb(a, e, z, 0), xz_nb(a, e, z, 1), xz_nb(a, e, z, 2)
         g0 = xe0 * r0 + xe1 * r1 + xe2 * r2
         g1 = xz0 * r0 + xz1 * r1 + xz2 * r2
         rn = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
         scale = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) + pn
         gnx = math.sqrt(xe0 * xe0 + xe1 * xe1 + xe2 * xe2) + math.sqrt(
             xz0 * xz0 + xz1 * xz1 + xz2 * xz2)
-        if proj_grad_norm(e, z, g0, g1) <= _GT * gnx * (rn + scale):
+        if proj_grad_norm(e, z, g0, g1) <= GRADIENT_TOL * gnx * (rn + scale):
             break
         G00 = xe0 * xe0 + xe1 * xe1 + xe2 * xe2
         G01 = xe0 * xz0 + xe1 * xz1 + xe2 * xz2
@@ -374,7 +384,7 @@ def project_patch_nb(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard=
             en, zn, fn = e, z, f
             for m in range(max_halvings + 1):
                 en, zn = proj_domain(e + alpha * de, z + alpha * dz)
-                y0, y1, y2 = _pt(a, en, zn)
+                y0, y1, y2 = pt_nb(a, en, zn)
                 fn = 0.5 * ((y0 - p[0]) ** 2 + (y1 - p[1]) ** 2 + (y2 - p[2]) ** 2)
                 if fn < f or (m == 0 and fn <= f + ftol):
                     ok = True
@@ -388,7 +398,7 @@ def project_patch_nb(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard=
             break
     g0, g1, xx, gtol = _grad_at(a, p, e, z)
     pg = proj_grad_norm(e, z, g0, g1)
-    status = STATUS_CONVERGED if (it > 0 and pg <= max(gtol, _LOOSE * xx)) else STATUS_FAILED
+    status = STATUS_CONVERGED if (it > 0 and pg <= max(gtol, ACCEPT_TOL * xx)) else STATUS_FAILED
     return e, z, status, it
 
 
@@ -397,13 +407,13 @@ def patch_gap_nb(a, p, e, z, want_hessian, normal, hessian):
     """Signed distance ``(p − x*)·n*`` to patch ``a`` at an *interior* foot point (η, ζ), with
     ``normal = n* = ∇d`` and, if ``want_hessian``, ``hessian = ∇²d = N_ξ H⁻¹ X_ξᵀ`` (§7.5)
     written into the output arrays (3,) and (3, 3). Returns ``d``."""
-    x0, x1, x2 = _pt(a, e, z)
+    x0, x1, x2 = pt_nb(a, e, z)
     r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
     xe = np.empty(3)
     xz = np.empty(3)
     for i in range(3):
-        xe[i] = _xe(a, e, z, i)
-        xz[i] = _xz(a, e, z, i)
+        xe[i] = xe_nb(a, e, z, i)
+        xz[i] = xz_nb(a, e, z, i)
     m0 = xe[1] * xz[2] - xe[2] * xz[1]
     m1 = xe[2] * xz[0] - xe[0] * xz[2]
     m2 = xe[0] * xz[1] - xe[1] * xz[0]
@@ -472,7 +482,7 @@ def _proj_domain_ref(e: float, z: float) -> Tuple[float, float]:
 def _proj_grad_norm_ref(e: float, z: float, g: np.ndarray) -> float:
     """Reference implementation, for testing only (see :func:`proj_grad_norm`)."""
     v = -np.asarray(g, dtype=np.float64)
-    act = [z <= _TOLA, e >= 1.0 - _TOLA, (e - z) <= _TOLA]
+    act = [z <= ACTIVE_TOL, e >= 1.0 - ACTIVE_TOL, (e - z) <= ACTIVE_TOL]
     nus = [np.array([0.0, -1.0]), np.array([1.0, 0.0]), np.array([-_S2, _S2])]
     idx = [i for i in range(3) if act[i]]
     if not idx:
@@ -488,7 +498,7 @@ def _proj_grad_norm_ref(e: float, z: float, g: np.ndarray) -> float:
     return max(0.0, *(float(v @ np.array(t)) for t in rays))
 
 
-class _RefPatch:
+class RefPatch:
     """Patch evaluation helpers for the reference twins (reference implementation, testing only)."""
 
     def __init__(self, a):
@@ -521,12 +531,12 @@ class _RefPatch:
         X = np.stack([self.xe(e, z), self.xz(e, z)], axis=1)
         g = X.T @ r
         scale = np.linalg.norm(x) + np.linalg.norm(p)
-        gtol = _GT * (np.linalg.norm(X[:, 0]) + np.linalg.norm(X[:, 1])) * (
+        gtol = GRADIENT_TOL * (np.linalg.norm(X[:, 0]) + np.linalg.norm(X[:, 1])) * (
             np.linalg.norm(r) + scale)
         return g, float(np.sum(X * X)), gtol
 
 
-def _edge_step_ref(P: _RefPatch, p, k, s, f, max_halvings, scale):
+def _edge_step_ref(P: RefPatch, p, k, s, f, max_halvings, scale):
     """Reference implementation, for testing only (see ``_edge_step``)."""
     r = P.x(*P.edge(k, s)) - p
     xs = P.edge_tangent(k, s)
@@ -549,7 +559,7 @@ def _binding_edge_ref(e, z, g):
     """Reference implementation, for testing only (see ``_binding_edge``)."""
     v = -np.asarray(g, dtype=np.float64)
     nus = [np.array([0.0, -1.0]), np.array([1.0, 0.0]), np.array([-1.0, 1.0])]
-    act = [z <= _TOLA, e >= 1.0 - _TOLA, (e - z) <= _TOLA]
+    act = [z <= ACTIVE_TOL, e >= 1.0 - ACTIVE_TOL, (e - z) <= ACTIVE_TOL]
     b = [act[i] and v @ nus[i] > 0.0 for i in range(3)]
     if sum(b) == 0:
         return -1
@@ -564,7 +574,7 @@ def _binding_edge_ref(e, z, g):
 
 def project_patch_ref(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard=True):
     """Reference implementation, for testing only: numpy twin of :func:`project_patch_nb`."""
-    P = _RefPatch(a)
+    P = RefPatch(a)
     p = np.asarray(p, dtype=np.float64)
     e, z = _proj_domain_ref(float(eta0), float(zeta0))
     f = 0.5 * np.sum((P.x(e, z) - p) ** 2)
@@ -578,7 +588,7 @@ def project_patch_ref(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard
         g = X.T @ r
         rn = np.linalg.norm(r)
         scale = np.linalg.norm(x) + pn
-        gtol = _GT * (np.linalg.norm(X[:, 0]) + np.linalg.norm(X[:, 1])) * (rn + scale)
+        gtol = GRADIENT_TOL * (np.linalg.norm(X[:, 0]) + np.linalg.norm(X[:, 1])) * (rn + scale)
         if _proj_grad_norm_ref(e, z, g) <= gtol:
             break
         G = X.T @ X
@@ -623,7 +633,7 @@ def project_patch_ref(a, p, eta0, zeta0, max_iter=30, max_halvings=12, safeguard
         if step < _STEP_TOL:
             break
     g, xx, gtol = P.grad(p, e, z)
-    ok = it > 0 and _proj_grad_norm_ref(e, z, g) <= max(gtol, _LOOSE * xx)
+    ok = it > 0 and _proj_grad_norm_ref(e, z, g) <= max(gtol, ACCEPT_TOL * xx)
     return e, z, STATUS_CONVERGED if ok else STATUS_FAILED, it
 
 
@@ -631,7 +641,7 @@ def patch_gap_ref(a, p, eta, zeta, want_hessian=True):
     """Reference implementation, for testing only: numpy twin of :func:`patch_gap_nb`.
 
     Returns ``(d, normal, hessian)`` (hessian ``None`` if not wanted)."""
-    P = _RefPatch(a)
+    P = RefPatch(a)
     p = np.asarray(p, dtype=np.float64)
     x = P.x(eta, zeta)
     X = np.stack([P.xe(eta, zeta), P.xz(eta, zeta)], axis=1)

@@ -97,11 +97,11 @@ from typing import List, Optional, Tuple
 import numba
 import numpy as np
 
-from fxcontact.tools.analytic import (AXIS_TOL, _AnalyticTool, _check_flag, _finite_vector,
-                                      _fixed_perpendicular, _readonly, _tup)
+from fxcontact.tools.analytic import (AXIS_TOL, AnalyticTool, check_flag, finite_vector,
+                                      fixed_perpendicular, float_tuple, readonly_copy)
 from fxcontact.tools.base import Projection, RigidMotion, as_points, unit_vector
-from fxcontact.tools.revolved_profile import (_ARC, _LINE, _SNAP, _pos, _Profile, die_profile,
-                                              grooved_roll_profile)
+from fxcontact.tools.revolved_profile import (ARC, LINE, SNAP_TOL, Profile, die_profile,
+                                              grooved_roll_profile, positive_number)
 
 __all__ = ["RevolvedProfile", "die_profile", "grooved_roll_profile", "faceted_revolved",
            "revolved_numpy"]
@@ -268,7 +268,7 @@ def revolved_numpy(y, a, w, kind, pfeat, pdat, vdat, vfeat, efix, tol, L, want_h
     cand = np.full((N, K + J), np.inf)
     for k in range(K):
         p = pdat[k]
-        if kind[k] == _LINE:
+        if kind[k] == LINE:
             t = (s - p[0]) * p[2] + (rho - p[1]) * p[3]
             dd = np.abs((s - p[0]) * p[6] + (rho - p[1]) * p[7])
             cand[:, k] = np.where((p[4] < t) & (t < p[5]), dd, np.inf)
@@ -299,7 +299,7 @@ def revolved_numpy(y, a, w, kind, pfeat, pdat, vdat, vfeat, efix, tol, L, want_h
         p = pdat[k]
         feat[sel] = pfeat[k]
         ss, rr = s[sel], rho[sel]
-        if kind[k] == _LINE:
+        if kind[k] == LINE:
             g[sel] = (ss - p[0]) * p[6] + (rr - p[1]) * p[7]
             gs[sel], gr[sel] = p[6], p[7]
         else:
@@ -372,7 +372,7 @@ def _revolved_numba(y, a, w, kind, pfeat, pdat, vdat, vfeat, efix, tol, L, want_
 # the tool
 # --------------------------------------------------------------------------------------------
 
-class RevolvedProfile(_AnalyticTool):
+class RevolvedProfile(AnalyticTool):
     """Surface of revolution of a meridian profile of lines and circular arcs (die, roll, ...).
 
     See the module docstring for the distance, the kinks, the profile ends, the features and
@@ -416,16 +416,16 @@ class RevolvedProfile(_AnalyticTool):
     def __init__(self, points, arcs=None, *, inside: bool, axis_point=(0.0, 0.0, 0.0),
                  axis=(0.0, 0.0, 1.0), velocity=(0.0, 0.0, 0.0), angular_velocity=0.0,
                  name: str = "revolved", backend: str = "numba"):
-        inside = _check_flag(inside, "inside")
-        prof = _Profile(points, arcs, inside)
+        inside = check_flag(inside, "inside")
+        prof = Profile(points, arcs, inside)
         self.profile = prof
-        self.points = _readonly(prof.points)
+        self.points = readonly_copy(prof.points)
         self.arcs = None if arcs is None else tuple(None if (r is None or r == 0) else float(r)
                                                     for r in arcs)
         self.inside = inside
-        self.axis_point = _readonly(_finite_vector(axis_point, "RevolvedProfile axis_point"))
-        self.axis = _readonly(unit_vector(axis, "RevolvedProfile axis"))
-        self.e_fixed = _readonly(_fixed_perpendicular(self.axis))
+        self.axis_point = readonly_copy(finite_vector(axis_point, "RevolvedProfile axis_point"))
+        self.axis = readonly_copy(unit_vector(axis, "RevolvedProfile axis"))
+        self.e_fixed = readonly_copy(fixed_perpendicular(self.axis))
         self.length_scale = prof.L
         kind, feat, pdat, vdat, vfeat = prof.arrays()
         self._arrays = (kind, feat, pdat, vdat, vfeat)
@@ -441,7 +441,8 @@ class RevolvedProfile(_AnalyticTool):
         self.feature_names = dict(sorted(names.items()))
         self._init_common(name, backend,
                           RigidMotion(velocity=velocity, angular_velocity=angular_velocity,
-                                      axis_point=_tup(self.axis_point), axis=_tup(self.axis)))
+                                      axis_point=float_tuple(self.axis_point),
+                                      axis=float_tuple(self.axis)))
         self._frozen = True
 
     def _params(self):
@@ -461,7 +462,7 @@ class RevolvedProfile(_AnalyticTool):
 
     def _repr_fields(self):
         return (f"points={self.points.tolist()}, arcs={self.arcs}, inside={self.inside}, "
-                f"axis_point={_tup(self.axis_point)}, axis={_tup(self.axis)}")
+                f"axis_point={float_tuple(self.axis_point)}, axis={float_tuple(self.axis)}")
 
     # -- builders -------------------------------------------------------------------------
 
@@ -554,9 +555,9 @@ def faceted_revolved(tool: RevolvedProfile, n_theta: int, sector: Optional[Tuple
             raise ValueError(f"n_theta must be >= 1, got {nt}")
         periodic = False
     if ds is not None:
-        ds = _pos(ds, "ds")
-    max_angle = _pos(max_angle, "max_angle")
-    extension = _pos(extension, "extension", allow_zero=True)
+        ds = positive_number(ds, "ds")
+    max_angle = positive_number(max_angle, "max_angle")
+    extension = positive_number(extension, "extension", allow_zero=True)
     prof = tool.profile
     # meridian nodes: list of (s, ρ); cells between consecutive nodes, with their midpoints
     nodes: List[np.ndarray] = []
@@ -574,7 +575,7 @@ def faceted_revolved(tool: RevolvedProfile, n_theta: int, sector: Optional[Tuple
         return 1 if ds is None else max(1, int(math.ceil(length / ds - 1e-9)))
 
     for p in prof.prims:
-        if p.kind == _ARC:
+        if p.kind == ARC:
             m = max(nsub(p.r * abs(p.delta)), int(math.ceil(abs(p.delta) / max_angle - 1e-9)))
             add_piece(p.point, m)
             continue
@@ -593,7 +594,7 @@ def faceted_revolved(tool: RevolvedProfile, n_theta: int, sector: Optional[Tuple
     nodes_a = np.array(nodes)
     # the profile points exactly (arc end points are recomputed with rounding errors)
     for pp in prof.points:
-        near = np.hypot(*(nodes_a - pp).T) <= _SNAP * prof.L
+        near = np.hypot(*(nodes_a - pp).T) <= SNAP_TOL * prof.L
         nodes_a[near] = pp
     mids_a = np.array(mids)
     w = tool.axis

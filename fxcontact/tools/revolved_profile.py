@@ -10,11 +10,13 @@ from typing import List
 
 import numpy as np
 
-__all__ = ["die_profile", "grooved_roll_profile"]
+__all__ = ["die_profile", "grooved_roll_profile", "Profile", "positive_number", "LINE", "ARC",
+           "SNAP_TOL"]
 
-_LINE, _ARC = 0, 1
+#: kinds of the profile's primitives: a straight segment, a circular arc
+LINE, ARC = 0, 1
 #: Relative tolerance (of the profile size) for snapping ρ to 0 and for degenerate segments.
-_SNAP = 1e-12
+SNAP_TOL = 1e-12
 
 
 # --------------------------------------------------------------------------------------------
@@ -46,7 +48,7 @@ class _Seg:
 
     @classmethod
     def line(cls, A0, u, tlo, thi, feature, label):
-        s = cls(_LINE, feature, label)
+        s = cls(LINE, feature, label)
         s.A0, s.u, s.tlo, s.thi = np.asarray(A0, float), np.asarray(u, float), tlo, thi
         s.length = float(thi) if np.isfinite(thi) else 0.0  # finite part [0, length]
         s.ta = s.tb = s.u
@@ -54,7 +56,7 @@ class _Seg:
 
     @classmethod
     def arc(cls, o, r, a0, delta, feature, label):
-        s = cls(_ARC, feature, label)
+        s = cls(ARC, feature, label)
         s.o, s.r, s.a0, s.delta = np.asarray(o, float), float(r), np.asarray(a0, float), delta
         sg = 1.0 if delta > 0 else -1.0
         b0 = s.direction(1.0)
@@ -69,7 +71,7 @@ class _Seg:
 
     def point(self, f: float) -> np.ndarray:
         """Point at the fraction f ∈ [0, 1] (arcs) or the parameter f (lines)."""
-        if self.kind == _ARC:
+        if self.kind == ARC:
             return self.o + self.r * self.direction(f)
         return self.A0 + f * self.u
 
@@ -154,11 +156,11 @@ def _arc_arc(p: _Seg, q: _Seg, tol: float):
 
 
 def _intersections(p: _Seg, q: _Seg, tol: float):
-    if p.kind == _LINE and q.kind == _LINE:
+    if p.kind == LINE and q.kind == LINE:
         return _line_line(p, q, tol)
-    if p.kind == _LINE:
+    if p.kind == LINE:
         return _line_arc(p, q, tol)
-    if q.kind == _LINE:
+    if q.kind == LINE:
         return _line_arc(q, p, tol)
     return _arc_arc(p, q, tol)
 
@@ -167,7 +169,7 @@ def _intersections(p: _Seg, q: _Seg, tol: float):
 # profile construction and checks
 # --------------------------------------------------------------------------------------------
 
-class _Profile:
+class Profile:
     """Checked profile: primitives and vertices in the (s, ρ) plane (see RevolvedProfile)."""
 
     def __init__(self, points, arcs, inside: bool):
@@ -184,7 +186,7 @@ class _Profile:
         if not L > 0.0:
             raise ValueError("profile points are all equal")
         self.L = L
-        tol = _SNAP * L
+        tol = SNAP_TOL * L
         neg = np.flatnonzero(P[:, 1] < -tol)
         if neg.size:
             raise ValueError(f"profile point {int(neg[0])} has ρ = {P[neg[0], 1]:.6g} < 0: the "
@@ -271,7 +273,7 @@ class _Profile:
                 raise ValueError(f"the {name} profile point's tangent extension would approach "
                                  f"the axis (direction {out.round(6).tolist()}): end the profile "
                                  f"on the axis or extend it yourself")
-            if seg.kind == _LINE:
+            if seg.kind == LINE:
                 if end == 0:
                     seg.tlo = -np.inf
                 else:
@@ -304,7 +306,7 @@ class _Profile:
                 if on_axis[i]:
                     m = np.array([math.copysign(1.0, nu[0]), 0.0])
                     verts.append((i, m, abs(nu[1]) > 1e-12))
-                elif seg.kind == _ARC:
+                elif seg.kind == ARC:
                     verts.append((i, nu, False))  # tangent junction with the extension
         self.verts = verts
         self._check_intersections()
@@ -322,7 +324,7 @@ class _Profile:
                 p, q = prims[a], prims[b]
                 shared = None
                 if b == a + 1:
-                    shared = p.point(1.0) if p.kind == _ARC else p.A0 + p.thi * p.u
+                    shared = p.point(1.0) if p.kind == ARC else p.A0 + p.thi * p.u
                 pts = _intersections(p, q, tol)
                 for x in pts:
                     if shared is not None and np.hypot(*(x - shared)) <= near:
@@ -340,7 +342,7 @@ class _Profile:
         for k, p in enumerate(self.prims):
             kind[k] = p.kind
             feat[k] = p.feature
-            if p.kind == _LINE:
+            if p.kind == LINE:
                 nu = self.nu(p.u)
                 data[k, :8] = [p.A0[0], p.A0[1], p.u[0], p.u[1], p.tlo, p.thi, nu[0], nu[1]]
             else:
@@ -362,7 +364,9 @@ class _Profile:
 # standard profiles
 # --------------------------------------------------------------------------------------------
 
-def _pos(v, name, allow_zero=False) -> float:
+def positive_number(v, name, allow_zero=False) -> float:
+    """``v`` as a finite float > 0 (>= 0 with ``allow_zero``); ValueError naming ``name``
+    otherwise."""
     try:
         x = float(v)
     except (TypeError, ValueError):
@@ -399,11 +403,11 @@ def die_profile(entry_radius, exit_radius, half_angle, land_length, fillet_radiu
     Returns:
         ``(points (n + 1, 2), arcs list)`` for ``RevolvedProfile(points, arcs, inside=True)``.
     """
-    Re = _pos(entry_radius, "entry_radius")
-    Rf = _pos(exit_radius, "exit_radius")
-    al = _pos(half_angle, "half_angle")
-    Ll = _pos(land_length, "land_length")
-    rf = _pos(fillet_radius, "fillet_radius", allow_zero=True)
+    Re = positive_number(entry_radius, "entry_radius")
+    Rf = positive_number(exit_radius, "exit_radius")
+    al = positive_number(half_angle, "half_angle")
+    Ll = positive_number(land_length, "land_length")
+    rf = positive_number(fillet_radius, "fillet_radius", allow_zero=True)
     s0 = float(s0)
     if not Re > Rf:
         raise ValueError(f"entry_radius ({Re}) must be larger than exit_radius ({Rf})")
@@ -429,8 +433,8 @@ def die_profile(entry_radius, exit_radius, half_angle, land_length, fillet_radiu
     pts.append((s_land + Ll, Rf))
     arcs.append(None)
     if relief_angle is not None:
-        be = _pos(relief_angle, "relief_angle")
-        lr = _pos(relief_length, "relief_length")
+        be = positive_number(relief_angle, "relief_angle")
+        lr = positive_number(relief_length, "relief_length")
         if be > 0.5 * np.pi:
             raise ValueError(f"relief_angle must satisfy 0 < β <= π/2, got {relief_angle!r}")
         if abs(be - 0.5 * np.pi) < 1e-15:
@@ -458,14 +462,14 @@ def grooved_roll_profile(barrel_radius, barrel_width, groove_radius=0.0, groove_
     Returns:
         ``(points (n + 1, 2), arcs list)`` for ``RevolvedProfile(points, arcs, inside=False)``.
     """
-    Rb = _pos(barrel_radius, "barrel_radius")
-    W = _pos(barrel_width, "barrel_width")
-    rg = _pos(groove_radius, "groove_radius", allow_zero=True)
-    hg = _pos(groove_depth, "groove_depth", allow_zero=True)
-    hf = _pos(flange_height, "flange_height", allow_zero=True)
-    wf = _pos(flange_width, "flange_width", allow_zero=True)
-    rc = _pos(fillet_radius, "fillet_radius", allow_zero=True)
-    re_ = _pos(edge_radius, "edge_radius", allow_zero=True)
+    Rb = positive_number(barrel_radius, "barrel_radius")
+    W = positive_number(barrel_width, "barrel_width")
+    rg = positive_number(groove_radius, "groove_radius", allow_zero=True)
+    hg = positive_number(groove_depth, "groove_depth", allow_zero=True)
+    hf = positive_number(flange_height, "flange_height", allow_zero=True)
+    wf = positive_number(flange_width, "flange_width", allow_zero=True)
+    rc = positive_number(fillet_radius, "fillet_radius", allow_zero=True)
+    re_ = positive_number(edge_radius, "edge_radius", allow_zero=True)
     s0 = float(s0)
     if re_ > 0 and not hg > 0:
         raise ValueError("edge_radius needs a groove (groove_radius and groove_depth > 0)")

@@ -478,7 +478,7 @@ def bite_coverage(sim, contact, center, tools=("main_roll", "mandrel"), axis=(0.
     out = {}
     for name in tools:
         k = [t.name for t in contact.tools].index(name)
-        mine = X[b.vertices[(contact._h > 0) & (contact._tool == k)]]
+        mine = X[b.vertices[contact.nodes.active & (contact.nodes.tool == k)]]
         P = np.concatenate(comm.allgather(mine)) if comm.size > 1 else mine
         if len(P) < 3:
             out[name] = (0.0, math.nan, 0.0)

@@ -470,8 +470,8 @@ class _Measure:
         return self._max(d)
 
     def nodes_on(self, k):
-        ct = self.s.contact
-        return self.comm.allreduce(int(np.sum((ct._tool == k) & (ct._h > 0))), op=MPI.SUM)
+        nodes = self.s.contact.nodes
+        return self.comm.allreduce(int(np.sum((nodes.tool == k) & nodes.active)), op=MPI.SUM)
 
     def power_columns(self, q) -> dict:
         """The power balance of the increment, whole ring (THEORY §14.5): what each tool
