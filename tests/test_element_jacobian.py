@@ -59,26 +59,26 @@ def test_cell_system_condensation_equals_numpy():
 def test_bubble_inverse_and_schur_equal_numpy(k):
     """The cell kernels' A_bb⁻¹ (cofactors for three bubble unknowns, Gauss–Jordan otherwise)
     and Schur complement against numpy; a singular or non-finite block is reported."""
-    from fxcontact.element.cell import _bubble_inverse, _schur
+    from fxcontact.element.cell import bubble_inverse, schur
     rng = np.random.default_rng(k)
     n = 12 + k
     A = rng.normal(size=(n, n)) + n * np.eye(n)
     bpos = np.arange(12, 12 + k)
     lpos = np.arange(12)
     Binv, X, S = np.zeros((k, k)), np.zeros((k, 12)), np.zeros((12, 12))
-    assert _bubble_inverse(A, bpos, Binv)
+    assert bubble_inverse(A, bpos, Binv)
     ref = np.linalg.inv(A[np.ix_(bpos, bpos)])
     assert np.allclose(Binv, ref, rtol=1e-13, atol=1e-14)
-    _schur(A, lpos, bpos, Binv, X, S)
+    schur(A, lpos, bpos, Binv, X, S)
     assert np.allclose(X, ref @ A[np.ix_(bpos, lpos)], rtol=1e-13, atol=1e-14)
     assert np.allclose(S, A[np.ix_(lpos, lpos)] - A[np.ix_(lpos, bpos)] @ X,
                        rtol=1e-13, atol=1e-13)
     B = A.copy()
     B[bpos[-1], bpos] = B[bpos[0], bpos]            # two equal rows: singular
-    assert not _bubble_inverse(B, bpos, Binv)
+    assert not bubble_inverse(B, bpos, Binv)
     B = A.copy()
     B[bpos[0], bpos[0]] = np.nan
-    assert not _bubble_inverse(B, bpos, Binv)
+    assert not bubble_inverse(B, bpos, Binv)
 
 
 def test_vector_kernels_equal_numpy():

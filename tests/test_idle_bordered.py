@@ -18,7 +18,7 @@ from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic
 from fxcontact.idle import ControlledMotion, IdleRotation
 from fxcontact.processes import RingRollingCase, ring_rolling
-from fxcontact.newton.solver import BorderedPC, _BorderedOperator
+from fxcontact.newton.solver import BorderedPC, BorderedOperator
 from fxcontact.tools.analytic import Cylinder, Plane
 from fxcontact.tools.base import MovedTool
 
@@ -191,7 +191,7 @@ def test_woodbury_solve_against_dense(factor):
     U, G = [vec(Ud[:, j].copy()) for j in range(k)], [vec(Gd[j].copy()) for j in range(k)]
     border = type("B", (), {"vectors": lambda self: (U, G, Dd)})()
     Jt = Jd - Ud @ np.linalg.solve(Dd, Gd)
-    op = _BorderedOperator(A, border)
+    op = BorderedOperator(A, border)
     S = PETSc.Mat().createPython((n, n), op, comm=comm)
     S.setUp()
     x, y = vec(rng.normal(size=n)), vec(np.zeros(n))

@@ -9,8 +9,9 @@ results are checked against numpy in ``tests/test_element_condense.py``,
 import numba
 import numpy as np
 
-__all__ = ["SINGULAR_DET", "condense_matrix", "condense_matrix_numpy", "condense_system",
-           "condense_system_numpy"]
+__all__ = ["SINGULAR_DET", "bubble_inverse", "condense_matrix", "condense_matrix_numpy",
+           "condense_system", "condense_system_numpy", "inverse3", "inverse_gauss_jordan", "schur",
+           "schur3", "tet_geometry"]
 
 #: a 3 × 3 bubble block whose |det| is below this times its largest entry cubed is singular
 #: (round-off of a determinant of O(1) entries: a few 1e-16)
@@ -18,17 +19,17 @@ SINGULAR_DET = 1e-13
 
 
 @numba.njit(cache=True)
-def _bubble_inverse(A, bpos, Binv):
+def bubble_inverse(A, bpos, Binv):
     """Binv = A_bb⁻¹ of one element matrix (three bubble unknowns, the 3D MINI element: by
     cofactors; otherwise Gauss–Jordan with partial pivoting). Returns False when A_bb is
     singular or the inverse is not finite."""
     if bpos.size == 3:
-        return _inverse3(A, bpos, Binv)
-    return _inverse_gauss_jordan(A, bpos, Binv)
+        return inverse3(A, bpos, Binv)
+    return inverse_gauss_jordan(A, bpos, Binv)
 
 
 @numba.njit(cache=True)
-def _inverse3(A, bpos, Binv):
+def inverse3(A, bpos, Binv):
     """Binv = A_bb⁻¹ of a 3 × 3 bubble block by cofactors (no allocation: 5× faster than the
     Gauss–Jordan loop in the condensation of a Jacobian). Returns False when |det A_bb| is
     below :data:`SINGULAR_DET` times its largest entry cubed (singular to round-off) or the
@@ -63,7 +64,7 @@ def _inverse3(A, bpos, Binv):
 
 
 @numba.njit(cache=True)
-def _inverse_gauss_jordan(A, bpos, Binv):
+def inverse_gauss_jordan(A, bpos, Binv):
     """Binv = A_bb⁻¹ (Gauss–Jordan with partial pivoting). Returns False when A_bb is
     singular or the inverse is not finite."""
     k = bpos.size
@@ -98,10 +99,10 @@ def _inverse_gauss_jordan(A, bpos, Binv):
 
 
 @numba.njit(cache=True)
-def _schur(A, lpos, bpos, Binv, X, S):
+def schur(A, lpos, bpos, Binv, X, S):
     """X = A_bb⁻¹ A_bl and S = A_ll − A_lb X of one element matrix, given Binv = A_bb⁻¹."""
     if bpos.size == 3:
-        _schur3(A, lpos, bpos, Binv, X, S)
+        schur3(A, lpos, bpos, Binv, X, S)
         return
     nl = lpos.size
     k = bpos.size
@@ -120,8 +121,8 @@ def _schur(A, lpos, bpos, Binv, X, S):
 
 
 @numba.njit(cache=True)
-def _schur3(A, lpos, bpos, Binv, X, S):
-    """:func:`_schur` for three bubble unknowns, unrolled (the same sums in the same order)."""
+def schur3(A, lpos, bpos, Binv, X, S):
+    """:func:`schur` for three bubble unknowns, unrolled (the same sums in the same order)."""
     b0, b1, b2 = bpos[0], bpos[1], bpos[2]
     nl = lpos.size
     for j in range(nl):
@@ -137,7 +138,7 @@ def _schur3(A, lpos, bpos, Binv, X, S):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _tet_geometry(coords, g1, Ki, G):
+def tet_geometry(coords, g1, Ki, G):
     """J⁻¹ (Ki) and the physical gradients G (4, 3) of the hat functions of an affine
     tetrahedron (vertex coordinates ``coords`` (4, 3), reference gradients ``g1`` (4, 3));
     returns det J (not finite results on a degenerate cell)."""
@@ -175,9 +176,9 @@ def condense_system(A, b, lpos, bpos, S, r, X, y):
     nl = lpos.size
     k = bpos.size
     Binv = np.empty((k, k))
-    if not _bubble_inverse(A, bpos, Binv):
+    if not bubble_inverse(A, bpos, Binv):
         return False
-    _schur(A, lpos, bpos, Binv, X, S)
+    schur(A, lpos, bpos, Binv, X, S)
     for i in range(k):
         acc = 0.0
         for q in range(k):
@@ -210,9 +211,9 @@ def condense_matrix(A, lpos, bpos, S, X, Y, Binv, Abb):
     for i in range(k):
         for j in range(k):
             Abb[i, j] = A[bpos[i], bpos[j]]
-    if not _bubble_inverse(A, bpos, Binv):
+    if not bubble_inverse(A, bpos, Binv):
         return False
-    _schur(A, lpos, bpos, Binv, X, S)
+    schur(A, lpos, bpos, Binv, X, S)
     for i in range(nl):
         li = lpos[i]
         for j in range(k):

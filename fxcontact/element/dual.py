@@ -54,7 +54,7 @@ import ufl
 from petsc4py import PETSc
 
 from fxcontact import compat
-from fxcontact.element.cell import _tet_geometry
+from fxcontact.element.cell import tet_geometry
 from fxcontact.element.tensors import KernelTables
 from fxcontact.materials import NortonHoff
 
@@ -220,7 +220,7 @@ def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, shar
         for i in range(4):
             for j in range(3):
                 coords[i, j] = x[xdofs[c, i], j]
-        _tet_geometry(coords, g1, Ki, G)
+        tet_geometry(coords, g1, Ki, G)
         for k in range(wdofs.shape[1]):
             wn[k] = w_new[wdofs[c, k]]
             wo[k] = w_old[wdofs[c, k]]

@@ -45,7 +45,7 @@ from petsc4py import PETSc
 
 from fxcontact.element.assembled import CondensedPC
 from fxcontact.element.cell import condense_matrix
-from fxcontact.element.tensors import FFCxElementTensors, P1P1Layout, _ffcx_tab_jacobian, _nh_tab
+from fxcontact.element.tensors import FFCxElementTensors, P1P1Layout, ffcx_tab_jacobian, nh_tab
 from fxcontact.la import add_nodal_jacobian
 
 __all__ = ["CondensedJacobian", "ElementCondensedPC", "element_condensation_supported"]
@@ -68,7 +68,7 @@ def _jacobian_loop_ffcx(data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
     bad = 0
     for n in range(cells.size):
         c = cells[n]
-        _ffcx_tab_jacobian(data, c, A, b)
+        ffcx_tab_jacobian(data, c, A, b)
         if not condense_matrix(A, lpos, bpos, S[n], X[c], Y[c], Binv[c], Abb[c]):
             bad += 1
     return bad
@@ -80,7 +80,7 @@ def _jacobian_loop_nh(data, cells, lpos, bpos, A, b, S, X, Y, Binv, Abb):
     bad = 0
     for n in range(cells.size):
         c = cells[n]
-        _nh_tab(data, c, A, b)
+        nh_tab(data, c, A, b)
         if not condense_matrix(A, lpos, bpos, S[n], X[c], Y[c], Binv[c], Abb[c]):
             bad += 1
     return bad
@@ -242,7 +242,7 @@ class CondensedJacobian:
             tensors = FFCxElementTensors(lay, problem.a, problem.L)
         self.tensors = tensors
         self._tab = getattr(tensors, "tab_jacobian", tensors.tab)
-        if self._tab not in (_nh_tab, _ffcx_tab_jacobian):
+        if self._tab not in (nh_tab, ffcx_tab_jacobian):
             raise ValueError("tensors: FFCxElementTensors or NortonHoffElementTensors expected, "
                              f"got {type(tensors).__name__}")
         self._fast = None
@@ -423,7 +423,7 @@ class CondensedJacobian:
         for c0 in range(0, lay.num_cells, self.chunk):
             cells = np.arange(c0, min(c0 + self.chunk, lay.num_cells), dtype=np.int32)
             S = np.empty((cells.size, nl, nl))
-            loop = _jacobian_loop_nh if self._tab is _nh_tab else _jacobian_loop_ffcx
+            loop = _jacobian_loop_nh if self._tab is nh_tab else _jacobian_loop_ffcx
             bad += loop(data, cells, lay.lpos, lay.bpos, self._A, self._b, S, self.X, self.Y,
                         self.Binv, self.Abb)
             bc = bc_marker[lay.w_l[cells]]

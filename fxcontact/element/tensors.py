@@ -44,11 +44,12 @@ from ffcx.element_interface import create_element
 from petsc4py import PETSc
 
 from fxcontact import compat
-from fxcontact.element.cell import _tet_geometry, condense_system
+from fxcontact.element.cell import tet_geometry, condense_system
 from fxcontact.materials import NortonHoff
 
 __all__ = ["P1P1Layout", "CondensedAssembler", "FFCxElementTensors",
-           "NortonHoffElementTensors", "norton_hoff_forms", "norton_hoff_tensors_numpy"]
+           "NortonHoffElementTensors", "KernelTables", "ffcx_tab_jacobian", "nh_tab", "norton_hoff_forms",
+           "norton_hoff_tensors_numpy"]
 
 _ffi = cffi.FFI()
 
@@ -230,7 +231,7 @@ def _ffcx_tab(data, c, A, b):
 
 
 @numba.njit(cache=True)
-def _ffcx_tab_jacobian(data, c, A, b):
+def ffcx_tab_jacobian(data, c, A, b):
     """The element matrix of cell c alone (``b`` untouched)."""
     _ffcx_coords(data, c)
     ca, ka, coords, ent, perm, kernel_a = data[2], data[3], data[6], data[7], data[8], data[9]
@@ -257,7 +258,7 @@ class FFCxElementTensors:
         kL = compat.cell_kernel(self.L, "L")
         self._kernel_a, self._kernel_L = ka, kL
         self._kernels = (_FFCxKernel(ka), _FFCxKernel(kL))
-        self.tab, self.tab_jacobian = _ffcx_tab, _ffcx_tab_jacobian
+        self.tab, self.tab_jacobian = _ffcx_tab, ffcx_tab_jacobian
         msh = layout.W.mesh
         self._x = msh.geometry.x
         self._xdofs = compat.geometry_dofmap(msh)
@@ -385,7 +386,7 @@ def _nh_cell(coords, wv, s, has_dual, K, m, eps0, g, g1, gb, share, wq, psi_w, p
     basis φ_n = λ_n + c_n B (a congruence with the shares c_n)."""
     Ki = np.empty((3, 3))      # J⁻¹
     G = np.empty((4, 3))       # gradients of the hat functions
-    adet = abs(_tet_geometry(coords, g1, Ki, G))
+    adet = abs(tet_geometry(coords, g1, Ki, G))
     vb = np.empty(3)           # bubble coefficient in the (λ, B) basis
     for c in range(3):
         vb[c] = wv[12 + c]
@@ -538,7 +539,7 @@ def _nh_cell(coords, wv, s, has_dual, K, m, eps0, g, g1, gb, share, wq, psi_w, p
 
 
 @numba.njit(cache=True)
-def _nh_tab(data, c, A, b):
+def nh_tab(data, c, A, b):
     (x, xdofs, warr, wdofs, sarr, sdofs, prm, g1, gb, share, wq, psi_w, psi_gb, coords, wv,
      s) = data
     for i in range(4):
@@ -559,7 +560,7 @@ def _nh_tab(data, c, A, b):
 def _nh_tensors_loop(data, cells, A_out, b_out):
     """The element tensors of ``cells`` by the hand kernel (called directly: cached on disk)."""
     for n in range(cells.size):
-        _nh_tab(data, cells[n], A_out[n], b_out[n])
+        nh_tab(data, cells[n], A_out[n], b_out[n])
 
 
 def norton_hoff_tensors_numpy(coords, wv, s, K, m, eps0, g, tables):
@@ -662,7 +663,7 @@ class NortonHoffElementTensors:
         else:
             self._sdofs = np.zeros((0, 0), dtype=np.int32)
         self._scratch = (np.zeros((4, 3)), np.zeros(19), np.zeros((nq, 3, 3)))
-        self.tab = _nh_tab
+        self.tab = nh_tab
 
     def data(self):
         """The kernel's inputs at the current state."""

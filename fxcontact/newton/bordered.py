@@ -18,7 +18,7 @@ from petsc4py import PETSc
 
 from fxcontact.la import pc_apply_many
 
-__all__ = ["BorderedPC"]
+__all__ = ["BorderedOperator", "BorderedPC"]
 
 
 class BorderedPC:
@@ -98,7 +98,7 @@ class BorderedPC:
             self.inner = None
 
 
-class _BorderedOperator:
+class BorderedOperator:
     """petsc4py python Mat: the product with J̃ = J − U D⁻¹ G (J assembled, U, G, D from the
     border's ``vectors()``)."""
 

@@ -8,7 +8,8 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-__all__ = ["SolverOptions", "SolveInfo", "LINEAR_SOLVERS", "LINE_SEARCHES", "MATERIAL_TANGENTS"]
+__all__ = ["SolverOptions", "SolveInfo", "LINEAR_SOLVERS", "LINE_SEARCHES", "MATERIAL_TANGENTS",
+           "globalization_options"]
 
 #: Linear solver presets (PETSc options without prefix).
 LINEAR_SOLVERS: Dict[str, Dict[str, object]] = {
@@ -337,7 +338,7 @@ class SolverOptions:
         return lin.get("pc_type") == "python" and "pc_python_type" not in lin
 
 
-def _globalization_options(kind: str) -> Dict[str, str]:
+def globalization_options(kind: str) -> Dict[str, str]:
     """SNES options (without prefix) of a :data:`LINE_SEARCHES` entry."""
     if kind == "trust-region":
         return {"snes_type": "newtontr"}

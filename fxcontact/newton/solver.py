@@ -39,9 +39,9 @@ from fxcontact.collective import RanksDisagree, check_decision
 from fxcontact.element.assembled import CondensationLayout, CondensedPC
 from fxcontact.element.jacobian import (CondensedJacobian, ElementCondensedPC,
                                         element_condensation_supported, jacobian_shell)
-from fxcontact.newton.bordered import BorderedPC, _BorderedOperator
+from fxcontact.newton.bordered import BorderedPC, BorderedOperator
 from fxcontact.newton.options import (LINE_SEARCHES, LINEAR_SOLVERS, MATERIAL_TANGENTS, SolveInfo,
-                                      SolverOptions, _globalization_options)
+                                      SolverOptions, globalization_options)
 from fxcontact.newton.prediction import ActiveSetPrediction
 from fxcontact.newton.problem import NonlinearProblem, mumps_null_pivots
 
@@ -219,7 +219,7 @@ class ContactNewtonSolver:
         left alone unless the presets override them."""
         opts = PETSc.Options()
         all_opts = {"snes_max_it": self.options.max_it, "snes_max_funcs": 100000}
-        all_opts.update(_globalization_options(self.options.line_search))
+        all_opts.update(globalization_options(self.options.line_search))
         all_opts.update(self.options.linear_options())
         p = self.options.prefix
         for key in _WRITTEN_OPTIONS.pop(p, set()):
@@ -248,7 +248,7 @@ class ContactNewtonSolver:
         if self.border is not None:
             m, n = op.getSizes()
             op = self._J_shell = PETSc.Mat().createPython(
-                (m, n), _BorderedOperator(op, self.border), comm=self.comm)
+                (m, n), BorderedOperator(op, self.border), comm=self.comm)
             op.setUp()
         if op is self.A:
             snes.setJacobian(self._jacobian, self.A, self.A)
@@ -594,7 +594,7 @@ class ContactNewtonSolver:
             raise ValueError(f"unknown line search {kind!r}; choose one of {LINE_SEARCHES}")
         # petsc4py 3.18 has no SNESLineSearch object: go through the prefixed options
         opts = PETSc.Options()
-        for key, val in _globalization_options(kind).items():
+        for key, val in globalization_options(kind).items():
             opts[self.options.prefix + key] = val
             _WRITTEN_OPTIONS.setdefault(self.options.prefix, set()).add(key)
         self.snes.setFromOptions()
