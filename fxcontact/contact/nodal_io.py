@@ -16,6 +16,7 @@ from typing import Dict
 import dolfinx.fem
 import numpy as np
 from mpi4py import MPI
+from scipy.spatial import cKDTree
 
 from fxcontact import compat
 from fxcontact.collective import describe
@@ -302,7 +303,6 @@ class NodalContactIO:
         if self.formulation != "velocity":
             raise ValueError(f"contact '{self.name}': only the velocity formulation "
                              f"(Simulation) can be remeshed")
-        from scipy.spatial import cKDTree
         old = self.boundary
         comm = old.comm
         x_old = np.concatenate(comm.allgather(old.mesh_positions()))

@@ -26,7 +26,7 @@ from mpi4py import MPI
 
 from fxcontact import compat
 
-__all__ = ["SeriesWriter", "HistoryWriter", "render_png", "gather_mesh_data", "read_pvd",
+__all__ = ["SeriesWriter", "HistoryWriter", "render_png", "gather_mesh_data", "read_pvd", "pyplot",
            "write_pvd", "figure", "plot_pressure_profile"]
 
 log = logging.getLogger(__name__)
@@ -266,6 +266,15 @@ def _vtk_to_meshio(topo: np.ndarray, ctypes: np.ndarray):
     return [(k, np.array(v)) for k, v in blocks.items()]
 
 
+def pyplot():
+    """``matplotlib.pyplot`` with the non-interactive Agg backend, for pictures written to files.
+    Imported here, on the first picture: matplotlib is needed for pictures only."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
 @contextlib.contextmanager
 def figure(path: str, figsize=(7.0, 4.5), dpi: int = 120, **subplots):
     """A matplotlib figure (Agg backend) saved to ``path`` when the block ends, then closed::
@@ -276,10 +285,7 @@ def figure(path: str, figsize=(7.0, 4.5), dpi: int = 120, **subplots):
     ``subplots`` go to ``plt.subplots`` (``ncols=2``: ``ax`` is then the array of axes). Not
     collective: draw on the rank that writes (rank 0). The figure is closed on an error too,
     and nothing is saved then."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=figsize, **subplots)
     try:
         yield fig, ax

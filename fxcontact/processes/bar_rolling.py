@@ -38,11 +38,13 @@ import os
 from dataclasses import dataclass, field
 from typing import List, Optional
 
+import dolfinx.fem
 import numpy as np
 from mpi4py import MPI
 
 import fxcontact as fx
 from fxcontact import compat
+from fxcontact.io.series import pyplot
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.power import PowerBalance
 from fxcontact.processes.common import gather
@@ -293,7 +295,6 @@ class _StartupNortonHoff(fx.NortonHoff):
     stress) is the material's."""
 
     def bind(self, mesh, m_value):
-        import dolfinx.fem
         object.__setattr__(self, "exponent", dolfinx.fem.Constant(mesh, float(m_value)))
 
     def exponent_ufl(self):
@@ -602,9 +603,7 @@ def _steady_values(res: BarRollingResult, s: BarRollingSetup, measure: _Measure)
 def _section_picture(res: BarRollingResult, out: str) -> str:
     """The exit section (the modelled part and its turned copies) in the pass, with the
     incoming bar and the inscribed circle."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     geo, c = res.pass_geometry, res.case
     fig, ax = plt.subplots(figsize=(7.5, 7.5))
     P = geo["outline"] if "outline" in geo else pass_outline(geo)

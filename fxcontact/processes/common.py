@@ -22,6 +22,7 @@ from mpi4py import MPI
 
 from fxcontact import compat
 from fxcontact.console import add_verbosity_arguments, configure_logging
+from fxcontact.io.series import pyplot
 from fxcontact.processes.monitor import contact_lines
 from fxcontact.simulation import (IncrementError, format_iteration_split, format_wall_split,
                                   wall_split)
@@ -29,7 +30,7 @@ from fxcontact.steady import steady_window
 
 __all__ = ["CaseBase", "script_main", "gather", "numerics_columns", "run_summary", "steady_values", "run_increments",
            "ProcessResult", "meridian_section", "vertex_field", "plot_sections",
-           "plot_curves", "write_rows", "agg_pyplot"]
+           "plot_curves", "write_rows"]
 
 
 class _ClassOrCase:
@@ -290,21 +291,13 @@ def meridian_section(comm, sim, facet_tags, tag, fields) -> tuple:
     return gather(comm, zr.reshape(-1, 3, 2)), [gather(comm, v) for v in vals]
 
 
-def agg_pyplot():
-    """matplotlib.pyplot with the non-interactive Agg backend (pictures written to files)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
 def plot_sections(path, zr, panels, outline=None, title="", r_max=None, dpi=120,
                   xlabel="z [mm]"):
     """Meridian sections (rank 0): one panel per ``(values, label, colormap)`` or ``(values,
     label, colormap, (vmin, vmax))`` of the triangles ``zr`` of :func:`meridian_section`, each
     with the ``outline`` curve ``(s, r, label)`` (a tool's profile), equal axes, the figure
     sized to the section; saved to ``path``."""
-    plt = agg_pyplot()
+    plt = pyplot()
     from matplotlib.collections import PolyCollection
 
     z0, z1 = zr[..., 0].min() - 1, zr[..., 0].max() + 1

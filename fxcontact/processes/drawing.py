@@ -38,6 +38,7 @@ from mpi4py import MPI
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Coulomb, Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
+from fxcontact.io.series import pyplot
 from fxcontact.meshing import DRAWING_BAR_TAGS
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
@@ -387,7 +388,7 @@ def _pictures(comm, s: DrawingSetup, res: DrawingResult, out: str):
                   title=f"Drawing R₀ {c.R0:g} → {c.R1:g} mm, α = {c.alpha:g}°, t = "
                         f"{res.time:.3f} s, die {c.die}, {c.scheme}: θ = 0 section; σ_d = "
                         f"{sd:.0f} MPa (ideal {th['ideal']:.0f}, Avitzur {th['avitzur']:.0f})")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     fig, axs = plt.subplots(1, 2, figsize=(12, 4.2))
     act = p > 0
     th_deg = np.degrees(np.arctan2(X[:, 1], X[:, 0]))

@@ -60,6 +60,7 @@ from mpi4py import MPI
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
+from fxcontact.io.series import pyplot
 from fxcontact.meshing import DRAWING_BAR_TAGS
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
@@ -432,7 +433,7 @@ def _pictures(comm, s: ExtrusionSetup, res: ExtrusionResult, out: str):
                         f"{c.mbar_die:g} / container {c.mbar_container:g}, t = {res.time:.3g}"
                         f" s: θ = 0 section; the slow corner between the container and the die: "
                         f"dead-metal zone")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.5))
     hist = res.history
     t = [q["time"] for q in hist]

@@ -34,6 +34,7 @@ from mpi4py import MPI
 
 import fxcontact as fx
 from fxcontact import compat
+from fxcontact.io.series import pyplot
 from fxcontact.power import PowerBalance
 from fxcontact.processes.common import gather
 from fxcontact.processes.monitor import (RunNumerics, SteadyMonitor, SteadyRun, StopRules,
@@ -562,9 +563,7 @@ def _pictures(comm, sim, res: FlatRollingResult, out: str):
     rate = gather(comm, sim.strain_rate.x.array[:nc])
     if comm.rank != 0:
         return []
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     a, c = res.arc, res.case
     slab = rolling.slab(c.R, c.h0, res.h1, res.sigma0, c.mu, c.mbar)
     fig, ax = plt.subplots(figsize=(8, 5))

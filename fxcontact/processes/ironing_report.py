@@ -22,6 +22,8 @@ import os
 
 import numpy as np
 
+from fxcontact.io.series import pyplot
+
 __all__ = ["oscillation", "summarize", "collect", "write_summary", "plot_all", "TABLE",
            "format_table", "report"]
 
@@ -122,9 +124,7 @@ def plot_all(results: list, output_dir: str, n_indent: int,
     Returns:
         dict of the paths by ``"force"``, ``"newton"``, ``"contact_nodes"``.
     """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     colors = {"analytic": "k", "flat": "C3", "nagata": "C0"}
     schemes = [s for s in ("explicit", "quasi-implicit", "implicit", "implicit-exact")

@@ -46,6 +46,7 @@ from mpi4py import MPI
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import NodalContact
+from fxcontact.io.series import pyplot
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import RING_TAGS, ring
 from fxcontact.newton.solver import SolverOptions
@@ -230,9 +231,7 @@ def plot_chart(fe: dict, ub: dict, path: str, ring_size) -> str:
     Returns:
         ``path``.
     """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from matplotlib.lines import Line2D
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.5))

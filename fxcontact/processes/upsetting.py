@@ -67,13 +67,13 @@ from mpi4py import MPI
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Coulomb, Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
+from fxcontact.io.series import pyplot
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
-from fxcontact.processes.common import (CaseBase, ProcessResult, agg_pyplot, finish_run,
-                                        meridian_section, numerics_columns, plot_curves,
-                                        run_summary)
+from fxcontact.processes.common import (CaseBase, ProcessResult, finish_run, meridian_section,
+                                        numerics_columns, plot_curves, run_summary)
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone
 from fxcontact.simulation import IncrementError, Simulation
@@ -434,7 +434,7 @@ def _pictures(comm, s: UpsettingSetup, res: UpsettingResult, out: str):
     f2 = os.path.join(out, "upsetting_pressure.png")
     if comm.rank != 0:
         return [f1, f2]
-    plt = agg_pyplot()
+    plt = pyplot()
     from matplotlib.collections import PolyCollection
 
     rd, zd = res.radii, _die_z(c, sim.t)

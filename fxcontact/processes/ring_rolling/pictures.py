@@ -8,6 +8,9 @@ import math
 import os
 
 import numpy as np
+from mpi4py import MPI
+
+from fxcontact.io.series import pyplot
 
 __all__ = ["snapshot", "pictures", "top_view_png", "curves_png"]
 
@@ -16,7 +19,6 @@ def snapshot(setup, center) -> dict:
     """Top-face outline (outer and inner surface nodes, z ≥ 90 % of the top) and the tool
     circles of a :class:`~fxcontact.processes.ring_rolling.RingRollingSetup` now (gathered on
     every rank; collective)."""
-    from mpi4py import MPI
     sim, comm, t = setup.sim, setup.sim.comm, setup.sim.t
     X = sim.vertex_positions()
     zmax = comm.allreduce(float(np.max(X[:, 2], initial=-np.inf)), op=MPI.MAX)
@@ -28,13 +30,6 @@ def snapshot(setup, center) -> dict:
     circ = [(tl.name, *tl.motion.axis_point_at(t)[:2], tl.motion.angle(t))
             for tl in setup.tools]
     return dict(t=t, outer=pts[0], inner=pts[1], tools=circ, center=np.array(center))
-
-
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
 
 
 def _outline(ax, p, center):
@@ -61,7 +56,7 @@ def _cone(ax, g, x, y):
 def top_view_png(res, snaps, path) -> str:
     """The ring's top face (outline of the outer and bore surfaces) and the tools (grey, a black
     radius showing the tool's angle) at the snapshots' times."""
-    plt = _plt()
+    plt = pyplot()
     c = res.case
     radii = {"main_roll": c.R1, "mandrel": c.R2, "guide1": c.Rg, "guide2": c.Rg}
     n = len(snaps)
@@ -102,7 +97,7 @@ def top_view_png(res, snaps, path) -> str:
 
 def curves_png(res, path) -> str:
     """Diameters, roll forces and rotation speeds against time."""
-    plt = _plt()
+    plt = pyplot()
     h = res.history
     t = np.array([q["time"] for q in h])
     fig, axs = plt.subplots(1, 3, figsize=(15, 4.3))
