@@ -132,10 +132,11 @@ def test_bad_case():
 def test_quick_on_the_class_and_on_a_case():
     """``quick`` on the class starts from the default case; on a case (as the rolling cases'
     ``case.quick()``) it keeps the case's other fields instead of dropping them."""
+    from fxcontact import Tresca
     from fxcontact.processes import DrawingCase, UpsettingCase
 
     for cls, field, value in ((ExtrusionCase, "alpha", 30.0), (DrawingCase, "alpha", 15.0),
-                              (UpsettingCase, "mbar", 0.3)):
+                              (UpsettingCase, "friction", Tresca(0.3))):
         case = cls(**{field: value})
         q = case.quick()
         assert getattr(q, field) == value

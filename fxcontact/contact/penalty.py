@@ -136,7 +136,7 @@ class Penalty:
                                 ("strain_rate", strain_rate)) if v is not None]
         if extra:
             raise ValueError(f"penalty is a Penalty: give {extra} to the Penalty, not beside it")
-        return penalty.completed()
+        return penalty.completed(strain_rate=penalty.strain_rate)
 
     def completed(self, strain_rate: Optional[float] = None,
                   element_size: Optional[float] = None,

@@ -17,7 +17,9 @@ pictures, ``report()``).
   mandrel fed towards it, guide rolls, optional cone rolls; pictures in ``ring_pictures``);
 * shared pieces: :mod:`fxcontact.processes.monitor` (the run-until-steady loop and its stop
   rules), :mod:`fxcontact.processes.common` (gathers, power balance, sections and curves),
-  :mod:`fxcontact.processes.die` (the bar's nose, the die and its faceted sectors).
+  :mod:`fxcontact.processes.die` (the bar's nose, the die and its faceted sectors),
+  :mod:`fxcontact.processes.contact_laws` (every case's ``penalty`` and ``friction`` fields and
+  their former spellings).
 """
 
 from fxcontact.processes import bar_rolling, flat_rolling, ring_rolling
