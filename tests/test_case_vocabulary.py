@@ -17,6 +17,7 @@ import pytest
 
 from fxcontact import (Coulomb, Frictionless, NortonHoff, Norton, Penalty, Tresca,
                        penalty_from_beta)
+from fxcontact.console import case_parser, parse_case
 from fxcontact.processes import (BarRollingCase, DrawingCase, ExtrusionCase, FlatRollingCase,
                                  RingRollingCase, UpsettingCase, bar_rolling, build_drawing,
                                  build_extrusion, build_upsetting, flat_rolling, ring_rolling)
@@ -230,7 +231,6 @@ def test_command_line_options_keep_the_former_names():
     """``case_parser``/``parse_case``: ``--mu``, ``--gap_stiffness``, ``--main_friction`` set
     the new fields, without a warning (the options keep their names); the penalty and
     friction objects have no option of their own."""
-    from fxcontact.console import case_parser, parse_case
     parser = case_parser(FlatRollingCase, "flat", "results")
     with warnings.catch_warnings():
         warnings.simplefilter("error", DeprecationWarning)
