@@ -40,6 +40,7 @@
 # %%
 import argparse
 
+from fxcontact import Tresca
 from fxcontact.processes import ExtrusionCase, run_extrusion
 from fxcontact.processes.common import script_main
 from fxcontact.processes.extrusion import CONTAINERS
@@ -49,10 +50,12 @@ from fxcontact.processes.extrusion import CONTAINERS
 #
 # Every parameter is a field of `ExtrusionCase`, a frozen dataclass checked when it is made
 # (a bad value raises a `ValueError` naming the field). The demo's case is the default one
-# with a 45° die, more friction on it, a coarser mesh and a short run:
+# with a 45° die, more friction on it (`friction`: one Tresca law per tool; the command line's
+# `--mbar_die`, `--mbar_container` set them), a coarser mesh and a short run:
 
 # %%
-CASE = ExtrusionCase(alpha=45.0, mbar_die=0.3, h=1.5, entry_fillet=1.5, t_end=0.1)
+CASE = ExtrusionCase(alpha=45.0, friction={"container": Tresca(0.3), "die": Tresca(0.3)},
+                     h=1.5, entry_fillet=1.5, t_end=0.1)
 
 # %% [markdown]
 # ## The set-up, written out
@@ -73,7 +76,9 @@ CASE = ExtrusionCase(alpha=45.0, mbar_die=0.3, h=1.5, entry_fillet=1.5, t_end=0.
 # container = fx.RevolvedProfile([[z_a, R0], [z_b, R0]], inside=True, name="container")
 # die = fx.RevolvedProfile(die_points, die_arcs, inside=True, name="die")  # face, cone, land
 # contact = fx.NodalContact(fx.ContactBoundary(space, ft, fx.DRAWING_BAR_TAGS["lateral"]),
-#                           [container, die], scheme="implicit", gap_stiffness=rho / dt,
+#                           [container, die], scheme="implicit",
+#                           penalty=fx.Penalty(beta=100.0, gap=True, strain_rate=rate_die,
+#                                              element_size=h, reference_dt=dt),
 #                           friction={"container": fx.Tresca(0.3), "die": fx.Tresca(0.3)})
 # sim.add_contributor(contact)
 # ```

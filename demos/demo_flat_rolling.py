@@ -39,9 +39,9 @@ import math
 
 from mpi4py import MPI
 
-from fxcontact.theory import flat_rolling as rolling
 from fxcontact.console import case_parser, parse_case
 from fxcontact.processes import FlatRollingCase, flat_rolling
+from fxcontact.theory import flat_rolling as rolling
 
 parser = case_parser(FlatRollingCase, "Flat rolling of a strip to steady state",
                      "results/flat_rolling")
@@ -51,7 +51,8 @@ rank0 = MPI.COMM_WORLD.rank == 0
 # ## The case
 #
 # A `FlatRollingCase` holds the pass (R, h0, reduction, width), the material (K, m), the
-# friction (μ, m̄, the slip velocity of the regularised law), the kinematics (roll speed, the
+# friction (a `Coulomb(mu, mbar)` law; `--mu`, `--mbar` on the command line; the slip velocity
+# of the regularised law), the kinematics (roll speed, the
 # pusher that starts the strip, the tail's pseudo-inertia) and the numerics (element size,
 # dt, the steady-state windows). It checks its fields when it is made; any field is changed
 # with `dataclasses.replace` (or on the command line).
@@ -59,11 +60,12 @@ rank0 = MPI.COMM_WORLD.rank == 0
 # %%
 case, args = parse_case(parser, FlatRollingCase)
 bite = case.bite
+mu = case.friction_coefficients()[0]
 if rank0:
     print(f"pass: R = {case.R:g} mm, {case.h0:g} -> {case.h1:.4g} mm ({100 * case.reduction:g} %)"
           f", width {case.width:g} mm; L = {bite.contact_length:.2f} mm, bite angle "
-          f"{bite.bite_angle:.4f} rad; mu = {case.mu} against tan(alpha) = "
-          f"{bite.max_draft_ratio:.4f}: {'bites' if bite.bites(case.mu) else 'needs a push'}")
+          f"{bite.bite_angle:.4f} rad; mu = {mu} against tan(alpha) = "
+          f"{bite.max_draft_ratio:.4f}: {'bites' if bite.bites(mu or 0.0) else 'needs a push'}")
 
 # %% [markdown]
 # ## The set-up
@@ -144,7 +146,7 @@ elif rank0:
 # %%
 if rank0 and res.pictures:
     print("pictures:", ", ".join(res.pictures))
-    slab = rolling.slab(case.R, case.h0, case.h1, res.sigma0, case.mu, case.mbar)
+    slab = rolling.slab(case.R, case.h0, case.h1, res.sigma0, *case.friction_coefficients())
     print(f"peak pressure: FE {max(res.arc['p']):.0f} MPa, slab {max(slab.pressure):.0f} MPa; "
           f"neutral point: FE x = {res.neutral_x:.1f} mm, slab "
           f"{-case.R * math.sin(slab.neutral_angle):.1f} mm")

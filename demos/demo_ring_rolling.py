@@ -42,8 +42,6 @@
 # `docs/validation.md`, section "Ring rolling".
 
 # %%
-import dataclasses
-
 from mpi4py import MPI
 
 from fxcontact.console import case_parser, parse_case
@@ -63,20 +61,21 @@ rank0 = MPI.COMM_WORLD.rank == 0
 # ## The case
 #
 # A `RingRollingCase` holds the ring (R, r, H), the mill (R₁, R₂, the guide rolls, the
-# initial bite), the material (K, m), the friction of each tool (`("coulomb", μ, m̄)`,
-# `("norton", α_f, q)` or `None`), the kinematics (main roll rpm, mandrel feed, how the idle
-# mandrel's speed is found, cone rolls) and the numerics (mesh, increments per revolution,
+# initial bite), the material (K, m), the friction of each tool (`friction`: tool name → law,
+# `Coulomb(mu, mbar=...)`, `Norton(alpha_f, q)`; on the command line `--main_friction
+# coulomb,0.3,0.6`, `--mandrel_friction none`), the kinematics (main roll rpm, mandrel feed,
+# how the idle mandrel's speed is found, cone rolls) and the numerics (mesh, increments per revolution,
 # revolutions, contact scheme, configuration update). The default is the thesis's case 2 on a
 # mill of industrial proportion (THEORY §14.4) with the hot steel: main roll 150 mm at 60
 # rpm, mandrel 40 mm fed at 1.5 mm/s, Coulomb μ = 0.3 limited by Tresca m̄ = 0.6 on both rolls.
 
 # %%
 case, args = parse_case(parser, RingRollingCase)
-if args.thesis_case:
-    given = {f.name: getattr(case, f.name) for f in dataclasses.fields(RingRollingCase)
-             if getattr(args, f.name) is not None}
+if args.thesis_case:   # the options given (a former field's name sets the new field)
+    given = {k: v for k, v in vars(args).items()
+             if k in RingRollingCase.__dataclass_fields__ and v is not None}
     thesis = getattr(RingRollingCase, f"case{args.thesis_case}")()
-    case = dataclasses.replace(thesis.quick() if args.quick else thesis, **given)
+    case = (thesis.quick() if args.quick else thesis).with_options(**given)
 th = ring_rolling.theory(case)
 if rank0:
     w = th["window"]

@@ -69,7 +69,9 @@ CASE = UpsettingCase(sector=45.0, h=1.5)
 # sim.add_velocity_bc(sim.facets(ft, TAGS["back"]), 0.0, 2)   # the mid-plane
 # die = fx.Plane(point=(0, 0, H0 / 2), normal=(0, 0, -1), velocity=(0, 0, -v / 2), name="die")
 # contact = fx.NodalContact(fx.ContactBoundary(space, ft, [TAGS["front"], TAGS["lateral"]]),
-#                           die, friction=fx.Tresca(1.0), gap_stiffness=rho / dt)
+#                           die, friction=fx.Tresca(1.0),      # case.friction
+#                           penalty=fx.Penalty(beta=100.0, gap=True, strain_rate=v / H0,
+#                                              element_size=h, reference_dt=dt))  # k = ρ(β)/dt
 # sim.add_contributor(contact)
 # sim.set_remeshing(RemeshCriteria(min_quality=0.2), size=h,
 #                   zones=lambda sim: [SizeZone(h / 2, points=circle_at_the_die_edge)])

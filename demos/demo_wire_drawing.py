@@ -76,11 +76,14 @@ from fxcontact.processes.die import DIE_MESHES, DIES
 # die = fx.RevolvedProfile.die(entry_radius=1.1 * R0, exit_radius=R1, half_angle=alpha,
 #                              land_length=land, fillet_radius=fillet, ...)
 # contact = fx.NodalContact(fx.ContactBoundary(space, ft, fx.DRAWING_BAR_TAGS["lateral"]),
-#                           die, scheme="implicit", gap_stiffness=rho / dt)
+#                           die, scheme="implicit", friction=case.friction,
+#                           penalty=fx.Penalty(beta=100.0, gap=True, strain_rate=rate_die,
+#                                              element_size=h, reference_dt=dt))
 # sim.add_contributor(contact)
 # ```
 #
-# **Contact.** Nodal penalty on the end-of-increment gap with the stiffness k = ρ(β)/dt_ref,
+# **Contact.** Nodal penalty on the end-of-increment gap with the stiffness k = ρ(β)/dt_ref
+# (the case's `penalty`, `Penalty(beta=100.0, gap=True)`; `--beta`, `--penalty_dt` set it),
 # ρ(β) = β η(ε̄̇)/h (THEORY §2.5, η the secant viscosity at the die's mean strain rate): the
 # penalty penetration does not depend on the time step, as in the thesis. β = 100 (not the
 # library's 1e3): a penetration of ≈ 0.2 % of h for far fewer Newton iterations at m = 0.016,

@@ -23,9 +23,9 @@ from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Coulomb, Frictionless, Norton, ShearLimit, Tresca
 from fxcontact.contact.nodal import FORMULATIONS, FRICTION_MODES, SCHEMES, NodalContact
-from fxcontact.contact.view import ContactNodes
 from fxcontact.contact.penalty import Penalty, penalty_from_beta
 from fxcontact.contact.springs import NodalSprings
+from fxcontact.contact.view import ContactNodes
 from fxcontact.element.dual import DualStress
 from fxcontact.idle import IdleRotation
 from fxcontact.io import figure, plot_pressure_profile, render_png

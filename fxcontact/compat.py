@@ -132,7 +132,7 @@ def num_owned(index_map) -> int:
 
 def model_to_mesh(model, comm, rank: int = 0, gdim: int = 3):
     """gmsh model → (mesh, cell_tags, facet_tags) (``read_from_msh`` is broken in 0.5.2)."""
-    from dolfinx.io import gmshio   # here, not at the top: it imports gmsh (see import_gmsh)
+    from dolfinx.io import gmshio  # here, not at the top: it imports gmsh (see import_gmsh)
     return gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
 
 
@@ -190,7 +190,7 @@ def ghosted_vector(V):
 def import_gmsh():
     """The ``gmsh`` module, with its initialisation followed (see :func:`gmsh_initialized`)."""
     fresh = "gmsh" not in sys.modules
-    import gmsh     # here, not at the top: whether this first import initialises gmsh matters
+    import gmsh  # here, not at the top: whether this first import initialises gmsh matters
     if not hasattr(gmsh, "isInitialized") and not hasattr(gmsh, "_fxcontact_state"):
         _follow_gmsh(gmsh, False if fresh else None)
     return gmsh

@@ -175,21 +175,45 @@ def on_off(value: str) -> bool:
 _CASE_TYPES = {"float": float, "Optional[float]": float, "int": int, "str": str,
                "bool": on_off}
 
+#: annotations of the fields that have no text form (a case's penalty and friction objects):
+#: the options named after their former fields give them
+_NO_TEXT = ("Penalty", "fx.Penalty", "Friction")
+
+
+def _former_options(case_type) -> dict:
+    """``{option: (argparse type, help)}`` of the former fields of a case's penalty and
+    friction (``case_type.FORMER``, :mod:`fxcontact.processes.contact_laws`)."""
+    out = {}
+    for spec in getattr(case_type, "FORMER", ()):
+        for name, default in spec.defaults.items():
+            f = case_type.__dataclass_fields__.get(name)
+            kind = str(f.type) if f is not None and name != spec.field else "str"
+            if kind.startswith("InitVar[") and kind.endswith("]"):
+                kind = kind[len("InitVar["):-1]
+            out[name] = (_CASE_TYPES.get(kind, str),
+                         f"sets {spec.field} (its former spelling; default {default!r})")
+    return out
+
 
 def case_parser(case_type, description: str, output_dir: str):
     """An argparse parser for a process demo: ``--quick`` and one ``--<field>`` per field of
     the case (a dataclass such as :class:`fxcontact.processes.FlatRollingCase`), typed from the
     field's annotation (``auto|on|off`` for an ``object`` field whose default is ``"auto"``,
-    ``on|off`` for a ``bool``),
-    ``--output-dir`` and ``--verbose``/``--quiet``. Add the demo's own options, then
-    :func:`parse_case`."""
+    ``on|off`` for a ``bool``), the case's ``penalty`` and ``friction`` objects through the
+    options named after their former fields (``--mu``, ``--main_friction "norton,0.5,0.15"``,
+    ``--gap_stiffness``), ``--output-dir`` and ``--verbose``/``--quiet``. Add the demo's own
+    options, then :func:`parse_case`."""
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--quick", action="store_true",
                         help="the reduced size of the tests (the case's quick())")
     for f in dataclasses.fields(case_type):
+        if str(f.type) in _NO_TEXT:
+            continue
         auto = f.default == "auto" and str(f.type) == "object"     # "auto", True or False
         conv = auto_on_off if auto else _CASE_TYPES.get(str(f.type), str)
         parser.add_argument(f"--{f.name}", type=conv, help=f"default {f.default!r}")
+    for name, (conv, text) in _former_options(case_type).items():
+        parser.add_argument(f"--{name}", type=conv, help=text)
     parser.add_argument("--output-dir", dest="output_dir", default=output_dir,
                         help=f"where the results go (default {output_dir})")
     add_verbosity_arguments(parser)
@@ -199,10 +223,13 @@ def case_parser(case_type, description: str, output_dir: str):
 def parse_case(parser, case_type, argv=None):
     """Parse the command line of :func:`case_parser`, configure the console
     (:func:`configure_logging`) and return ``(case, args)``: the default case (its ``quick()``
-    with ``--quick``) with the fields given on the command line."""
+    with ``--quick``) with the fields given on the command line (an option named after a former
+    field sets the new one: the case's ``with_options``)."""
     args = parser.parse_args(argv)
     configure_logging(verbose=args.verbose, quiet=args.quiet)
     case = case_type().quick() if args.quick else case_type()
-    given = {f.name: getattr(args, f.name) for f in dataclasses.fields(case_type)
-             if getattr(args, f.name) is not None}
+    names = [f.name for f in dataclasses.fields(case_type)] + list(_former_options(case_type))
+    given = {k: getattr(args, k) for k in names if getattr(args, k, None) is not None}
+    if hasattr(case, "with_options"):
+        return case.with_options(**given), args
     return dataclasses.replace(case, **given), args

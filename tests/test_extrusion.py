@@ -9,11 +9,10 @@ force equals 2 m̄ k L_c/R₀ × A₀ within 3 %; volume, element quality and th
 container and the die as two tools of one contact give the answer of one profile; 1 vs 2 ranks.
 Both angles with both reductions: ``benchmarks/bench_extrusion.py``."""
 
+import dolfinx.mesh
 import numpy as np
 import pytest
 from mpi4py import MPI
-
-import dolfinx.mesh
 
 from fxcontact.meshing import DRAWING_BAR_TAGS
 from fxcontact.processes import ExtrusionCase, build_extrusion, run_extrusion
@@ -132,10 +131,11 @@ def test_bad_case():
 def test_quick_on_the_class_and_on_a_case():
     """``quick`` on the class starts from the default case; on a case (as the rolling cases'
     ``case.quick()``) it keeps the case's other fields instead of dropping them."""
+    from fxcontact import Tresca
     from fxcontact.processes import DrawingCase, UpsettingCase
 
     for cls, field, value in ((ExtrusionCase, "alpha", 30.0), (DrawingCase, "alpha", 15.0),
-                              (UpsettingCase, "mbar", 0.3)):
+                              (UpsettingCase, "friction", Tresca(0.3))):
         case = cls(**{field: value})
         q = case.quick()
         assert getattr(q, field) == value

@@ -12,7 +12,6 @@ from mpi4py import MPI
 
 from fxcontact.processes import upsetting_dies
 
-
 SOLVERS = ("mumps", "condensed-amg")
 
 

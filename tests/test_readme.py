@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from helpers import shared_tmpdir
 
 README = Path(__file__).resolve().parents[1] / "README.md"

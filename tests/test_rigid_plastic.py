@@ -7,9 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mpi4py import MPI
-
 from helpers import load_file
+from mpi4py import MPI
 
 drawing = load_file("drawing_case", Path(__file__).resolve().parents[1] / "benchmarks" /
                     "drawing_case.py")

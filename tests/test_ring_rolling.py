@@ -8,12 +8,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from helpers import run_readme_block, shared_tmpdir
 from mpi4py import MPI
 
+from fxcontact.contact.friction import Norton
 from fxcontact.idle import ControlledMotion
 from fxcontact.processes import RingRollingCase, ring_rolling
-
-from helpers import run_readme_block, shared_tmpdir
 
 NI = RingRollingCase().quick().increments_per_rev
 #: two increments of the quick (coarse) case 2: Coulomb friction on the main roll and the mandrel
@@ -187,10 +187,10 @@ def test_bad_parameters():
         RingRollingCase(n_theta=0)
     with pytest.raises(ValueError, match="idle_method must be one of"):
         RingRollingCase(idle_method="free")
-    # a friction given on the command line
-    assert RingRollingCase(mandrel_friction="norton,0.5,0.15").mandrel_friction == \
-        ("norton", 0.5, 0.15)
-    assert RingRollingCase(mandrel_friction="none").mandrel_friction is None
+    # a friction given on the command line (the former spelling of friction["mandrel"])
+    assert RingRollingCase(mandrel_friction="norton,0.5,0.15").friction["mandrel"] == \
+        Norton(0.5, 0.15)
+    assert "mandrel" not in RingRollingCase(mandrel_friction="none").friction
 
 
 def test_thesis_flow_stress_flagged():
@@ -254,9 +254,9 @@ def test_command_line_of_the_case():
         "--quick", "--idle_method", "outer", "--cones", "on", "--cone_speed", "0.4",
         "--mandrel_friction", "none", "--main_friction", "norton,0.5,0.15",
         "--active_set_prediction", "off", "--R", "110"])
-    assert (case.idle_method, case.cones, case.cone_speed, case.mandrel_friction) == \
-        ("outer", True, 0.4, None)
-    assert case.main_friction == ("norton", 0.5, 0.15) and case.active_set_prediction is False
+    assert (case.idle_method, case.cones, case.cone_speed) == ("outer", True, 0.4)
+    assert case.friction == {"main_roll": Norton(0.5, 0.15)}
+    assert case.active_set_prediction is False
     assert case.R == 110.0 and case.n_theta == RingRollingCase().quick().n_theta
     with pytest.raises(SystemExit):
         parse_case(parser, RingRollingCase, ["--cones", "maybe"])

@@ -44,7 +44,7 @@ from ffcx.element_interface import create_element
 from petsc4py import PETSc
 
 from fxcontact import compat
-from fxcontact.element.cell import tet_geometry, condense_system
+from fxcontact.element.cell import condense_system, tet_geometry
 from fxcontact.materials import NortonHoff
 
 __all__ = ["P1P1Layout", "CondensedAssembler", "FFCxElementTensors",

@@ -39,7 +39,7 @@ from fxcontact.collective import RanksDisagree, check_decision
 from fxcontact.element.assembled import CondensationLayout, CondensedPC
 from fxcontact.element.jacobian import (CondensedJacobian, ElementCondensedPC,
                                         element_condensation_supported, jacobian_shell)
-from fxcontact.newton.bordered import BorderedPC, BorderedOperator
+from fxcontact.newton.bordered import BorderedOperator, BorderedPC
 from fxcontact.newton.options import (LINE_SEARCHES, LINEAR_SOLVERS, MATERIAL_TANGENTS, SolveInfo,
                                       SolverOptions, globalization_options)
 from fxcontact.newton.prediction import ActiveSetPrediction

@@ -35,7 +35,7 @@ import csv
 import dataclasses
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from typing import List, Optional
 
 import dolfinx.fem
@@ -48,6 +48,7 @@ from fxcontact.io.series import pyplot
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.power import PowerBalance
 from fxcontact.processes.common import gather
+from fxcontact.processes.contact_laws import UNSET, Former, Friction, contact_friction
 from fxcontact.processes.monitor import (RunNumerics, SteadyMonitor, SteadyRun, StopRules,
                                          is_number, window_increments)
 
@@ -61,13 +62,61 @@ N_ROLLS = 3
 QUICK = dict(h=16.0, dt=20.0e-3, length_factor=2.6, settle=0.6, window=0.5)
 
 
+def _positive_field(name, value):
+    if not (_number(value) and value > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+
+
+def _friction_of(case, v: dict):
+    """The rolls' law of the former ``alpha_f``, ``q``: Norton (K of the material)."""
+    _positive_field("alpha_f", v["alpha_f"])
+    return fx.Norton(v["alpha_f"], v["q"])
+
+
+def _friction_values(case, law) -> Optional[dict]:
+    if isinstance(law, fx.Norton) and law.K is None:
+        return {"alpha_f": law.alpha_f, "q": law.q}
+    return None
+
+
+def _penalty_of(case, v: dict):
+    _positive_field("beta", v["beta"])
+    return fx.Penalty(beta=v["beta"])
+
+
+def _penalty_values(case, p) -> Optional[dict]:
+    return {"beta": p.beta} if p.beta is not None else None
+
+
 @dataclass(frozen=True)
 class BarRollingCase(RunNumerics):
     """One pass of a three-roll stand; the defaults are the thesis case (lengths mm, stresses
     MPa, times s): a round bar R0 = 58 → R1 = 48 mm, groove half-angle 50°, groove-bottom roll
     radius 180 mm, groove edges rounded 5 mm; Norton–Hoff K = 50 MPa·s^m, m = 0.03; Norton
     friction α_f = 0.3, q = 0.15; 100 mm/s; 9 mm elements, dt = 1 ms. :meth:`quick` is the
-    reduced size of the tests."""
+    reduced size of the tests.
+
+    **Contact** (the rolls ``"roll0"`` (… ``"roll2"`` in the full model) on the bar's lateral
+    surface, the pusher on its back face):
+
+    * ``penalty`` (:class:`fxcontact.Penalty`), of both contacts: ``Penalty(beta=10.0)`` by
+      default: ρ = β η(ε̄̇)/h [MPa·s/mm = N·s/mm³] (THEORY §2.5), η the secant viscosity
+      [MPa·s] at the bite's representative strain rate (v_R/L) ln(A₀/A_pass) unless the
+      Penalty gives ``strain_rate``, h [mm] the element size; ``Penalty(penalty=ρ)``,
+      ``Penalty(gap_stiffness=k)`` (k [MPa/mm], ρ = k·dt) as given.
+    * ``friction``: ``Norton(0.3, 0.15)`` on every roll by default (τ = α_f K s^q, α_f
+      dimensionless, K [MPa·s^q/mm^q] the material's, s the slip speed [mm/s]); any law, or
+      ``{"roll0": law, ...}``. ``slip_velocity`` regularises the slip speed.
+    * Former spellings, accepted for one release with a ``DeprecationWarning``: ``alpha_f``,
+      ``q`` (Norton) for ``friction``, ``beta`` for ``penalty``.
+
+    **How a penalty or a friction coefficient reaches its kernel.** ``case.penalty`` →
+    :func:`build` (``Penalty.completed(strain_rate=...)``: the bite's rate) →
+    ``NodalContact(penalty=, element_size=h)`` → ``Penalty.rho(material, dt, rate)`` at each
+    ``begin_increment`` (ρ fixed at the first) → ``penalty_kernel(S, rho, ...)``: four hops.
+    ``case.friction`` → ``NodalContact(friction=)`` (one law per roll) →
+    ``friction_arguments`` at each evaluation (per node: law code, α_f K, q) →
+    ``friction_kernel(...)``: three hops."""
 
     # the pass
     R0: float = 58.0                #: incoming bar radius
@@ -79,9 +128,8 @@ class BarRollingCase(RunNumerics):
     K: float = 50.0
     m: float = 0.03
     regularization: float = 1e-3    #: × the bite's strain rate
-    # the friction (Norton, K of the material)
-    alpha_f: float = 0.3
-    q: float = 0.15
+    #: the rolls' friction law (Norton, K of the material), or ``{roll name: law}``
+    friction: Friction = fx.Norton(0.3, 0.15)
     slip_velocity: float = 1e-3     #: × v_roll
     # the kinematics
     v_roll: float = 100.0           #: peripheral speed at the groove bottom
@@ -96,20 +144,30 @@ class BarRollingCase(RunNumerics):
     window: float = 0.5             #: roll travel per steady window, × L
     steady_tol: float = 0.02
     exit_offset: float = 0.5        #: the exit section this far past the roll axes, × L
-    beta: float = 10.0              #: contact penalty (dimensionless, THEORY §2.5)
+    #: the penalty of the rolls' and the pusher's contacts (β dimensionless, THEORY §2.5)
+    penalty: fx.Penalty = fx.Penalty(beta=10.0)
     m_start: float = 0.1            #: strain-rate sensitivity of the first increment
     model: str = "third"            #: "third" (symmetry planes) or "full"
     mesh: str = "symmetric"         #: "symmetric" or "gmsh"
     # RunNumerics, with Newton's trust region (fewer iterations and cut-backs here)
     line_search: str = "trust-region"
     max_increments: int = 5000
+    # former spellings of friction and penalty (one release)
+    alpha_f: InitVar[Optional[float]] = UNSET
+    q: InitVar[Optional[float]] = UNSET
+    beta: InitVar[Optional[float]] = UNSET
 
-    def __post_init__(self):
+    FRICTION_TOOLS = ("roll0", "roll1", "roll2")
+    FORMER = (Former("friction", {"alpha_f": 0.3, "q": 0.15}, _friction_of, _friction_values),
+              Former("penalty", {"beta": 10.0}, _penalty_of, _penalty_values))
+
+    def __post_init__(self, alpha_f, q, beta):
         super().__post_init__()
+        self.resolve_contact_laws(alpha_f=alpha_f, q=q, beta=beta)
         if not (_number(self.edge_radius) and self.edge_radius >= 0):
             raise ValueError(f"edge_radius must be >= 0, got {self.edge_radius!r}")
         for key in ("R0", "R1", "roll_radius", "K", "v_roll", "dt", "h", "length_factor",
-                    "alpha_f", "push_ratio", "window", "exit_offset", "beta", "regularization",
+                    "push_ratio", "window", "exit_offset", "regularization",
                     "slip_velocity", "m_start", "grip_travel", "steady_tol"):
             if not (_number(getattr(self, key)) and getattr(self, key) > 0):
                 raise ValueError(f"{key} must be a finite number > 0, got "
@@ -369,10 +427,12 @@ def build(case: BarRollingCase, comm=None) -> BarRollingSetup:
         normals = sector_plane_normals(120.0)
         for k, name in (("symmetry_0", "sym0"), ("symmetry_1", "sym1")):
             sim.add_symmetry_plane(sim.facets(ft, DRAWING_BAR_TAGS[k]), normals[k], name=name)
-    friction = {roll.name: fx.Norton(case.alpha_f, case.q) for roll in rolls}
-    penalty = dict(scheme=case.scheme, beta=case.beta, strain_rate=rate, element_size=case.h)
+    # β at the bite's strain rate (unless the case's Penalty gives one)
+    penalty = dict(scheme=case.scheme, penalty=case.penalty.completed(strain_rate=rate),
+                   element_size=case.h)
     rc = fx.NodalContact(fx.ContactBoundary(sp, ft, DRAWING_BAR_TAGS["lateral"]), rolls,
-                         friction=friction, slip_velocity=case.slip_velocity * v_R,
+                         friction=contact_friction(case.friction),
+                         slip_velocity=case.slip_velocity * v_R,
                          name="roll_contact", **penalty)
     A0 = math.pi * R0**2
     setup = BarRollingSetup(case, sim, rolls, mat, geo, L, omega, z_r, thetas,

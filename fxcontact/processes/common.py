@@ -9,7 +9,6 @@ on rank 0 only (matplotlib, no VTK).
 from __future__ import annotations
 
 import csv
-import dataclasses
 import functools
 import math
 import os
@@ -23,6 +22,7 @@ from mpi4py import MPI
 from fxcontact import compat
 from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.io.series import pyplot
+from fxcontact.processes.contact_laws import ContactLaws
 from fxcontact.processes.monitor import contact_lines
 from fxcontact.simulation import (IncrementError, format_iteration_split, format_wall_split,
                                   wall_split)
@@ -45,9 +45,11 @@ class _ClassOrCase:
         return types.MethodType(self.func, cls() if case is None else case)
 
 
-class CaseBase:
+class CaseBase(ContactLaws):
     """What the process cases (frozen dataclasses) share: :meth:`quick` (the reduced size of
-    the tests, the class's ``QUICK`` fields), :meth:`replace` and the checks of their common
+    the tests, the class's ``QUICK`` fields), :meth:`replace`, the ``penalty`` and
+    ``friction`` fields with their former spellings
+    (:class:`~fxcontact.processes.contact_laws.ContactLaws`) and the checks of their common
     fields, each a ``ValueError`` naming the field."""
 
     QUICK: Dict[str, object] = {}
@@ -58,10 +60,6 @@ class CaseBase:
         On the class (``ExtrusionCase.quick(alpha=30.0)``) from the default case; on a case
         (``case.quick()``, as the rolling cases) from that case: its other fields are kept."""
         return self.replace(**{**self.QUICK, **changes})
-
-    def replace(self, **changes):
-        """A copy with ``changes`` (checked)."""
-        return dataclasses.replace(self, **changes)
 
     def check_positive(self, names):
         """ValueError naming the first of the fields ``names`` that is not a finite number
@@ -98,7 +96,9 @@ def script_main(parser, case_type, run, default=None, argv=None, output_dir="res
     named after a field of ``case_type``) gets ``--quick`` (the case's :meth:`quick`),
     ``--vtk_every``, ``--no-pictures``, ``--output-dir`` and ``--verbose``/``--quiet``; the
     case is ``default`` (or the quick one) with the fields given; ``run(case, ...)`` is run and
-    its ``report()`` printed on rank 0. Returns the result."""
+    its ``report()`` printed on rank 0. An option named after a former field (``--mu``,
+    ``--beta``) sets the new field (:meth:`ContactLaws.with_options
+    <fxcontact.processes.contact_laws.ContactLaws.with_options>`). Returns the result."""
 
     parser.add_argument("--quick", action="store_true", help="the reduced size of the tests")
     parser.add_argument("--vtk_every", type=int, default=0)
@@ -110,7 +110,7 @@ def script_main(parser, case_type, run, default=None, argv=None, output_dir="res
     changes = {k: v for k, v in vars(a).items()
                if k in case_type.__dataclass_fields__ and v is not None}
     base = case_type.quick() if a.quick else (default or case_type())
-    res = run(base.replace(**changes), output_dir=a.output_dir, pictures=a.pictures,
+    res = run(base.with_options(**changes), output_dir=a.output_dir, pictures=a.pictures,
               vtk_every=a.vtk_every)
     if MPI.COMM_WORLD.rank == 0:
         print(res.report())

@@ -6,7 +6,8 @@ one inclined and imposed exactly) with a pointed nose already through the die is
 front face along +z; the back face is free (no back tension). The die is the analytic surface
 of revolution :class:`fxcontact.RevolvedProfile` (entry cone, fillet, bearing land, exit
 relief), or its sector triangulated and projected on flat facets or Nagata patches. Nodal
-penalty contact on the lateral surface, optional Tresca or Coulomb friction.
+penalty contact on the lateral surface (``penalty``), optional Tresca or Coulomb friction
+(``friction``).
 
 Measured per increment: the drawing force (reaction on the pulled face) and stress F/A₁, the
 true penetration against the exact die, contact nodes, the power balance, Newton iterations,
@@ -29,15 +30,16 @@ import logging
 import math
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import InitVar, dataclass
 from typing import Optional
 
 import numpy as np
 from mpi4py import MPI
 
 from fxcontact.contact.boundary import ContactBoundary
-from fxcontact.contact.friction import Coulomb, Tresca
-from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
+from fxcontact.contact.friction import Coulomb, Frictionless, Tresca
+from fxcontact.contact.nodal import SCHEMES, NodalContact
+from fxcontact.contact.penalty import Penalty
 from fxcontact.io.series import pyplot
 from fxcontact.meshing import DRAWING_BAR_TAGS
 from fxcontact.newton.solver import SolverOptions
@@ -45,6 +47,8 @@ from fxcontact.power import PowerBalance
 from fxcontact.processes.common import (CaseBase, ProcessResult, finish_run, gather,
                                         meridian_section, numerics_columns, plot_curves,
                                         plot_sections, run_increments, run_summary, steady_values)
+from fxcontact.processes.contact_laws import (UNSET, Former, Friction, contact_friction,
+                                              gap_penalty, law_text)
 from fxcontact.processes.die import (DIE_MESHES, DIES, bar_simulation, die_profile_tool, die_radius,
                                      die_tool, nose_layout, true_penetration)
 from fxcontact.simulation import Simulation
@@ -55,6 +59,48 @@ __all__ = ["DrawingCase", "DrawingSetup", "DrawingResult", "build", "run"]
 log = logging.getLogger("fxcontact.processes.drawing")
 
 
+def _friction_of(case, v: dict):
+    """The die's law of the former ``mu``, ``mbar``: Coulomb μ limited by m̄ (1 if 0), else
+    Tresca m̄, else none."""
+    mu, mbar = v["mu"], v["mbar"]
+    if mu < 0 or not 0 <= mbar <= 1:
+        raise ValueError(f"need mu >= 0 and 0 <= mbar <= 1, got {mu}, {mbar}")
+    if mu > 0:
+        return Coulomb(mu, mbar=mbar or 1.0)
+    return Tresca(mbar) if mbar > 0 else Frictionless()
+
+
+def _friction_values(case, law) -> Optional[dict]:
+    if isinstance(law, Coulomb) and law.mbar is not None:
+        return {"mu": law.mu, "mbar": law.mbar}
+    if isinstance(law, (Tresca, Frictionless)):
+        return {"mu": 0.0, "mbar": getattr(law, "mbar", 0.0)}
+    return None
+
+
+def _penalty_of(case, v: dict) -> Penalty:
+    """The penalty of the former ``penalty`` ("gap": a gap stiffness from β over
+    ``penalty_dt``, "velocity": β), ``beta``, ``penalty_dt``."""
+    kind, beta, dt = v["penalty"], v["beta"], v["penalty_dt"]
+    if kind not in ("gap", "velocity"):
+        raise ValueError(f"penalty must be a fxcontact.Penalty (or, formerly, 'gap' or "
+                         f"'velocity'), got {kind!r}")
+    if not (beta > 0 and (dt is None or dt > 0)):
+        raise ValueError(f"need beta > 0 and penalty_dt > 0 (or None), got {beta}, {dt}")
+    if kind == "gap":
+        return Penalty(beta=float(beta), gap=True,
+                       reference_dt=None if dt is None else float(dt))
+    return Penalty(beta=float(beta))
+
+
+def _penalty_values(case, p: Penalty) -> Optional[dict]:
+    a = p.as_given()
+    if a["beta"] is None:
+        return None
+    return {"penalty": "gap" if a["gap"] else "velocity", "beta": a["beta"],
+            "penalty_dt": a["reference_dt"]}
+
+
 @dataclass(frozen=True)
 class DrawingCase(CaseBase):
     """A wire-drawing case: lengths mm, stresses MPa, times s, angles degrees.
@@ -63,7 +109,35 @@ class DrawingCase(CaseBase):
     Norton–Hoff K = 445 MPa·s^m, m = 0.016 without the thesis's elastic part, frictionless,
     100 mm/s) with our die (10° cone, 2 mm fillet, 2 mm land, 20° relief 1 mm long).
     :meth:`quick` is the reduced size of the tests. Bad values raise ``ValueError`` naming the
-    field."""
+    field.
+
+    **Contact** (on the bar's lateral surface, the die its one tool, named ``"die"``):
+
+    * ``penalty`` (:class:`fxcontact.Penalty`): by default ``Penalty(beta=100.0, gap=True)``,
+      a stiffness on the end-of-increment gap k = ρ(β)/dt_ref [MPa/mm = N/mm³] with
+      ρ(β) = β η(ε̄̇)/h_e [MPa·s/mm] (THEORY §2.5; η the secant viscosity [MPa·s] at the die's
+      mean strain rate, h_e = ``h``/``size`` [mm], dt_ref = ``dt`` [s] unless the Penalty
+      gives ``reference_dt``); then ρ = k·dt at each increment, so that the penalty
+      penetration does not depend on dt. ``Penalty(beta=β)``: ρ = β η/h_e [MPa·s/mm] at the
+      representative strain rate estimated at the first increment and the contact's element
+      size; ``Penalty(penalty=ρ)``, ``Penalty(gap_stiffness=k)`` as given.
+    * ``friction``: the die's law, ``Frictionless()`` (default), ``Coulomb(mu, mbar=...)``
+      (μ dimensionless, limited by the Tresca m̄ k) or ``Tresca(mbar)`` (m̄ in [0, 1], k the
+      shear flow stress [MPa] at each node); or ``{"die": law}``. The references convert it
+      (:meth:`friction_references`).
+    * Former spellings, accepted for one release with a ``DeprecationWarning``: ``mu``,
+      ``mbar`` (Coulomb μ limited by m̄, 1 if 0; else Tresca m̄) for ``friction``;
+      ``penalty="gap"|"velocity"``, ``beta``, ``penalty_dt`` for ``penalty`` (``"gap"``:
+      ``Penalty(beta=beta, gap=True, reference_dt=penalty_dt)``).
+
+    **How a penalty or a friction coefficient reaches its kernel.** ``case.penalty`` →
+    :func:`build` (a gap stiffness from β takes the die's mean strain rate, h_e and dt:
+    :func:`~fxcontact.processes.contact_laws.gap_penalty`) → ``NodalContact(penalty=)`` (its
+    own copy, bound to the formulation) → ``Penalty.rho(material, dt, rate)`` at each
+    ``begin_increment`` (k resolved once, ρ = k·dt) → ``penalty_kernel(S, rho, ...)``: four
+    hops. ``case.friction`` → ``NodalContact(friction=)`` (one law per tool) →
+    ``friction_arguments`` at each evaluation (per node: law code, μ, m̄ k with k from
+    ``begin_increment``) → ``friction_kernel(...)``: three hops."""
 
     # geometry: bar and die
     R0: float = 10.0                 #: bar radius
@@ -79,9 +153,8 @@ class DrawingCase(CaseBase):
     # material (Norton–Hoff)
     K: float = 445.0
     m: float = 0.016
-    # friction on the die: Coulomb mu (limited by Tresca mbar, default 1) or Tresca mbar
-    mu: float = 0.0
-    mbar: float = 0.0
+    #: the die's friction law (or ``{"die": law}``)
+    friction: Friction = Frictionless()
     # kinematics
     speed: float = 100.0             #: pulling speed of the front face
     dt: float = 2.5e-3
@@ -93,9 +166,8 @@ class DrawingCase(CaseBase):
     die: str = "exact"               #: "exact", "flat" or "nagata"
     die_mesh: str = "gmsh"           #: faceted die: "gmsh" (unstructured) or "structured"
     scheme: str = "implicit"
-    penalty: str = "gap"             #: "gap": k = rho(beta)/penalty_dt; "velocity": beta
-    beta: float = 100.0
-    penalty_dt: Optional[float] = None
+    #: the contact penalty: a gap stiffness k = ρ(β)/dt [MPa/mm] from β = 100 by default
+    penalty: Penalty = Penalty(beta=100.0, gap=True)
     max_it: int = 60
     #: Newton's relative tolerance on the residual (``SolverOptions.rtol``); 1e-6 instead of
     #: 1e-9 saves 15 % of the Newton iterations at size 0.4 with the drawing stress within
@@ -123,6 +195,16 @@ class DrawingCase(CaseBase):
     steady_tol: float = 0.02
     settle: Optional[float] = None
     stop_at_steady: bool = False
+    # former spellings of friction and penalty (one release)
+    mu: InitVar[Optional[float]] = UNSET
+    mbar: InitVar[Optional[float]] = UNSET
+    beta: InitVar[Optional[float]] = UNSET
+    penalty_dt: InitVar[Optional[float]] = UNSET
+
+    FRICTION_TOOLS = ("die",)
+    FORMER = (Former("friction", {"mu": 0.0, "mbar": 0.0}, _friction_of, _friction_values),
+              Former("penalty", {"penalty": "gap", "beta": 100.0, "penalty_dt": None},
+                     _penalty_of, _penalty_values))
 
     #: the reduced size of the tests: R₀ 5 → 3.75 mm (same reduction), h = 1.5 mm, a short bar,
     #: 5 ms increments, stop at steady state
@@ -130,7 +212,11 @@ class DrawingCase(CaseBase):
                  fillet=1.0, relief_length=0.5, window=1.5, steady_tol=0.02,
                  stop_at_steady=True)
 
-    def __post_init__(self):
+    def __post_init__(self, mu, mbar, beta, penalty_dt):
+        self.resolve_contact_laws(mu=mu, mbar=mbar, beta=beta, penalty_dt=penalty_dt)
+        if not isinstance(self.tool_friction("die"), (Coulomb, Tresca, Frictionless)):
+            raise ValueError(f"friction of the die must be Coulomb, Tresca or Frictionless (the "
+                             f"references need mu or mbar), got {self.friction!r}")
         self.check_positive(("R0", "R1", "length", "K", "speed", "alpha", "land", "h", "facet",
                              "size", "dt", "t_end", "window", "steady_tol", "sector"))
         self.check_bar_and_die(alpha_max=45.0)
@@ -142,13 +228,6 @@ class DrawingCase(CaseBase):
             raise ValueError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
         if self.scheme == "implicit-exact" and self.die == "flat":
             raise ValueError("implicit-exact needs the gap Hessian: die 'exact' or 'nagata'")
-        if self.penalty not in ("gap", "velocity"):
-            raise ValueError(f"penalty must be 'gap' or 'velocity', got {self.penalty!r}")
-        if not (self.beta > 0 and (self.penalty_dt is None or self.penalty_dt > 0)):
-            raise ValueError(f"need beta > 0 and penalty_dt > 0 (or None), got {self.beta}, "
-                             f"{self.penalty_dt}")
-        if self.mu < 0 or not 0 <= self.mbar <= 1:
-            raise ValueError(f"need mu >= 0 and 0 <= mbar <= 1, got {self.mu}, {self.mbar}")
         if not 0.0 < self.newton_rtol < 1.0:
             raise ValueError(f"newton_rtol must be in (0, 1), got {self.newton_rtol!r}")
         if not 0.0 <= self.newton_ftol < 1.0:
@@ -164,10 +243,15 @@ class DrawingCase(CaseBase):
     def friction_references(self):
         """(μ, m̄) of the references: Sachs needs a Coulomb μ, Avitzur a Tresca m̄; the other
         one is converted with the pressure p ≈ σ₀ in the die (τ = μp = m̄σ₀/√3, an
-        approximation): Coulomb μ gives m̄ = min(m̄_cap, √3 μ), Tresca m̄ gives μ = m̄/√3."""
-        if self.mu > 0:
-            return self.mu, min(self.mbar or 1.0, math.sqrt(3) * self.mu)
-        return self.mbar / math.sqrt(3), self.mbar
+        approximation): Coulomb μ gives m̄ = min(m̄_cap, √3 μ) (m̄_cap 1 without a cap),
+        Tresca m̄ gives μ = m̄/√3."""
+        law = self.tool_friction("die")
+        mu = law.mu if isinstance(law, Coulomb) else 0.0
+        if mu > 0:
+            cap = law.mbar if law.mbar is not None else 1.0
+            return mu, min(cap, math.sqrt(3) * mu)
+        mbar = law.mbar if isinstance(law, Tresca) else 0.0
+        return mbar / math.sqrt(3), mbar
 
     def theory(self) -> dict:
         """The band of THEORY §14.2 (:func:`fxcontact.theory.forming.drawing_theory`) with the
@@ -178,14 +262,6 @@ class DrawingCase(CaseBase):
                                     land_length=self.land)
         th.update(mu_ref=mu_ref, mbar_ref=mbar_ref)
         return th
-
-    def friction_law(self):
-        """The die's friction law (None: frictionless)."""
-        if self.mu > 0:
-            return Coulomb(self.mu, mbar=self.mbar or 1.0)
-        if self.mbar > 0:
-            return Tresca(self.mbar)
-        return None
 
     def solver_options(self) -> SolverOptions:
         return SolverOptions(max_it=int(self.max_it), rtol=float(self.newton_rtol),
@@ -231,17 +307,13 @@ def build(case: DrawingCase, comm=None, output_dir: Optional[str] = None,
                              case.relief_length)
     die, sag = die_tool(exact, case.die, case.die_mesh, case.sector, g.facet, g.h, case.R0,
                         case.R1, case.fillet, comm)
-    if case.penalty == "gap":
-        # a stiffness on the end-of-increment gap, k = ρ(β)/dt_ref: the penalty penetration
-        # p/k does not depend on dt (the thesis's implicit penetration does not change with
-        # 4 dt); ρ(β) = β η(ε̄̇_mean)/h (THEORY §2.5) at the die's mean strain rate
-        rho = penalty_from_beta(mat, float(case.beta), g.h, strain_rate=theory["strain_rate"])
-        kw = {"gap_stiffness": rho / float(case.penalty_dt or case.dt)}
-    else:
-        kw = {"beta": float(case.beta)}
+    # by default a stiffness on the end-of-increment gap, k = ρ(β)/dt_ref: the penalty
+    # penetration p/k does not depend on dt (the thesis's implicit penetration does not change
+    # with 4 dt); ρ(β) = β η(ε̄̇_mean)/h (THEORY §2.5) at the die's mean strain rate
+    penalty = gap_penalty(case.penalty, theory["strain_rate"], g.h, case.dt)
     contact = NodalContact(ContactBoundary(space, ft, DRAWING_BAR_TAGS["lateral"]), die,
-                           scheme=case.scheme, friction=case.friction_law(), name="contact",
-                           **kw)
+                           scheme=case.scheme, friction=contact_friction(case.friction),
+                           name="contact", penalty=penalty)
     sim.add_contributor(contact)
     dofs = space.W.dofmap.index_map.size_global * space.W.dofmap.index_map_bs
     return DrawingSetup(case, sim, contact, exact, die, sag, ft, g, theory, dofs)
@@ -272,7 +344,7 @@ class DrawingResult(ProcessResult):
         lines = [
             f"wire drawing R0 {c.R0:g} -> {c.R1:g} mm (reduction {100 * th['reduction']:.2f} "
             f"%), alpha {c.alpha:g} deg, land {c.land:g} mm, die {c.die}, scheme {c.scheme}, "
-            f"mu {c.mu:g}, mbar {c.mbar:g}; h {self.h:.3g} mm, facets {self.facet:.3g} mm, "
+            f"{law_text(c.friction)}; h {self.h:.3g} mm, facets {self.facet:.3g} mm, "
             f"{self.dofs} dofs, {self.ranks} rank(s)",
             f"status: {self.status} {self.message}; {self.increments} increments of "
             f"{c.dt:g} s to t = {self.time:.4g} s",

@@ -5,7 +5,7 @@ face, reaction ``punch``) through a conical die to the radius R₁; one sector a
 modelled, with symmetry planes like the drawing. The billet is meshed with a nose already
 through the die (:func:`fxcontact.processes.die.nose_layout`: the die's entry is at the
 container's radius; the corner where the container meets the cone is rounded by an arc of
-radius ``entry_fillet``). Tresca friction on the die and on the container.
+radius ``entry_fillet``). Tresca friction on the die and on the container (``friction``).
 
 **Tools** (``container``): ``"separate"`` (default) — the container is its own tool, a
 :class:`~fxcontact.RevolvedProfile` of one straight line at R₀ (an infinite bore), and the die
@@ -28,9 +28,8 @@ strictly the nearer tool upstream.
 node from its own strain rate (averaged over the adjacent cells, with the material's
 regularisation) — on the container wall the billet moves rigidly, so k there is far below the
 k = σ₀/√3 of the die's mean strain rate that the theory uses. ``container_shear_limit`` gives
-the container's law a fixed k (``Tresca(m̄, shear_limit=k)``): the container force must then
-equal 2 m̄ k L_c/R₀ times the punch area (the check of the tests). The die's law always takes
-the local k.
+the container's law a fixed k (``friction={"container": Tresca(m̄, shear_limit=k), ...}``):
+the container force must then equal 2 m̄ k L_c/R₀ times the punch area (the check of the tests).
 
 Measured per increment: punch force and pressure F/A₀, the container's axial force and its
 theory, the die pressure (punch minus container), penetration, contact nodes, the power
@@ -51,15 +50,16 @@ import logging
 import math
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import InitVar, dataclass
 from typing import Optional
 
 import numpy as np
 from mpi4py import MPI
 
 from fxcontact.contact.boundary import ContactBoundary
-from fxcontact.contact.friction import Tresca
-from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
+from fxcontact.contact.friction import Frictionless, ShearLimit, Tresca
+from fxcontact.contact.nodal import SCHEMES, NodalContact
+from fxcontact.contact.penalty import Penalty
 from fxcontact.io.series import pyplot
 from fxcontact.meshing import DRAWING_BAR_TAGS
 from fxcontact.newton.solver import SolverOptions
@@ -67,6 +67,8 @@ from fxcontact.power import PowerBalance
 from fxcontact.processes.common import (CaseBase, ProcessResult, finish_run, meridian_section,
                                         numerics_columns, plot_curves, plot_sections,
                                         run_increments, run_summary, steady_values, vertex_field)
+from fxcontact.processes.contact_laws import (UNSET, Former, Friction, ToolLaws, contact_friction,
+                                              gap_penalty, law_text)
 from fxcontact.processes.die import bar_simulation, die_profile_tool, die_radius, nose_layout
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone
@@ -82,6 +84,48 @@ log = logging.getLogger("fxcontact.processes.extrusion")
 CONTAINERS = ("separate", "profile")
 
 
+def _friction_of(case, v: dict):
+    """The laws of the former ``mbar_die``, ``mbar_container``, ``container_shear_limit``:
+    Tresca on each tool (none if both factors are 0); one law for the one profile."""
+    for key in ("mbar_die", "mbar_container"):
+        if not 0 <= v[key] <= 1:
+            raise ValueError(f"{key} must be in [0, 1], got {v[key]}")
+    k_c = v["container_shear_limit"]
+    if k_c is not None and not (isinstance(k_c, (int, float)) and math.isfinite(k_c)
+                                and k_c > 0):
+        raise ValueError(f"container_shear_limit must be a finite number > 0, got {k_c!r}")
+    if case.container == "profile":
+        if v["mbar_die"] != v["mbar_container"] or k_c is not None:
+            raise ValueError("container 'profile' is one tool with one friction law: give "
+                             "mbar_die == mbar_container and no container_shear_limit, or "
+                             "container='separate'")
+        return Tresca(v["mbar_die"]) if v["mbar_die"] > 0 else Frictionless()
+    if v["mbar_die"] > 0 or v["mbar_container"] > 0:
+        return ToolLaws(container=Tresca(v["mbar_container"], k_c), die=Tresca(v["mbar_die"]))
+    return Frictionless()
+
+
+def _friction_values(case, friction) -> Optional[dict]:
+    laws = {t: (friction if not isinstance(friction, dict) else
+                friction.get(t, Frictionless())) for t in ("container", "die")}
+    if not all(isinstance(law, (Tresca, Frictionless)) for law in laws.values()):
+        return None
+    k = getattr(laws["container"], "shear_limit", None)
+    return {"mbar_die": getattr(laws["die"], "mbar", 0.0),
+            "mbar_container": getattr(laws["container"], "mbar", 0.0),
+            "container_shear_limit": k}
+
+
+def _penalty_of(case, v: dict) -> Penalty:
+    if not (isinstance(v["beta"], (int, float)) and math.isfinite(v["beta"]) and v["beta"] > 0):
+        raise ValueError(f"beta must be a finite number > 0, got {v['beta']!r}")
+    return Penalty(beta=float(v["beta"]), gap=True)
+
+
+def _penalty_values(case, p: Penalty) -> Optional[dict]:
+    return {"beta": p.beta} if p.beta is not None else None
+
+
 @dataclass(frozen=True)
 class ExtrusionCase(CaseBase):
     """A forward-extrusion case: lengths mm, stresses MPa, times s, angles degrees.
@@ -90,7 +134,32 @@ class ExtrusionCase(CaseBase):
     through a 20° die, Norton–Hoff K = 40 MPa·s^m, m = 0.1 (σ₀ ≈ 80 MPa at the die's rate),
     punch at 10 mm/s, Tresca m̄ 0.1 on the die and 0.3 on the container, one quarter.
     :meth:`quick` is the reduced size of the tests. Bad values raise ``ValueError`` naming the
-    field."""
+    field.
+
+    **Contact** (on the billet's lateral surface; tools ``"container"`` and ``"die"``, or the
+    one profile named ``"die"``):
+
+    * ``penalty`` (:class:`fxcontact.Penalty`): by default ``Penalty(beta=100.0, gap=True)``,
+      as the drawing: k = ρ(β)/dt [MPa/mm = N/mm³], ρ(β) = β η(ε̄̇)/h [MPa·s/mm] with η the
+      secant viscosity [MPa·s] at the die's mean strain rate, h [mm] and dt [s] of the case
+      (unless the Penalty gives them); ρ = k·dt at each increment. ``Penalty(beta=β)``: ρ at
+      the strain rate estimated at the first increment and the contact's element size.
+    * ``friction``: ``{"container": Tresca(0.3), "die": Tresca(0.1)}`` by default (m̄
+      dimensionless in [0, 1], τ = m̄ k with k [MPa] the shear flow stress at each node's
+      strain rate, or given: ``Tresca(m̄, shear_limit=k)``); one law for both tools; Tresca
+      or ``Frictionless()`` (the theory's m̄). With ``container="profile"`` the two laws must
+      be equal.
+    * Former spellings, accepted for one release with a ``DeprecationWarning``:
+      ``mbar_die``, ``mbar_container``, ``container_shear_limit`` for ``friction`` (Tresca on
+      each tool, none if both are 0), ``beta`` for ``penalty``.
+
+    **How a penalty or a friction coefficient reaches its kernel.** ``case.penalty`` →
+    :func:`build` (:func:`~fxcontact.processes.contact_laws.gap_penalty`: the die's mean
+    strain rate, h, dt) → ``NodalContact(penalty=)`` → ``Penalty.rho(material, dt, rate)`` at
+    each ``begin_increment`` → ``penalty_kernel(S, rho, ...)``: four hops. ``case.friction``
+    → ``NodalContact(friction=)`` (one law per tool) → ``friction_arguments`` at each
+    evaluation (per node: law code, m̄ k with k from ``begin_increment``) →
+    ``friction_kernel(...)``: three hops."""
 
     # geometry: billet, container, die
     R0: float = 10.0                 #: billet and container radius
@@ -108,10 +177,8 @@ class ExtrusionCase(CaseBase):
     # material (Norton–Hoff)
     K: float = 40.0
     m: float = 0.1
-    # friction (Tresca); the container's k: None = local nodal strain rate, or a given k
-    mbar_die: float = 0.1
-    mbar_container: float = 0.3
-    container_shear_limit: Optional[float] = None
+    #: the friction laws (Tresca): ``{"container": law, "die": law}`` or one law for both
+    friction: Friction = ToolLaws(container=Tresca(0.3), die=Tresca(0.1))
     # kinematics
     speed: float = 10.0              #: punch speed
     dt: float = 0.025
@@ -119,7 +186,8 @@ class ExtrusionCase(CaseBase):
     # numerics
     h: float = 1.0
     scheme: str = "implicit"
-    beta: float = 100.0              #: gap stiffness k = rho(beta)/dt (as the drawing)
+    #: the contact penalty: a gap stiffness k = ρ(β)/dt [MPa/mm] (as the drawing)
+    penalty: Penalty = Penalty(beta=100.0, gap=True)
     max_it: int = 60
     max_cutbacks: int = 4
     # steady state of the die pressure: two windows of `window` mm of punch travel agree within
@@ -134,29 +202,39 @@ class ExtrusionCase(CaseBase):
     remesh: bool = False
     remesh_min_quality: float = 0.2
     remesh_zone_h: Optional[float] = None
+    # former spellings of friction and penalty (one release)
+    mbar_die: InitVar[Optional[float]] = UNSET
+    mbar_container: InitVar[Optional[float]] = UNSET
+    container_shear_limit: InitVar[Optional[float]] = UNSET
+    beta: InitVar[Optional[float]] = UNSET
+
+    FRICTION_TOOLS = ("container", "die")
+    FORMER = (Former("friction", {"mbar_die": 0.1, "mbar_container": 0.3,
+                                  "container_shear_limit": None},
+                     _friction_of, _friction_values),
+              Former("penalty", {"beta": 100.0}, _penalty_of, _penalty_values))
 
     #: the reduced size of the tests: R₀ 5 → 3.5 mm, h = 1 mm, a short billet
     QUICK = dict(R0=5.0, R1=3.5, length=14.0, h=1.0, land=0.5, fillet=0.5, relief_length=0.5,
                  entry_fillet=0.5, t_end=0.6, window=1.0, stop_at_steady=True)
 
-    def __post_init__(self):
+    def __post_init__(self, mbar_die, mbar_container, container_shear_limit, beta):
+        self.resolve_contact_laws(mbar_die=mbar_die, mbar_container=mbar_container,
+                                  container_shear_limit=container_shear_limit, beta=beta)
         self.check_positive(("R0", "R1", "length", "K", "speed", "alpha", "land", "h", "dt",
-                             "t_end", "window", "steady_tol", "sector", "beta"))
+                             "t_end", "window", "steady_tol", "sector"))
         self.check_bar_and_die(alpha_max=90.0)
         if not (math.isfinite(self.entry_fillet) and self.entry_fillet >= 0):
             raise ValueError(f"entry_fillet must be finite and >= 0, got {self.entry_fillet}")
-        for key in ("mbar_die", "mbar_container"):
-            if not 0 <= getattr(self, key) <= 1:
-                raise ValueError(f"{key} must be in [0, 1], got {getattr(self, key)}")
-        if self.container_shear_limit is not None:
-            self.check_positive(("container_shear_limit",))
+        laws = [self.tool_friction(t) for t in ("container", "die")]
+        if not all(isinstance(law, (Tresca, Frictionless)) for law in laws):
+            raise ValueError(f"friction must be Tresca or Frictionless laws (the theory's m̄), "
+                             f"got {self.friction!r}")
         if self.container not in CONTAINERS:
             raise ValueError(f"container must be one of {CONTAINERS}, got {self.container!r}")
-        if self.container == "profile" and (self.mbar_die != self.mbar_container
-                                            or self.container_shear_limit is not None):
+        if self.container == "profile" and laws[0] != laws[1]:
             raise ValueError("container 'profile' is one tool with one friction law: give "
-                             "mbar_die == mbar_container and no container_shear_limit, or "
-                             "container='separate'")
+                             "one law (friction=Tresca(m)), or container='separate'")
         self.check_remesh_fields()
         if self.scheme not in SCHEMES:
             raise ValueError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
@@ -191,14 +269,24 @@ class ExtrusionCase(CaseBase):
             arcs = [-self.entry_fillet] + arcs              # clockwise: towards the axis
         return pts, arcs
 
+    def friction_factors(self) -> dict:
+        """The theory's friction: ``mbar_die``, ``mbar_container`` (0 frictionless) and
+        ``container_shear_limit``, the k [MPa] given in the container's law (None: k from the
+        strain rate)."""
+        die, cont = self.tool_friction("die"), self.tool_friction("container")
+        src = cont.k_source if isinstance(cont, Tresca) else ShearLimit()
+        return dict(mbar_die=getattr(die, "mbar", 0.0), mbar_container=getattr(cont, "mbar", 0.0),
+                    container_shear_limit=src.value)
+
     def theory(self, container_length: float = 0.0) -> dict:
         """:func:`fxcontact.theory.forming.extrusion_theory` for ``container_length`` L_c of billet
-        in the container (k of the container's friction: ``container_shear_limit`` if given,
-        else σ₀/√3 at the die's mean rate)."""
+        in the container (k of the container's friction: the k given in its law, else σ₀/√3
+        at the die's mean rate)."""
+        f = self.friction_factors()
         return forming.extrusion_theory(self.K, self.m, self.R0, self.R1,
-                                        math.radians(self.alpha), self.speed, self.mbar_die,
-                                        self.mbar_container, container_length, self.land,
-                                        shear_yield=self.container_shear_limit)
+                                        math.radians(self.alpha), self.speed, f["mbar_die"],
+                                        f["mbar_container"], container_length, self.land,
+                                        shear_yield=f["container_shear_limit"])
 
 
 @dataclass
@@ -245,17 +333,16 @@ def build(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
         die = RevolvedProfile(np.vstack([[pts[0, 0], 1.5 * case.R0], pts]), [None] + arcs,
                               inside=True, name="die")
         tools = [container, die]
-        friction = {"container": Tresca(case.mbar_container, case.container_shear_limit),
-                    "die": Tresca(case.mbar_die)}
+        friction = contact_friction(case.friction)
     else:
         tools = [profile]
-        friction = Tresca(case.mbar_die)
-    friction = friction if case.mbar_die > 0 or case.mbar_container > 0 else None
-    # the drawing's penalty: a gap stiffness k = ρ(β)/dt at the die's mean strain rate
-    rho = penalty_from_beta(mat, float(case.beta), g.h, strain_rate=th["strain_rate"])
+        friction = case.tool_friction("die")
+    # the drawing's penalty: by default a gap stiffness k = ρ(β)/dt at the die's mean strain
+    # rate
+    penalty = gap_penalty(case.penalty, th["strain_rate"], g.h, case.dt)
     contact = NodalContact(ContactBoundary(space, ft, DRAWING_BAR_TAGS["lateral"]), tools,
                            scheme=case.scheme, friction=friction, name="contact",
-                           gap_stiffness=rho / case.dt)
+                           penalty=penalty)
     sim.add_contributor(contact)
     if case.remesh:
         sim.set_remeshing(RemeshCriteria(min_quality=case.remesh_min_quality), size=case.h,
@@ -301,12 +388,13 @@ class ExtrusionResult(ProcessResult):
     def report(self) -> str:
         """A summary for the console."""
         c, th = self.case, self.theory
-        k_c = ("given k = %.4g MPa" % c.container_shear_limit if c.container_shear_limit
+        f = c.friction_factors()
+        k_c = ("given k = %.4g MPa" % f["container_shear_limit"] if f["container_shear_limit"]
                else "k from the local nodal strain rate")
         lines = [
             f"forward extrusion R0 {c.R0:g} -> {c.R1:g} mm (reduction "
             f"{100 * th['reduction']:.1f} %, ratio {th['extrusion_ratio']:.2f}), alpha "
-            f"{c.alpha:g} deg, mbar die {c.mbar_die:g} / container {c.mbar_container:g} "
+            f"{c.alpha:g} deg, mbar die {f['mbar_die']:g} / container {f['mbar_container']:g} "
             f"({k_c}), tools {c.container}; h {self.h:.3g} mm, {self.dofs} dofs, "
             f"{self.ranks} rank(s)",
             f"status: {self.status} {self.message}; {self.increments} increments of {c.dt:g} s "
@@ -345,6 +433,7 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
     sim, contact, g = s.sim, s.contact, s.layout
     balance = PowerBalance(sim, [contact])
     k_c = case.theory()["shear_yield"]
+    mbar_container = case.friction_factors()["mbar_container"]
     separate = case.container == "separate"
 
     remeshes = [0]
@@ -356,7 +445,7 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
         F = r["punch_z"]
         Lc = max(s.corner - case.speed * r["time"], 0.0)
         Fc = r["container_force_z"] if separate else math.nan
-        Fc_th = case.mbar_container * k_c * math.radians(case.sector) * case.R0 * Lc
+        Fc_th = mbar_container * k_c * math.radians(case.sector) * case.R0 * Lc
         return dict(
             increment=r["increment"], time=r["time"], dt=r["dt"], punch_force=F,
             punch_pressure=F / g.A0, container_length=Lc, container_force=Fc,
@@ -396,7 +485,7 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
                                                "power_balance_penalty"))
         sel = rows[first:last + 1]
         ratio = None
-        if separate and case.mbar_container > 0:
+        if separate and mbar_container > 0:
             ratio = float(np.mean([q["container_force"] / q["container_force_theory"]
                                    for q in sel]))
         out = dataclasses.replace(
@@ -429,8 +518,8 @@ def _pictures(comm, s: ExtrusionSetup, res: ExtrusionResult, out: str):
                            (rate, "equivalent strain rate [1/s]", "magma")],
                   outline=(sz, die_radius(s.profile, sz), "container and die"),
                   r_max=1.3 * c.R0, xlabel="z [mm] (extrusion direction →)",
-                  title=f"Extrusion R₀ {c.R0:g} → {c.R1:g} mm, α = {c.alpha:g}°, m̄ die "
-                        f"{c.mbar_die:g} / container {c.mbar_container:g}, t = {res.time:.3g}"
+                  title=f"Extrusion R₀ {c.R0:g} → {c.R1:g} mm, α = {c.alpha:g}°, "
+                        f"{law_text(c.friction)}, t = {res.time:.3g}"
                         f" s: θ = 0 section; the slow corner between the container and the die: "
                         f"dead-metal zone")
     plt = pyplot()

@@ -24,7 +24,7 @@ import csv
 import dataclasses
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from typing import List, Optional
 
 import dolfinx
@@ -37,6 +37,7 @@ from fxcontact import compat
 from fxcontact.io.series import pyplot
 from fxcontact.power import PowerBalance
 from fxcontact.processes.common import gather
+from fxcontact.processes.contact_laws import UNSET, Former, Friction, contact_friction, law_text
 from fxcontact.processes.monitor import (RunNumerics, SteadyMonitor, SteadyRun, StopRules,
                                          is_number, window_increments)
 from fxcontact.theory import flat_rolling as rolling
@@ -52,13 +53,51 @@ QUICK = dict(h_x=7.5, ny=3, nz=2, dt=3.0e-3, length_factor=2.2, settle=0.3, wind
              steady_tol=0.02)
 
 
+def _friction_of(case, v: dict):
+    """The roll's law of the former ``mu``, ``mbar``: Coulomb μ limited by Tresca m̄."""
+    if not (_number(v["mu"]) and v["mu"] >= 0):
+        raise ValueError(f"mu (Coulomb) must be a finite number >= 0, got {v['mu']!r}")
+    if not (_number(v["mbar"]) and 0.0 <= v["mbar"] <= 1.0):
+        raise ValueError(f"mbar (Tresca factor) must be in [0, 1], got {v['mbar']!r}")
+    return fx.Coulomb(v["mu"], mbar=v["mbar"])
+
+
+def _friction_values(case, law) -> Optional[dict]:
+    if isinstance(law, fx.Coulomb) and law.mbar is not None:
+        return {"mu": law.mu, "mbar": law.mbar}
+    return None
+
+
 @dataclass(frozen=True)
 class FlatRollingCase(RunNumerics):
     """One pass of flat rolling; the defaults are the thesis case (lengths mm, stresses MPa,
     times s): a strip 100 mm wide, 25 → 18 mm (28 %), rolls R = 300 mm at 500 mm/s,
     Norton–Hoff K = 30 MPa·s^m, m = 0.3, Coulomb μ = 0.3 limited by Tresca m̄ = 1; the mesh
     and dt of the thesis (3 mm along the strip, 8 × 4 elements across the quarter section,
-    dt = 0.75 ms). :meth:`quick` is the reduced size of the tests."""
+    dt = 0.75 ms). :meth:`quick` is the reduced size of the tests.
+
+    **Contact** (the roll on the strip's top face, the tool ``"roll"``; the pusher on its tail
+    face, frictionless):
+
+    * ``penalty`` (:class:`fxcontact.Penalty`), of both contacts: ``Penalty()`` by default,
+      β = 1e3 (THEORY §2.5): ρ = β η(ε̄̇)/h_e [MPa·s/mm = N·s/mm³], η the secant viscosity
+      [MPa·s] at the representative strain rate estimated at the first increment, h_e [mm]
+      from the contact's nodal areas; or ``Penalty(beta=..., strain_rate=...)``,
+      ``Penalty(penalty=ρ)``, ``Penalty(gap_stiffness=k)`` (k [MPa/mm], ρ = k·dt).
+    * ``friction``: the roll's law, ``Coulomb(0.3, mbar=1.0)`` by default (μ dimensionless,
+      limited by the Tresca m̄ k, k [MPa] the shear flow stress at each node's strain rate);
+      ``Tresca(mbar)``, ``Frictionless()``; or ``{"roll": law}``. The slab theory reads its μ
+      and m̄ (:meth:`friction_coefficients`). ``slip_ratio`` regularises the slip speed.
+    * Former spellings, accepted for one release with a ``DeprecationWarning``: ``mu``,
+      ``mbar`` (Coulomb μ limited by m̄) for ``friction``.
+
+    **How a penalty or a friction coefficient reaches its kernel.** ``case.penalty`` →
+    ``NodalContact(penalty=)`` (each contact its own copy) → ``Penalty.rho(material, dt,
+    rate)`` at each ``begin_increment`` (β resolved once, at the first increment's
+    representative strain rate) → ``penalty_kernel(S, rho, ...)``: three hops.
+    ``case.friction`` → ``NodalContact(friction=)`` (one law per tool) →
+    ``friction_arguments`` at each evaluation (per node: law code, μ, m̄ k with k from
+    ``begin_increment``) → ``friction_kernel(...)``: three hops."""
 
     # the pass
     R: float = 300.0                #: roll radius
@@ -68,9 +107,8 @@ class FlatRollingCase(RunNumerics):
     # the material
     K: float = 30.0                 #: Norton–Hoff consistency
     m: float = 0.3                  #: strain-rate sensitivity
-    # the friction (Coulomb limited by Tresca, k from the material at the nodes)
-    mu: float = 0.3
-    mbar: float = 1.0
+    #: the roll's friction law (Coulomb limited by Tresca, k from the material at the nodes)
+    friction: Friction = fx.Coulomb(0.3, mbar=1.0)
     slip_ratio: float = 1e-3        #: regularisation velocity of the law / v_roll
     # the kinematics
     v_roll: float = 500.0           #: peripheral speed of the rolls
@@ -89,11 +127,23 @@ class FlatRollingCase(RunNumerics):
     steady_tol: float = 0.03        #: relative change of the window means
     roll: str = "analytic"          #: one of :data:`ROLLS`
     facet_size: Optional[float] = None   #: faceted roll: facet width (default h_x/2)
+    #: the penalty of the roll's and the pusher's contacts
+    penalty: fx.Penalty = fx.Penalty()
     # (RunNumerics: scheme, line_search, penalty_continuation, active_set_prediction,
     # newton_ftol, max_increments)
+    # former spellings of friction (one release)
+    mu: InitVar[Optional[float]] = UNSET
+    mbar: InitVar[Optional[float]] = UNSET
 
-    def __post_init__(self):
+    FRICTION_TOOLS = ("roll",)
+    FORMER = (Former("friction", {"mu": 0.3, "mbar": 1.0}, _friction_of, _friction_values),)
+
+    def __post_init__(self, mu, mbar):
         super().__post_init__()
+        self.resolve_contact_laws(mu=mu, mbar=mbar)
+        if not isinstance(self.tool_friction("roll"), (fx.Coulomb, fx.Tresca, fx.Frictionless)):
+            raise ValueError(f"friction of the roll must be Coulomb, Tresca or Frictionless (the "
+                             f"slab theory's mu and mbar), got {self.friction!r}")
         for key in ("R", "h0", "width", "K", "v_roll", "dt", "h_x", "length_factor",
                     "slip_ratio", "push_ratio", "grip_travel", "window", "steady_tol"):
             _positive(key, getattr(self, key))
@@ -107,10 +157,6 @@ class FlatRollingCase(RunNumerics):
                              f"got {self.nose!r}")
         if not (_number(self.m) and 0.0 < self.m <= 1.0):
             raise ValueError(f"m (strain-rate sensitivity) must be in (0, 1], got {self.m!r}")
-        if not (_number(self.mu) and self.mu >= 0):
-            raise ValueError(f"mu (Coulomb) must be a finite number >= 0, got {self.mu!r}")
-        if not (_number(self.mbar) and 0.0 <= self.mbar <= 1.0):
-            raise ValueError(f"mbar (Tresca factor) must be in [0, 1], got {self.mbar!r}")
         if not (_number(self.settle) and self.settle >= 0):
             raise ValueError(f"settle must be a finite number >= 0, got {self.settle!r}")
         for key in ("ny", "nz"):
@@ -125,6 +171,17 @@ class FlatRollingCase(RunNumerics):
         """This pass at the reduced size of the tests: 7.5 mm elements, 3 × 2 across the
         quarter section, dt = 3 ms, a short strip and short steady windows."""
         return dataclasses.replace(self, **QUICK)
+
+    def friction_coefficients(self):
+        """(μ, m̄) of the roll's law for the slab theory
+        (:func:`fxcontact.theory.flat_rolling.slab`: μ None is Tresca alone, m̄ None pure
+        Coulomb): Coulomb (μ, m̄), Tresca (None, m̄), none (0, None)."""
+        law = self.tool_friction("roll")
+        if isinstance(law, fx.Coulomb):
+            return law.mu, law.mbar
+        if isinstance(law, fx.Tresca):
+            return None, law.mbar
+        return 0.0, None
 
     @property
     def h1(self) -> float:
@@ -245,7 +302,8 @@ def build(case: FlatRollingCase, comm=None, output_dir: Optional[str] = None,
     mat = fx.NortonHoff(K=case.K, m=case.m, regularization=1e-4 * v_R / L)
     rate = rolling.mean_strain_rate(R, h0, h1, v_R)
     sigma0 = mat.flow_stress(rate)
-    theory = rolling.theory_band(R, h0, h1, sigma0, case.mu, case.mbar, b0=case.width)
+    theory = rolling.theory_band(R, h0, h1, sigma0, *case.friction_coefficients(),
+                                 b0=case.width)
     # the mesh: front `nose` L inside the bite, length from the travel needed
     x_front = x_entry + case.nose * abs(x_entry)
     length = case.length_factor * L + abs(x_front)
@@ -267,15 +325,16 @@ def build(case: FlatRollingCase, comm=None, output_dir: Optional[str] = None,
         roll, sag = faceted_roll(R, centre, (-0.1 * case.width, 0.7 * case.width),
                                  case.facet_size or 0.5 * case.h_x, case.roll, omega)
     rc = fx.NodalContact(fx.ContactBoundary(sp, ft, fx.BLOCK_TAGS["zmax"]), roll,
-                         scheme=case.scheme, friction=fx.Coulomb(case.mu, mbar=case.mbar),
-                         slip_velocity=case.slip_ratio * v_R, name="roll_contact")
+                         scheme=case.scheme, friction=contact_friction(case.friction),
+                         slip_velocity=case.slip_ratio * v_R, name="roll_contact",
+                         penalty=case.penalty)
     setup = FlatRollingSetup(case, sim, mat, theory, sigma0, rate, omega, x_entry, x_front,
                              case.push_ratio * v_R * h1 / h0, facet_sag=sag, roll_contact=rc)
     pusher = fx.Plane((x_front - length, 0.0, 0.0), (1.0, 0.0, 0.0),
                       velocity=lambda t: (setup.pusher_speed(t), 0.0, 0.0), name="pusher")
     setup.pusher_contact = fx.NodalContact(
         fx.ContactBoundary(sp, ft, fx.BLOCK_TAGS["xmin"]), pusher, scheme=case.scheme,
-        name="pusher_contact")
+        name="pusher_contact", penalty=case.penalty)
     sim.add_contributor(rc)
     sim.add_contributor(setup.pusher_contact)
     # the tail's pseudo-inertia: c (v − v̄_prev), v̄_prev its mean velocity of the last increment
@@ -501,7 +560,7 @@ def run(case: FlatRollingCase, comm=None, output_dir: Optional[str] = None,
         settle=case.settle * L, max_increments=int(case.max_increments),
         grip_travel=case.grip_travel * L, front_start=s.x_front,
         tail_limit=s.x_entry - 0.5 * case.h_x, body="strip", zone="bite",
-        hints={"refused": f"mu = {case.mu} against the bite condition tan(alpha) = "
+        hints={"refused": f"{law_text(case.friction)} against the bite condition tan(alpha) = "
                           f"{case.bite.max_draft_ratio:.4f}",
                "lost": "with friction alone holding it along x the quasi-static strip has a "
                        "free rigid translation, and this increment converged to the ejected "
@@ -565,7 +624,7 @@ def _pictures(comm, sim, res: FlatRollingResult, out: str):
         return []
     plt = pyplot()
     a, c = res.arc, res.case
-    slab = rolling.slab(c.R, c.h0, res.h1, res.sigma0, c.mu, c.mbar)
+    slab = rolling.slab(c.R, c.h0, res.h1, res.sigma0, *c.friction_coefficients())
     fig, ax = plt.subplots(figsize=(8, 5))
     xs = -c.R * np.sin(slab.phi)
     ax.plot(xs, slab.pressure, "k-", label="slab pressure (same law)")
@@ -588,7 +647,7 @@ def _pictures(comm, sim, res: FlatRollingResult, out: str):
     ax.set_xlabel("x [mm] (exit plane at 0, rolling direction →)")
     ax.set_ylabel("stress on the strip [MPa]")
     ax.set_title(f"Flat rolling at steady state: R = {c.R:g}, {c.h0:g} → {res.h1:.3g} mm, "
-                 f"μ = {c.mu}, m̄ = {c.mbar}")
+                 f"{law_text(c.friction)}")
     ax.legend(fontsize=7, loc="upper left", ncol=2)
     ax.set_ylim(top=1.35 * max(np.max(a["p"]), np.max(slab.pressure)))
     ax.grid(alpha=0.3)

@@ -42,19 +42,18 @@ from __future__ import annotations
 import math
 import os
 
-import numpy as np
-from mpi4py import MPI
-
 import dolfinx
 import dolfinx.mesh
+import numpy as np
+from mpi4py import MPI
 
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact
 from fxcontact.materials import LinearElastic
 from fxcontact.meshing import BLOCK_TAGS
 from fxcontact.newton.options import SolverOptions
-from fxcontact.processes.ironing import (check_variants, graded_nodes, run_stages,
-                                         tool_deviation, variant_name)
+from fxcontact.processes.ironing import (check_variants, graded_nodes, run_stages, tool_deviation,
+                                         variant_name)
 from fxcontact.processes.ironing_report import collect, plot_all
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace

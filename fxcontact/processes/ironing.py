@@ -67,11 +67,10 @@ import math
 import os
 import time
 
-import numpy as np
-from mpi4py import MPI
-
 import dolfinx
 import dolfinx.mesh
+import numpy as np
+from mpi4py import MPI
 
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact

@@ -34,6 +34,7 @@ from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from fxcontact.newton.options import SolverOptions
+from fxcontact.processes.contact_laws import ContactLaws
 from fxcontact.protocols import HasSummary
 from fxcontact.simulation import (IncrementError, format_iteration_split, format_wall_split,
                                   wall_split)
@@ -68,10 +69,12 @@ def _finite(name, value, low=0.0, strict=True):
 
 
 @dataclass(frozen=True)
-class RunNumerics:
+class RunNumerics(ContactLaws):
     """The numerics every process case shares (the base of the cases): the contact scheme,
     Newton's line search, penalty continuation, active-set prediction and force-scaled
-    tolerance (:class:`fxcontact.SolverOptions`), and the increments allowed."""
+    tolerance (:class:`fxcontact.SolverOptions`), and the increments allowed; the
+    ``penalty`` and ``friction`` fields with their former spellings and :meth:`replace`
+    (:class:`~fxcontact.processes.contact_laws.ContactLaws`)."""
 
     scheme: str = "implicit"
     line_search: str = "bt"

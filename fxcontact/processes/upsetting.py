@@ -14,9 +14,10 @@ cannot buckle: for h/d ≤ 2 the billet does not. ``half=False`` models the whol
 with the two dies (the body held by them only): the same pressure and radii to discretisation
 accuracy (``tests/test_upsetting.py``).
 
-**Friction** on the dies: Tresca τ = m̄ k (``mbar``; m̄ = 1, the default, is sticking friction:
-the friction stress reaches the shear flow stress k = σ₀/√3 of each node's strain rate), or
-Coulomb τ = μ p_n (``mu``) limited by m̄ k (``mbar``; None: no cap). The contact covers the end
+**Friction** on the dies (``friction``): Tresca τ = m̄ k (``Tresca(mbar)``; m̄ = 1, the
+default, is sticking friction: the friction stress reaches the shear flow stress k = σ₀/√3 of
+each node's strain rate), or Coulomb τ = μ p_n limited by m̄ k (``Coulomb(mu, mbar)``; mbar
+None: no cap). The contact covers the end
 face and the lateral surface: with sticking dies the end face hardly spreads, the free surface
 barrels and **folds onto the die** (the lateral surface becomes die contact); the folded part
 keeps its friction. The run reports the **contact radius** (the largest radius of the nodes on
@@ -57,7 +58,7 @@ import logging
 import math
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import InitVar, dataclass
 from typing import Optional
 
 import dolfinx.mesh
@@ -65,8 +66,9 @@ import numpy as np
 from mpi4py import MPI
 
 from fxcontact.contact.boundary import ContactBoundary
-from fxcontact.contact.friction import Coulomb, Tresca
-from fxcontact.contact.nodal import SCHEMES, NodalContact, penalty_from_beta
+from fxcontact.contact.friction import Coulomb, Frictionless, Tresca
+from fxcontact.contact.nodal import SCHEMES, NodalContact
+from fxcontact.contact.penalty import Penalty
 from fxcontact.io.series import pyplot
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
@@ -74,6 +76,8 @@ from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
 from fxcontact.processes.common import (CaseBase, ProcessResult, finish_run, meridian_section,
                                         numerics_columns, plot_curves, run_summary)
+from fxcontact.processes.contact_laws import (UNSET, Former, Friction, contact_friction,
+                                              gap_penalty, law_text)
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone
 from fxcontact.simulation import IncrementError, Simulation
@@ -90,6 +94,39 @@ log = logging.getLogger("fxcontact.processes.upsetting")
 ON_DIE = 0.02
 
 
+def _friction_of(case, v: dict):
+    """The dies' law of the former ``mbar``, ``mu``: Coulomb μ limited by m̄ (None: no cap),
+    else Tresca m̄ (none if 0)."""
+    mbar, mu = v["mbar"], v["mu"]
+    if mbar is not None and not 0 <= mbar <= 1:
+        raise ValueError(f"mbar must be in [0, 1] (or None with mu), got {mbar}")
+    if mu is None and mbar is None:
+        raise ValueError("mbar=None (no Tresca cap) needs a Coulomb mu: give mu or mbar")
+    if mu is not None and not (math.isfinite(mu) and mu >= 0):
+        raise ValueError(f"mu must be a finite number >= 0, got {mu}")
+    if mu is not None:
+        return Coulomb(mu, mbar)
+    return Tresca(mbar) if mbar > 0 else Frictionless()
+
+
+def _friction_values(case, law) -> Optional[dict]:
+    if isinstance(law, Coulomb):
+        return {"mu": law.mu, "mbar": law.mbar}
+    if isinstance(law, (Tresca, Frictionless)):
+        return {"mu": None, "mbar": getattr(law, "mbar", 0.0)}
+    return None
+
+
+def _penalty_of(case, v: dict) -> Penalty:
+    if not (isinstance(v["beta"], (int, float)) and math.isfinite(v["beta"]) and v["beta"] > 0):
+        raise ValueError(f"beta must be a finite number > 0, got {v['beta']!r}")
+    return Penalty(beta=float(v["beta"]), gap=True)
+
+
+def _penalty_values(case, p: Penalty) -> Optional[dict]:
+    return {"beta": p.beta} if p.beta is not None else None
+
+
 @dataclass(frozen=True)
 class UpsettingCase(CaseBase):
     """An upsetting case: lengths mm, stresses MPa, times s, angles degrees.
@@ -97,7 +134,32 @@ class UpsettingCase(CaseBase):
     Defaults: a hot steel billet R₀ = 10 mm, H₀/D₀ = 1.5 (H₀ = 30 mm), Norton–Hoff
     K = 50 MPa·s^m, m = 0.15, sticking dies (Tresca m̄ = 1), closing at 10 mm/s to 70 % height
     reduction, one quarter and one half of the height, remeshing on. :meth:`quick` is the
-    reduced size of the tests. Bad values raise ``ValueError`` naming the field."""
+    reduced size of the tests. Bad values raise ``ValueError`` naming the field.
+
+    **Contact** (on the end face(s) and the lateral surface; the dies are the tools ``"die"``
+    and, with ``half=False``, ``"base"``):
+
+    * ``penalty`` (:class:`fxcontact.Penalty`): by default ``Penalty(beta=100.0, gap=True)``,
+      a gap stiffness k = ρ(β)/dt [MPa/mm = N/mm³], ρ(β) = β η(ε̄̇)/h [MPa·s/mm] with η the
+      secant viscosity [MPa·s] at the mean strain rate speed/H₀ at the start, h [mm] and the
+      first ``dt`` [s] (unless the Penalty gives them); ρ = k·dt at each increment (dt × h/H₀,
+      the start-up increment: the penetration stays that of k). ``Penalty(beta=β)``: ρ at the
+      strain rate estimated at the first increment and the contact's element size.
+    * ``friction``: the dies' law, ``Tresca(1.0)`` (sticking) by default; ``Tresca(mbar)``
+      (m̄ in [0, 1], τ = m̄ k, k [MPa] the shear flow stress at each node's strain rate),
+      ``Coulomb(mu, mbar)`` (μ dimensionless, capped by m̄ k, None: no cap) or
+      ``Frictionless()``; or ``{"die": law, "base": law}``. The theory reads the upper die's.
+    * Former spellings, accepted for one release with a ``DeprecationWarning``: ``mbar``,
+      ``mu`` (Coulomb μ capped by m̄ if ``mu`` is given, else Tresca m̄) for ``friction``,
+      ``beta`` for ``penalty``.
+
+    **How a penalty or a friction coefficient reaches its kernel.** ``case.penalty`` →
+    :func:`build` (:func:`~fxcontact.processes.contact_laws.gap_penalty`: speed/H₀, h, dt) →
+    ``NodalContact(penalty=)`` → ``Penalty.rho(material, dt, rate)`` at each
+    ``begin_increment`` → ``penalty_kernel(S, rho, ...)``: four hops. ``case.friction`` →
+    ``NodalContact(friction=)`` (one law per die) → ``friction_arguments`` at each evaluation
+    (per node: law code, μ, m̄ k with k from ``begin_increment``) → ``friction_kernel(...)``:
+    three hops."""
 
     # geometry
     R0: float = 10.0                 #: billet radius
@@ -107,9 +169,8 @@ class UpsettingCase(CaseBase):
     # material (Norton–Hoff)
     K: float = 50.0
     m: float = 0.15
-    # friction on the dies: Tresca mbar, or Coulomb mu capped by mbar k (mbar None: no cap)
-    mbar: Optional[float] = 1.0
-    mu: Optional[float] = None
+    #: the dies' friction law: Tresca m̄, or Coulomb μ capped by m̄ k (sticking by default)
+    friction: Friction = Tresca(1.0)
     # kinematics
     speed: float = 10.0              #: closing speed of the dies (each moves at speed/2)
     reduction: float = 0.7           #: final height reduction 1 − h/H₀
@@ -118,20 +179,33 @@ class UpsettingCase(CaseBase):
     # numerics
     h: float = 2.0
     scheme: str = "implicit"
-    beta: float = 100.0              #: gap stiffness k = rho(beta)/dt
+    #: the contact penalty: a gap stiffness k = ρ(β)/dt [MPa/mm]
+    penalty: Penalty = Penalty(beta=100.0, gap=True)
     max_it: int = 60
     max_cutbacks: int = 4
     # remeshing
     remesh: bool = True
     remesh_min_quality: float = 0.2
     remesh_zone_h: Optional[float] = None   #: size at the folding edge (None: h/2)
+    # former spellings of friction and penalty (one release)
+    mbar: InitVar[Optional[float]] = UNSET
+    mu: InitVar[Optional[float]] = UNSET
+    beta: InitVar[Optional[float]] = UNSET
+
+    FRICTION_TOOLS = ("die", "base")
+    FORMER = (Former("friction", {"mbar": 1.0, "mu": None}, _friction_of, _friction_values),
+              Former("penalty", {"beta": 100.0}, _penalty_of, _penalty_values))
 
     #: the reduced size of the tests: R₀ = 5 mm (H₀ = 15 mm), h = 1.25 mm, a 45° sector
     QUICK = dict(R0=5.0, h=1.25, dt=0.05, sector=45.0)
 
-    def __post_init__(self):
+    def __post_init__(self, mbar, mu, beta):
+        self.resolve_contact_laws(mbar=mbar, mu=mu, beta=beta)
+        if not isinstance(self.tool_friction("die"), (Coulomb, Tresca, Frictionless)):
+            raise ValueError(f"friction of the dies must be Coulomb, Tresca or Frictionless "
+                             f"(the theory's mu or mbar), got {self.friction!r}")
         self.check_positive(("R0", "aspect", "sector", "K", "speed", "dt", "startup", "h",
-                             "beta", "reduction", "remesh_min_quality"))
+                             "reduction", "remesh_min_quality"))
         if not 0 < self.m <= 1:
             raise ValueError(f"m must be in (0, 1], got {self.m}")
         if not 0 < self.sector <= 90:
@@ -141,12 +215,6 @@ class UpsettingCase(CaseBase):
             raise ValueError(f"reduction (1 - h/H0) must be in (0, 0.95), got {self.reduction}")
         if not self.startup <= 1:
             raise ValueError(f"startup (a fraction of dt) must be in (0, 1], got {self.startup}")
-        if self.mbar is not None and not 0 <= self.mbar <= 1:
-            raise ValueError(f"mbar must be in [0, 1] (or None with mu), got {self.mbar}")
-        if self.mu is None and self.mbar is None:
-            raise ValueError("mbar=None (no Tresca cap) needs a Coulomb mu: give mu or mbar")
-        if self.mu is not None and not (math.isfinite(self.mu) and self.mu >= 0):
-            raise ValueError(f"mu must be a finite number >= 0, got {self.mu}")
         self.check_remesh_fields()
         if self.scheme not in SCHEMES:
             raise ValueError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
@@ -165,11 +233,13 @@ class UpsettingCase(CaseBase):
         (the fold's landing nodes and the thinning billet ask for shorter ones at the end)."""
         return self.dt * (self.H0 - self.speed * t) / self.H0
 
-    def friction(self):
-        """The dies' friction law (None: frictionless)."""
-        if self.mu is not None:
-            return Coulomb(self.mu, self.mbar)
-        return Tresca(self.mbar) if self.mbar > 0 else None
+    def friction_coefficients(self):
+        """(μ, m̄) of the upper die's law for the theory: Coulomb (μ, its cap or None),
+        Tresca (None, m̄), none (None, 0)."""
+        law = self.tool_friction("die")
+        if isinstance(law, Coulomb):
+            return law.mu, law.mbar
+        return None, getattr(law, "mbar", 0.0)
 
     def theory(self, height: float, volume: Optional[float] = None,
                contact_radius: Optional[float] = None) -> dict:
@@ -182,11 +252,11 @@ class UpsettingCase(CaseBase):
         area = V / height
         d = 2.0 * math.sqrt(area / math.pi)
         rate = self.speed / height
-        ub = forming.upsetting_upper_bound(self.mbar, d, height) if self.mbar is not None \
+        mu, mbar = self.friction_coefficients()
+        ub = forming.upsetting_upper_bound(mbar, d, height) if mbar is not None else math.nan
+        slab = forming.upsetting_slab_coulomb(mu, 0.5 * d, height) if mu is not None \
             else math.nan
-        slab = forming.upsetting_slab_coulomb(self.mu, 0.5 * d, height) \
-            if self.mu is not None else math.nan
-        upper = ub if self.mu is None else float(np.nanmin([slab, ub]))
+        upper = ub if mu is None else float(np.nanmin([slab, ub]))
         return dict(sigma0=float(forming.flow_stress(self.K, self.m, rate)), strain_rate=rate,
                     area=area, diameter=d, height=height,
                     lower=math.pi * contact_radius ** 2 / area if contact_radius else 1.0,
@@ -241,10 +311,11 @@ def build(case: UpsettingCase, comm=None, output_dir: Optional[str] = None,
         dies.append(Plane(point=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0),
                           velocity=(0.0, 0.0, v), name="base"))
         faces.append(tags["back"])
-    rho = penalty_from_beta(mat, float(case.beta), case.h, strain_rate=rate)
+    # by default a gap stiffness k = ρ(β)/dt at the mean strain rate of the start
+    penalty = gap_penalty(case.penalty, rate, case.h, case.dt)
     contact = NodalContact(ContactBoundary(sim.space, ft, faces), dies, scheme=case.scheme,
-                           friction=case.friction(), name="contact",
-                           gap_stiffness=rho / case.dt)
+                           friction=contact_friction(case.friction), name="contact",
+                           penalty=penalty)
     sim.add_contributor(contact)
     s = UpsettingSetup(case, sim, contact, dies, ft, 360.0 / case.sector,
                        360.0 / case.sector * (2.0 if case.half else 1.0),
@@ -313,9 +384,8 @@ class UpsettingResult(ProcessResult):
     def report(self) -> str:
         """A summary for the console."""
         c = self.case
-        fr = (f"Coulomb mu {c.mu:g}" + (f" capped by mbar {c.mbar:g}" if c.mbar is not None
-                                        else "") if c.mu is not None else
-              "sticking (Tresca mbar 1)" if c.mbar == 1 else f"Tresca mbar {c.mbar:g}")
+        fr = ("sticking (Tresca mbar 1)" if c.friction == Tresca(1.0)
+              else law_text(c.friction))
         lines = [
             f"upsetting R0 {c.R0:g} mm, H0/D0 {c.aspect:g} (H0 {c.H0:g} mm), {fr} dies closing "
             f"at {c.speed:g} mm/s, K {c.K:g} m {c.m:g}; {'half height, ' if c.half else ''}"
@@ -464,7 +534,7 @@ def _pictures(comm, s: UpsettingSetup, res: UpsettingResult, out: str):
     ax.set_ylabel("z [mm]" + (" (mid-plane z = 0)" if c.half else ""))
     ax.legend(loc="upper right", fontsize=8)
     ax.set_title(f"Upsetting to {100 * res.reduction:.0f} % height reduction, "
-                 f"{'sticking' if c.mbar == 1 and c.mu is None else 'friction'} dies, "
+                 f"{'sticking' if c.friction == Tresca(1.0) else 'friction'} dies, "
                  f"{res.remeshes} remeshes\nθ = 0 section, equivalent strain; free-surface "
                  f"radius {rd['free']:.1f} mm", fontsize=9)
     fig.tight_layout()

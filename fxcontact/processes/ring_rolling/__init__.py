@@ -7,9 +7,19 @@ rolls centring the ring, axial cone rolls, bite zones (:mod:`~fxcontact.processe
 simulation with its handles."""
 
 from fxcontact.processes.ring_rolling.mill import AxialRolls, RingCentring
-from fxcontact.processes.ring_rolling.process import (K_HOT, K_THESIS, QUICK, TOOLS, UPDATES,
-                                                      RingRollingCase, RingRollingResult,
-                                                      RingRollingSetup, build, run, theory)
+from fxcontact.processes.ring_rolling.process import (
+                                                      K_HOT,
+                                                      K_THESIS,
+                                                      QUICK,
+                                                      TOOLS,
+                                                      UPDATES,
+                                                      RingRollingCase,
+                                                      RingRollingResult,
+                                                      RingRollingSetup,
+                                                      build,
+                                                      run,
+                                                      theory,
+)
 
 __all__ = ["AxialRolls", "RingCentring", "K_HOT", "K_THESIS", "QUICK", "TOOLS", "UPDATES",
            "RingRollingCase", "RingRollingResult", "RingRollingSetup", "build", "run", "theory"]

@@ -33,8 +33,10 @@ from scipy.spatial import cKDTree
 
 from fxcontact import compat
 from fxcontact.contact.friction import LAW_NONE, Coulomb, Frictionless, Norton
+from fxcontact.contact.penalty import Penalty
 from fxcontact.idle import controlled_motion, rolling_speed
 from fxcontact.kinematics import RingAxisUpdate
+from fxcontact.processes.contact_laws import Former, ToolLaws, contact_friction
 from fxcontact.processes.monitor import is_number
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.remeshing import mean_edge_length
@@ -44,7 +46,7 @@ from fxcontact.tools.base import ControlledMotion, Tool, unit_vector
 
 __all__ = ["RingCentring", "AxialRolls", "cone_row", "BiteZones", "set_ring_remeshing",
            "bite_length", "bite_coverage", "BITE_MARGIN", "FRICTIONS", "friction_spec",
-           "friction_law"]
+           "friction_law", "MILL_TOOLS", "DEFAULT_FRICTION", "FORMER", "mill_friction"]
 
 
 #: the friction laws of a tool: ``(law, a, b)``: ("coulomb", μ, m̄) or ("norton", α_f, q)
@@ -76,6 +78,58 @@ def friction_law(spec):
         return Frictionless()
     kind, a, b = spec
     return Norton(alpha_f=a, q=b) if kind == "norton" else Coulomb(a, mbar=b)
+
+
+#: the tools of the mill (the keys of ``RingRollingCase.friction``)
+MILL_TOOLS = ("main_roll", "mandrel", "guide1", "guide2", "cone")
+#: the friction of ``RingRollingCase``: Coulomb μ = 0.3 limited by m̄ = 0.6 on both rolls
+DEFAULT_FRICTION = ToolLaws(main_roll=Coulomb(0.3, mbar=0.6), mandrel=Coulomb(0.3, mbar=0.6))
+
+
+def _friction_of(case, v: dict) -> ToolLaws:
+    """The laws of the former ``main_friction``, ``mandrel_friction`` (:func:`friction_spec`;
+    a frictionless mandrel is left out)."""
+    main = friction_spec("main_friction", v["main_friction"])
+    mandrel = friction_spec("mandrel_friction", v["mandrel_friction"])
+    laws = {"main_roll": friction_law(main)}
+    if mandrel is not None:
+        laws["mandrel"] = friction_law(mandrel)
+    return ToolLaws(laws)
+
+
+def _spec_of(law):
+    if isinstance(law, Norton):
+        return ("norton", law.alpha_f, law.q)
+    if isinstance(law, Coulomb) and law.mbar is not None:
+        return ("coulomb", law.mu, law.mbar)
+    return None
+
+
+def _friction_values(case, laws) -> Optional[dict]:
+    if not isinstance(laws, dict):
+        return None
+    return {"main_friction": _spec_of(laws.get("main_roll")),
+            "mandrel_friction": _spec_of(laws.get("mandrel"))}
+
+
+#: the former spellings of ``RingRollingCase``'s friction (``main_friction``,
+#: ``mandrel_friction``: ``(law, a, b)``, "law,a,b" or None) and penalty (``gap_stiffness``)
+FORMER = (Former("friction", {"main_friction": ("coulomb", 0.3, 0.6),
+                              "mandrel_friction": ("coulomb", 0.3, 0.6)},
+                 _friction_of, _friction_values),
+          Former("penalty", {"gap_stiffness": None},
+                 lambda case, v: Penalty(gap_stiffness=v["gap_stiffness"]),
+                 lambda case, p: {"gap_stiffness": p.gap_stiffness}))
+
+
+def mill_friction(friction, guides: Sequence[str], idle_guides: bool):
+    """The friction of the mill's contact: ``friction`` (a law, or a mapping tool name →
+    law), with the guide rolls it leaves out given the mandrel's law when they are idle."""
+    laws = contact_friction(friction)
+    if isinstance(laws, dict) and idle_guides and "mandrel" in laws:
+        for name in guides:
+            laws.setdefault(name, laws["mandrel"])
+    return laws
 
 
 class RingCentring:

@@ -40,7 +40,7 @@ import logging
 import math
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from typing import Dict, List, Optional
 
 import numpy as np
@@ -51,10 +51,11 @@ from fxcontact import compat
 from fxcontact.idle import IDLE_METHODS, ControlledMotion, IdleRotation
 from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.power import PowerBalance, delivered_power
+from fxcontact.processes.contact_laws import UNSET, Friction, law_text
 from fxcontact.processes.monitor import RunNumerics, SteadyRun, contact_lines, is_number
-from fxcontact.processes.ring_rolling import pictures as ring_pictures
-from fxcontact.processes.ring_rolling.mill import (AxialRolls, RingCentring, cone_row, friction_law,
-                                                   friction_spec, set_ring_remeshing)
+from fxcontact.processes.ring_rolling import mill as ring_mill, pictures as ring_pictures
+from fxcontact.processes.ring_rolling.mill import (AxialRolls, RingCentring, cone_row,
+                                                   set_ring_remeshing)
 from fxcontact.theory import forming
 
 __all__ = ["RingRollingCase", "RingRollingSetup", "RingRollingResult", "build", "run",
@@ -82,7 +83,12 @@ class RingRollingCase(RunNumerics):
     60 rpm, mandrel R₂ = 40 fed at 1.5 mm/s (1 mm per revolution), guide rolls R_g = 40 at
     ±60°; Coulomb μ = 0.3 limited by Tresca m̄ = 0.6 on the main roll and the mandrel; mesh
     160 × 4 × 2, 60 increments per revolution, two revolutions. :meth:`case1`, :meth:`case2`:
-    the thesis's cases with its K; :meth:`quick`: the reduced size of the tests."""
+    the thesis's cases with its K; :meth:`quick`: the reduced size of the tests.
+
+    **Contact** ``"mill"``: ``penalty`` ρ [MPa·s/mm] (β = 1e3; was ``gap_stiffness`` k [MPa/mm]);
+    ``friction`` tool → law (μ, m̄, α_f dimensionless; was ``main_friction``, ``mandrel_friction``).
+    **How a penalty or a friction coefficient reaches its kernel**: case → ``NodalContact`` →
+    ``Penalty.rho`` / the per-node law arrays → ``penalty_kernel`` / ``friction_kernel``."""
 
     # the ring
     R: float = 100.0                #: outer radius
@@ -98,9 +104,7 @@ class RingRollingCase(RunNumerics):
     # the material (Norton–Hoff)
     K: float = K_HOT
     m: float = 0.14
-    # the friction per tool: (law, a, b) or None (frictionless); the guide rolls frictionless
-    main_friction: Optional[tuple] = ("coulomb", 0.3, 0.6)
-    mandrel_friction: Optional[tuple] = ("coulomb", 0.3, 0.6)
+    friction: Friction = ring_mill.DEFAULT_FRICTION     #: tool name -> law
     mu_bite: float = 0.3            #: μ of the bite-in limit of the feed window
     # the kinematics
     rpm: float = 60.0               #: main roll speed
@@ -120,7 +124,7 @@ class RingRollingCase(RunNumerics):
     tools: str = "analytic"         #: one of :data:`TOOLS`
     facet_size: Optional[float] = None   #: faceted tools: facet width (default: the spacing)
     volume_correction: str = "none"
-    gap_stiffness: Optional[float] = None   #: the penalty as a gap stiffness [MPa/mm]
+    penalty: fx.Penalty = fx.Penalty()     #: the contact's (β = 1e3 by default)
     sticky_gap: float = 0.0
     max_it: int = 60                #: Newton iterations per solve
     newton_rtol: float = 1e-9       #: Newton's relative residual tolerance
@@ -136,9 +140,15 @@ class RingRollingCase(RunNumerics):
     remesh_arc: float = 90.0
     # (RunNumerics: scheme, line_search, penalty_continuation, active_set_prediction,
     # newton_ftol, max_increments)
+    main_friction: InitVar[Optional[tuple]] = UNSET     # former spellings (one release)
+    mandrel_friction: InitVar[Optional[tuple]] = UNSET
+    gap_stiffness: InitVar[Optional[float]] = UNSET
+    FRICTION_TOOLS, FORMER = ring_mill.MILL_TOOLS, ring_mill.FORMER
 
-    def __post_init__(self):
+    def __post_init__(self, main_friction, mandrel_friction, gap_stiffness):
         super().__post_init__()
+        self.resolve_contact_laws(main_friction=main_friction, gap_stiffness=gap_stiffness,
+                                  mandrel_friction=mandrel_friction)
         for key in ("R", "r", "H", "R1", "R2", "Rg", "K", "revolutions", "rpm", "mu_bite"):
             v = getattr(self, key)
             if not (is_number(v) and v > 0):
@@ -161,8 +171,6 @@ class RingRollingCase(RunNumerics):
         if self.idle_method not in IDLE_METHODS:
             raise ValueError(f"idle_method must be one of {IDLE_METHODS}, got "
                              f"{self.idle_method!r}")
-        for key in ("main_friction", "mandrel_friction"):
-            object.__setattr__(self, key, friction_spec(key, getattr(self, key)))
         if not (is_number(self.cone_half_angle) and 0.0 < self.cone_half_angle < 60.0):
             raise ValueError(f"cone_half_angle must be in (0, 60) degrees, got "
                              f"{self.cone_half_angle!r}")
@@ -182,8 +190,8 @@ class RingRollingCase(RunNumerics):
         """The thesis's case 1 (its K = 1900 literally): viscoplastic friction α_f = 0.5,
         q = 0.15 on the main roll, frictionless mandrel, 20 rpm, feed 1.5 mm/s (3 mm per
         revolution), cone rolls opening at 0.4 mm/s (when ``cones=True``)."""
-        return cls(**{**dict(K=K_THESIS, rpm=20.0, main_friction=("norton", 0.5, 0.15),
-                             mandrel_friction=None, cone_speed=0.4), **changes})
+        return cls(K=K_THESIS, rpm=20.0, friction={"main_roll": fx.Norton(0.5, 0.15)},
+                   cone_speed=0.4).replace(**changes)
 
     @classmethod
     def case2(cls, **changes) -> "RingRollingCase":
@@ -363,17 +371,13 @@ def build(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
     # them, its flat facets cut inside by up to the sagitta s²/8R)
     exact = [_tool("analytic", t.name, rad, t.motion.axis_point, H, t.motion, fs)
              for t, rad in zip(tools, [R1, R2, Rg, Rg])] + tools[4:]
-    friction = {"main_roll": friction_law(c.main_friction)}
-    if c.mandrel_friction is not None:
-        friction["mandrel"] = friction_law(c.mandrel_friction)
-        if c.idle_guides:
-            friction.update({g.name: friction_law(c.mandrel_friction) for g in guides})
+    friction = ring_mill.mill_friction(c.friction, [g.name for g in guides], c.idle_guides)
     tags = [fx.RING_TAGS["outer"], fx.RING_TAGS["inner"]]
     if c.cones:
         tags.append(fx.RING_TAGS["top"])
     contact = fx.NodalContact(fx.ContactBoundary(sp, ft, tags), tools, scheme=c.scheme,
                               friction=friction, slip_velocity=1e-3 * v_s, name="mill",
-                              gap_stiffness=c.gap_stiffness, sticky_gap=c.sticky_gap)
+                              penalty=c.penalty, sticky_gap=c.sticky_gap)
     outer = fx.ContactBoundary(sp, ft, fx.RING_TAGS["outer"])
     inner = fx.ContactBoundary(sp, ft, fx.RING_TAGS["inner"])
     top = fx.ContactBoundary(sp, ft, fx.RING_TAGS["top"])
@@ -616,8 +620,7 @@ class RingRollingResult(SteadyRun):
         """The summary a process engineer reads."""
         c, w = self.case, self.feed_window
         inside = w["min"] <= self.feed_per_rev <= w["max"]
-        fr = {k: "frictionless" if v is None else f"{v[0]} {v[1]:g}, {v[2]:g}"
-              for k, v in (("main", c.main_friction), ("mandrel", c.mandrel_friction))}
+        fr = {k: law_text(c.tool_friction(t)) for k, t in (("main", "main_roll"), ("mandrel",) * 2)}
         lines = [
             f"ring R = {c.R:g}, r = {c.r:g}, H = {c.H:g} mm; main roll R1 = {c.R1:g} at "
             f"{c.rpm:g} rpm ({fr['main']}), mandrel R2 = {c.R2:g} fed at {c.feed_speed:g} mm/s "
