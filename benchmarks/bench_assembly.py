@@ -51,10 +51,10 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 sys.path.insert(0, HERE)
 
-import ufl  # noqa: E402
 import dolfinx  # noqa: E402
 import dolfinx.fem.petsc  # noqa: E402
 import dolfinx.jit  # noqa: E402
+import ufl  # noqa: E402
 
 import fxcontact as fx  # noqa: E402
 import fxcontact.newton.problem as fxpetsc  # noqa: E402
@@ -245,6 +245,7 @@ def quadrature_figures(msh, mat, ncell: int, best: int, degrees=(6, 5, 4)):
     quadrature degree (fxcontact's flags, random velocity and dual stress); the degrees are
     timed in turn, ``best`` rounds, the fastest of each kept."""
     import basix
+
     from fxcontact.element.dual import DualStress
     forms = {}
     for deg in degrees:

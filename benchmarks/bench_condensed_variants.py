@@ -34,9 +34,9 @@ def main():
     ap.add_argument("--option", action="append", default=[], metavar="KEY=VALUE")
     args = ap.parse_args()
     from mpi4py import MPI
+    from test_condense import pressed_block
 
     import fxcontact as fx
-    from test_condense import pressed_block
 
     extra = {}
     for kv in args.option:

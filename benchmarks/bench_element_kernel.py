@@ -45,13 +45,13 @@ sys.path.insert(0, HERE)
 
 import dolfinx  # noqa: E402
 import dolfinx.fem.petsc  # noqa: E402
+from _common import best_time  # noqa: E402
 
 import fxcontact as fx  # noqa: E402
 from fxcontact import compat  # noqa: E402
 from fxcontact.element import tensors as ec  # noqa: E402
 from fxcontact.element.assembled import CondensationLayout, CondensedPC  # noqa: E402
 from fxcontact.element.dual import DualStress  # noqa: E402
-from _common import best_time  # noqa: E402
 
 PREFIX = "bench_ec_"
 

@@ -60,9 +60,9 @@ import re
 import time
 from typing import List, NamedTuple
 
+from _common import read_csv
 from mpi4py import MPI
 
-from _common import read_csv
 from fxcontact.processes import groove, ironing
 
 HERE = os.path.dirname(os.path.abspath(__file__))

@@ -50,8 +50,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from drawing_case import drawing_simulation, mean_strain_rate  # noqa: E402
 
-from fxcontact.simulation import IncrementError  # noqa: E402
 from fxcontact.newton.solver import SolverOptions  # noqa: E402
+from fxcontact.simulation import IncrementError  # noqa: E402
 
 R0, REDUCTION, ALPHA, SPEED = 5.0, 0.15, np.radians(10.0), 10.0
 RATE = mean_strain_rate(R0, REDUCTION, ALPHA, SPEED * (1.0 - REDUCTION))

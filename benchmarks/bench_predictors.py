@@ -37,9 +37,8 @@ from mpi4py import MPI
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from drawing_case import drawing_simulation  # noqa: E402
-
 import dolfinx.geometry  # noqa: E402
+from drawing_case import drawing_simulation  # noqa: E402
 
 from fxcontact.newton.solver import ContactNewtonSolver, SolverOptions  # noqa: E402
 

@@ -13,8 +13,8 @@ reference frame and rotates the results back.
 import argparse
 
 import numpy as np
-
 from _common import best_time
+
 from fxcontact.tools.analytic import Cone, Cylinder, Plane, Sphere
 
 

@@ -18,8 +18,8 @@ import math
 import time
 
 import numpy as np
-
 from _common import best_time
+
 from fxcontact.tools.faceted import FacetedTool, flat_project_ref, nagata_project_ref
 
 

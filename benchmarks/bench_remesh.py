@@ -99,6 +99,7 @@ def generate_variants(comm, surface, h, zones, label, repeat=2):
     """The ``generate`` time of ``volume_mesh`` on ``surface`` with ``zones``: gmsh's fields,
     the Python size callback, the fields without the surface smoothing (``--generate``)."""
     import numpy as np
+
     from fxcontact.remesh import volume
     say = print if comm.rank == 0 else (lambda *a, **k: None)
     variants = {"fields": (False, True), "callback": (True, True),
@@ -121,6 +122,7 @@ def billet_zones(comm, sim, h):
     """The boundary of the simulation's mesh and two zones at the die: h/2 at its edge (points
     on r = 10.5 at the top) and h/2 in a box 1.5 h thick under it."""
     import numpy as np
+
     from fxcontact.remesh.surface import gather_boundary
     from fxcontact.remesh.volume import SizeZone
     surface = gather_boundary(sim.mesh, sim.contributors[0].boundary.facet_tags)
@@ -136,6 +138,7 @@ def ring_zones(comm, h=8.0, h_zone=3.9):
     half), size h, and the points of a ring_mill.BiteZones over the 90° arc in front of the gap
     (a grid of spacing h_zone through the wall)."""
     import numpy as np
+
     from fxcontact.remesh.surface import gather_boundary
     from fxcontact.remesh.volume import SizeZone
     msh, _, ft = fx.ring(comm, 100.0, 70.0, 40.0, h, sector="upper")

@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import time
 
-import numpy as np
 from mpi4py import MPI
 
 from fxcontact.processes import ExtrusionCase, run_extrusion

@@ -39,7 +39,8 @@ import numpy as np
 from mpi4py import MPI
 
 from fxcontact.console import case_parser, parse_case
-from fxcontact.processes import RingRollingCase, ring_mill, ring_rolling as rr
+from fxcontact.processes import RingRollingCase, ring_mill
+from fxcontact.processes import ring_rolling as rr
 
 DEFAULTS = dict(remesh=True, remesh_min_across=3.0, remesh_arc=30.0, initial_bite=0.5,
                 revolutions=5.0)

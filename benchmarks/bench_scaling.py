@@ -57,9 +57,9 @@ def worker(args):
     from fxcontact.contact.nodal import NodalContact, penalty_from_beta
     from fxcontact.materials import LinearElastic
     from fxcontact.meshing import BLOCK_TAGS
-    from fxcontact.simulation import Simulation
     from fxcontact.newton.solver import SolverOptions
     from fxcontact.processes import hertz
+    from fxcontact.simulation import Simulation
     from fxcontact.spaces import MixedSpace
 
     comm = MPI.COMM_WORLD

@@ -47,10 +47,11 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 
 from _common import best_time, read_csv  # noqa: E402
+
 from fxcontact.materials import NortonHoff  # noqa: E402
 from fxcontact.meshing import BILLET_TAGS, cylinder_billet  # noqa: E402
-from fxcontact.simulation import Simulation  # noqa: E402
 from fxcontact.newton.solver import SolverOptions  # noqa: E402
+from fxcontact.simulation import Simulation  # noqa: E402
 from fxcontact.spaces import MixedSpace  # noqa: E402
 
 RESULTS = os.path.join(HERE, "results")

@@ -24,15 +24,14 @@ import argparse
 import math
 import time
 
-import numpy as np
-import ufl
-from mpi4py import MPI
-from petsc4py import PETSc
-
 import dolfinx
 import dolfinx.fem
 import dolfinx.fem.petsc
 import dolfinx.nls.petsc
+import numpy as np
+import ufl
+from mpi4py import MPI
+from petsc4py import PETSc
 
 
 class _TimedProblem(dolfinx.fem.petsc.NonlinearProblem):

@@ -39,9 +39,9 @@ import math
 
 from mpi4py import MPI
 
+from fxcontact.theory import flat_rolling as rolling
 from fxcontact.console import case_parser, parse_case
 from fxcontact.processes import FlatRollingCase, flat_rolling
-from fxcontact.theory import flat_rolling as rolling
 
 parser = case_parser(FlatRollingCase, "Flat rolling of a strip to steady state",
                      "results/flat_rolling")

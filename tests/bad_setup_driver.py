@@ -10,14 +10,14 @@ was raised), and the process ends normally; a crash or a hang is seen by the tes
 import os
 import sys
 
-import dolfinx
 import numpy as np
 from mpi4py import MPI
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from helpers import box_mesh  # noqa: E402
+import dolfinx
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import fxcontact as fx  # noqa: E402
+from helpers import box_mesh  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 RANK = COMM.rank

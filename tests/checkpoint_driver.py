@@ -18,15 +18,15 @@ import os
 import sys
 import time
 
-import dolfinx
 import numpy as np
 from mpi4py import MPI
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from helpers import box_mesh  # noqa: E402
+import dolfinx
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import fxcontact as fx  # noqa: E402
 import fxcontact.compat  # noqa: E402,F401
+from helpers import box_mesh  # noqa: E402
 
 
 class CutOnce:
@@ -115,7 +115,6 @@ def main():
         # SIGKILL this process in the middle of writing checkpoint number N: its rank file is
         # in the temporary directory, the manifest and the rename are not done
         import signal
-
         import fxcontact.checkpoint as ck
         savez, count = np.savez, []
 

@@ -1,8 +1,10 @@
 """Shared test utilities (meshes, parallel/serial comparison)."""
 
-import dolfinx
 import numpy as np
 from mpi4py import MPI
+
+import dolfinx
+
 
 # A guard against hangs for the runs the tests start in a subprocess (a crash or a hang must not
 # take the test session with it): far above what a run takes on a loaded machine, so only a hang

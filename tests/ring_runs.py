@@ -9,11 +9,11 @@ import os
 import shutil
 from dataclasses import replace
 
-from helpers import shared_tmpdir
 from mpi4py import MPI
 
 from fxcontact.checkpoint import list_checkpoints
 from fxcontact.processes import RingRollingCase, ring_rolling
+from helpers import shared_tmpdir
 
 NI = RingRollingCase().quick().increments_per_rev
 #: two increments of the quick (coarse) case 1 with the cones

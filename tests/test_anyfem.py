@@ -3,20 +3,22 @@
 sub-spaces (areas, dof maps, clear error for P2), ContactProblem with dolfinx's NewtonSolver,
 with a petsc4py SNES and with fxcontact's ContactNewtonSolver (same answer), 1 vs 2 ranks."""
 
-import dolfinx
-import dolfinx.fem.petsc
-import dolfinx.nls.petsc
 import numpy as np
 import pytest
 import ufl
-from helpers import box_mesh, gather_by_position
 from mpi4py import MPI
 from petsc4py import PETSc
+
+import dolfinx
+import dolfinx.fem.petsc
+import dolfinx.nls.petsc
 
 import fxcontact as fx
 from fxcontact import compat
 from fxcontact.contact.nodal import NodalContact
 from fxcontact.processes import hyperelastic
+
+from helpers import box_mesh, gather_by_position
 
 
 # ----------------------------------------------------------------------------- unit level

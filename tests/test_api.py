@@ -82,8 +82,7 @@ def test_contributors_and_controllers_satisfy_their_protocols():
     """The library's contributors are ``Contributor``s with the hooks the simulation calls;
     the bordered idle rotation's stand-in for the contact (a ``__getattr__`` proxy) declares
     the protocol's methods itself; the ring-mill controllers' optional hooks are protocols too."""
-    from fxcontact import idle as mill
-    from fxcontact import protocols as pr
+    from fxcontact import idle as mill, protocols as pr
     from fxcontact.processes.ring_rolling import RingCentring
 
     for cls in (fx.NodalContact, fx.NodalSprings, mill._EliminatedContact):

@@ -6,6 +6,7 @@ import ast
 from collections import defaultdict
 from pathlib import Path
 
+
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "fxcontact"
 #: libraries a function may import where it uses them: optional (pictures) or followed on their

@@ -15,22 +15,23 @@
 Each comparison runs on one communicator: serially and on 2 ranks.
 """
 
-import dolfinx
-import dolfinx.fem.petsc
-import dolfinx.jit
 import numpy as np
 import pytest
 import ufl
-from helpers import assert_newton_counts_match, box_mesh, vertex_velocities_by_position
 from mpi4py import MPI
 from petsc4py import PETSc
-from test_condense import MATERIALS, pressed_block
+
+import dolfinx
+import dolfinx.fem.petsc
+import dolfinx.jit
 
 import fxcontact as fx
 from fxcontact import compat
 from fxcontact.newton.problem import NonlinearProblem
 from fxcontact.newton.solver import NewtonSolver, SolverOptions
 from fxcontact.spaces import velocity_bc
+from helpers import assert_newton_counts_match, box_mesh, vertex_velocities_by_position
+from test_condense import MATERIALS, pressed_block
 
 
 def test_jit_params():

@@ -13,18 +13,20 @@ import re
 import shutil
 from pathlib import Path
 
-import dolfinx
 import numpy as np
 import pytest
-import ufl
-from helpers import HANG_TIMEOUT, box_mesh, run_script, shared_tmpdir
 from mpi4py import MPI
+
+import dolfinx
+import ufl
 
 import fxcontact as fx
 import fxcontact.element.tensors as ec
 from fxcontact.checkpoint import CheckpointError, latest_checkpoint, list_checkpoints
 from fxcontact.io import HistoryWriter, SeriesWriter, read_pvd
 from fxcontact.simulation import IncrementError, OutputError
+
+from helpers import HANG_TIMEOUT, box_mesh, run_script, shared_tmpdir
 
 ROOT = Path(__file__).resolve().parents[1]
 COMM = MPI.COMM_WORLD

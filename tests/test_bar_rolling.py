@@ -14,18 +14,20 @@ import os
 import re
 from dataclasses import replace
 
-import dolfinx
-import dolfinx.mesh
 import numpy as np
 import pytest
-import ufl
-from helpers import run_readme_block, shared_tmpdir
 from mpi4py import MPI
+
+import dolfinx
+import dolfinx.mesh
+import ufl
 
 from fxcontact import compat
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar
 from fxcontact.processes import BarRollingCase
 from fxcontact.processes import bar_rolling as bar
+
+from helpers import run_readme_block, shared_tmpdir
 
 #: the reduced size of the tests
 QUICK = BarRollingCase().quick()

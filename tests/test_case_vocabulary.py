@@ -15,22 +15,12 @@ import warnings
 
 import pytest
 
-from fxcontact import Coulomb, Frictionless, Norton, NortonHoff, Penalty, Tresca, penalty_from_beta
+from fxcontact import (Coulomb, Frictionless, NortonHoff, Norton, Penalty, Tresca,
+                       penalty_from_beta)
 from fxcontact.console import case_parser, parse_case
-from fxcontact.processes import (
-    BarRollingCase,
-    DrawingCase,
-    ExtrusionCase,
-    FlatRollingCase,
-    RingRollingCase,
-    UpsettingCase,
-    bar_rolling,
-    build_drawing,
-    build_extrusion,
-    build_upsetting,
-    flat_rolling,
-    ring_rolling,
-)
+from fxcontact.processes import (BarRollingCase, DrawingCase, ExtrusionCase, FlatRollingCase,
+                                 RingRollingCase, UpsettingCase, bar_rolling, build_drawing,
+                                 build_extrusion, build_upsetting, flat_rolling, ring_rolling)
 from fxcontact.processes.contact_laws import ToolLaws, gap_penalty
 
 DT = 0.01   #: the increment at which the built contacts' ρ is compared

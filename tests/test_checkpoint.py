@@ -19,12 +19,13 @@ import time
 
 import numpy as np
 import pytest
-from checkpoint_driver import build
-from helpers import HANG_TIMEOUT, gather_by_position, shared_tmpdir
 from mpi4py import MPI
 
 from fxcontact.checkpoint import CheckpointError, latest_checkpoint, list_checkpoints
 from fxcontact.io import read_pvd
+
+from checkpoint_driver import build
+from helpers import HANG_TIMEOUT, gather_by_position, shared_tmpdir
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DRIVER = os.path.join(HERE, "checkpoint_driver.py")
@@ -261,9 +262,9 @@ def test_bad_checkpoints_are_refused():
 
 def test_checkpoint_at_a_failed_increment():
     """An increment that fails for good leaves a checkpoint of the last accepted state."""
-    from checkpoint_driver import CutOnce
-
     from fxcontact.simulation import IncrementError
+
+    from checkpoint_driver import CutOnce
     d = shared_tmpdir("fxc_ckpt_fail_")
     sim = build(d)
     sim.checkpoint_every = 100

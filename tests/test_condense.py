@@ -8,16 +8,17 @@ law and for linear elasticity (velocity form). Both run serially and on 2 ranks 
 compares the two solvers on the same communicator).
 """
 
-import dolfinx
 import numpy as np
 import pytest
-from helpers import gather_by_position, vertex_velocities_by_position
 from mpi4py import MPI
 from petsc4py import PETSc
+
+import dolfinx
 
 import fxcontact as fx
 from fxcontact.element.assembled import CondensationLayout
 from fxcontact.newton.solver import NewtonSolver, SolverOptions
+from helpers import gather_by_position, vertex_velocities_by_position
 
 ANGLE = np.radians(30.0)
 ROT = np.array([[np.cos(ANGLE), -np.sin(ANGLE), 0], [np.sin(ANGLE), np.cos(ANGLE), 0],

@@ -3,8 +3,6 @@ boundary conditions, explicit vs implicit on a curved tool, Newton convergence, 
 
 import numpy as np
 import pytest
-from helpers import FakeBoundary as _FakeBoundary
-from helpers import gather_by_position
 from mpi4py import MPI
 
 from fxcontact.contact.boundary import ContactBoundary
@@ -16,6 +14,9 @@ from fxcontact.meshing import BILLET_TAGS, BLOCK_TAGS, block, cylinder_billet
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Cone, Cylinder, Plane, Sphere
+
+from helpers import FakeBoundary as _FakeBoundary
+from helpers import gather_by_position
 
 
 # ----------------------------------------------------------------------------- unit level
@@ -336,8 +337,8 @@ def test_nagata_fallbacks_reported_per_increment():
     """A faceted Nagata tool whose Newton projection is not allowed to iterate falls back to
     the flat facet: the contact diagnostics report the count at the last evaluation and the sum
     over every evaluation of the increment (reset at the next increment), never silently."""
-    from fxcontact.tools import surfaces
     from fxcontact.tools.faceted import FacetedTool
+    from fxcontact.tools import surfaces
 
     V, T = surfaces.icosphere(2, radius=2.0, center=(0.0, 0.0, 2.5))
     n = 40

@@ -4,7 +4,6 @@ columns (tool forces, penetrations), a snapshot that later evaluations do not ch
 
 import numpy as np
 import pytest
-from helpers import gather_by_position
 from mpi4py import MPI
 
 import fxcontact as fx
@@ -17,6 +16,8 @@ from fxcontact.meshing import BLOCK_TAGS, block
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Plane
+
+from helpers import gather_by_position
 
 ARRAYS = ("vertices", "dofs", "area", "positions", "point", "normal", "h", "grad_h", "force",
           "friction_force", "tool", "gap", "active", "pressure")

@@ -9,10 +9,10 @@ import os
 
 import numpy as np
 import pytest
-from helpers import run_script, shared_tmpdir
 from mpi4py import MPI
 
 from fxcontact.processes import upsetting_dies
+from helpers import run_script, shared_tmpdir
 
 DEMOS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "demos")
 

@@ -8,8 +8,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import load_file
 from mpi4py import MPI
+
+from helpers import load_file
 
 drawing = load_file("drawing_case", Path(__file__).resolve().parents[1] / "benchmarks" /
                     "drawing_case.py")
@@ -270,11 +271,10 @@ def _ufl_and_kernel_duals(m):
     """A distorted box's MINI space: the material, layout, a state function, and two dual
     stresses, by the UFL expressions and by the numba kernel."""
     import dolfinx
-    from helpers import box_mesh
-
     from fxcontact import MixedSpace
     from fxcontact.element.dual import DualStress
     from fxcontact.element.tensors import P1P1Layout
+    from helpers import box_mesh
     sp = MixedSpace(box_mesh(MPI.COMM_WORLD, n=(3, 3, 3), perturb=0.25))
     mat = _material(m=m, reg=1e-2)
     lay = P1P1Layout(sp.W)
@@ -291,9 +291,8 @@ def test_dual_kernel_equals_the_expressions_and_the_numpy_twin(m):
     expressions, on a distorted mesh with a nonlinear velocity field and bubbles, over a
     primal start and three updates (each with another field), and against its numpy twin; the
     cap of the update is reached on some points."""
-    from test_element_condense import set_state
-
     from fxcontact.element.dual import dual_update_numpy
+    from test_element_condense import set_state
     mat, lay, w, ref, fast = _ufl_and_kernel_duals(m)
     kern = fast.kernel
     ncell = lay.num_cells
@@ -333,9 +332,8 @@ def test_dual_kernel_kept_coefficients_follow_state_and_geometry():
     update when that update starts from the same state on the same geometry. It must not read it
     after the mesh moved or from another starting state: each update equals the UFL
     expressions, and the kept values are used only where they apply."""
-    from test_element_condense import set_state
-
     from fxcontact.element.dual import dual_update_numpy
+    from test_element_condense import set_state
     mat, lay, w, ref, fast = _ufl_and_kernel_duals(0.016)
     kern = fast.kernel
 

@@ -9,27 +9,23 @@ step). Serially and on 2 ranks (each run compares the two condensations on the s
 communicator).
 """
 
-import dolfinx
-import dolfinx.fem.petsc
 import numpy as np
 import pytest
 import ufl
-from helpers import box_mesh
 from mpi4py import MPI
 from petsc4py import PETSc
+
+import dolfinx
+import dolfinx.fem.petsc
 
 import fxcontact as fx
 from fxcontact import compat
 from fxcontact.element.assembled import CondensationLayout, CondensedPC
 from fxcontact.element.dual import DualStress
-from fxcontact.element.tensors import (
-    CondensedAssembler,
-    FFCxElementTensors,
-    NortonHoffElementTensors,
-    P1P1Layout,
-    norton_hoff_forms,
-    norton_hoff_tensors_numpy,
-)
+from fxcontact.element.tensors import (CondensedAssembler, FFCxElementTensors,
+                                        NortonHoffElementTensors, P1P1Layout,
+                                        norton_hoff_forms, norton_hoff_tensors_numpy)
+from helpers import box_mesh
 
 PREFIX = "test_ec_"
 

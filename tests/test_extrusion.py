@@ -9,10 +9,11 @@ force equals 2 m̄ k L_c/R₀ × A₀ within 3 %; volume, element quality and th
 container and the die as two tools of one contact give the answer of one profile; 1 vs 2 ranks.
 Both angles with both reductions: ``benchmarks/bench_extrusion.py``."""
 
-import dolfinx.mesh
 import numpy as np
 import pytest
 from mpi4py import MPI
+
+import dolfinx.mesh
 
 from fxcontact.meshing import DRAWING_BAR_TAGS
 from fxcontact.processes import ExtrusionCase, build_extrusion, run_extrusion

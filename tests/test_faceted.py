@@ -6,7 +6,6 @@ import math
 import numpy as np
 import pytest
 
-from fxcontact.tools import surfaces as tm  # noqa: E402
 from fxcontact.tools.faceted import (
     FLAG_FALLBACK,
     FacetedTool,
@@ -19,6 +18,10 @@ from fxcontact.tools.faceted import (
     read_surface,
 )
 from fxcontact.tools.nagata import domain_samples, patch_points
+
+
+
+from fxcontact.tools import surfaces as tm  # noqa: E402
 
 
 def sphere_sdf(X, R=1.0):

@@ -13,10 +13,11 @@ import re
 from dataclasses import replace
 
 import pytest
-from helpers import run_readme_block, shared_tmpdir
 from mpi4py import MPI
 
 from fxcontact.processes import FlatRollingCase, flat_rolling
+
+from helpers import run_readme_block, shared_tmpdir
 
 #: the reduced size of the tests
 QUICK = FlatRollingCase().quick()

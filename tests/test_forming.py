@@ -7,15 +7,9 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from fxcontact.theory.forming import (
-    flow_stress,
-    ring_compression_upper_bound,
-    ring_neutral_radius,
-    ring_power,
-    ring_power_quadrature,
-    upsetting_slab_coulomb,
-    upsetting_upper_bound,
-)
+from fxcontact.theory.forming import (flow_stress, ring_compression_upper_bound, ring_neutral_radius,
+                               ring_power, ring_power_quadrature, upsetting_slab_coulomb,
+                               upsetting_upper_bound)
 
 MBARS = (0.0, 0.05, 0.1, 0.2, 0.4, 0.7, 1.0)
 EPS = np.linspace(0.0, 0.5, 11)
@@ -146,11 +140,8 @@ def test_ring_power_slope_by_finite_differences():
 def test_ring_rolling_worked_example():
     """THEORY §14.4 example: R1 = 150, R2 = 40, R = 100, r = 60, H = 40 mm, μ = 0.3,
     σ₀ = 100 MPa: window 0.26–4.24 mm/rev, L = 8.94 mm at 1 mm/rev, F ≈ 70 kN."""
-    from fxcontact.theory.forming import (
-        ring_rolling_contact_length,
-        ring_rolling_feed_window,
-        ring_rolling_force,
-    )
+    from fxcontact.theory.forming import (ring_rolling_contact_length, ring_rolling_feed_window,
+                                   ring_rolling_force)
     w = ring_rolling_feed_window(150.0, 40.0, 100.0, 60.0, mu=0.3)
     assert w["min"] == pytest.approx(0.26, abs=0.005)
     assert w["max"] == pytest.approx(4.24, abs=0.005)
@@ -164,12 +155,8 @@ def test_ring_rolling_geometry_checks():
     """L is the chord of the two arcs (outer on the main roll, inner on the mandrel) meeting
     with the wall reduced by Δh: L² (1/(2R1) + 1/(2R) + 1/(2R2) − 1/(2r)) = Δh to first order;
     the feed speed makes Δh per ring revolution; D_m from the volume of a rectangular ring."""
-    from fxcontact.theory.forming import (
-        ring_rolling_contact_length,
-        ring_rolling_feed_speed,
-        ring_rolling_force,
-        ring_rolling_mean_diameter,
-    )
+    from fxcontact.theory.forming import (ring_rolling_contact_length, ring_rolling_feed_speed,
+                                   ring_rolling_mean_diameter, ring_rolling_force)
     R1, R2, R, r = 300.0, 60.0, 250.0, 180.0
     for dh in (0.1, 1.0, 3.0):
         L = ring_rolling_contact_length(dh, R1, R2, R, r)
@@ -254,12 +241,8 @@ def test_drawing_optimal_angle_and_theory_band():
     """The optimum minimises the bound (neighbouring angles give more) and is close to the
     classical √(1.5 m̄ ln(R₀/R_f)); no optimum without friction; the band of a Norton–Hoff
     material uses σ₀ = √3 K (√3 ε̇)^m at the mean rate."""
-    from fxcontact.theory.forming import (
-        drawing_mean_strain_rate,
-        drawing_optimal_angle,
-        drawing_theory,
-        drawing_upper_bound,
-    )
+    from fxcontact.theory.forming import (drawing_mean_strain_rate, drawing_optimal_angle,
+                                   drawing_theory, drawing_upper_bound)
     for mbar in (0.05, 0.1, 0.3):
         a = drawing_optimal_angle(10.0, 7.5, mbar)
         ub = drawing_upper_bound(1.0, 10.0, 7.5, a, mbar)
@@ -280,13 +263,9 @@ def test_extrusion_theory():
     """Extrusion: the die terms are drawing's at the punch speed (p A₀ v₀ = σ_d A_f v_f), the
     container friction is the Tresca stress m̄ k on the wall 2π R₀ L_c over the punch area, and
     k defaults to σ₀/√3; bad friction and lengths are refused."""
-    from fxcontact.theory.forming import (
-        drawing_ideal_stress,
-        drawing_mean_strain_rate,
-        drawing_upper_bound,
-        extrusion_container_friction,
-        extrusion_theory,
-    )
+    from fxcontact.theory.forming import (drawing_ideal_stress, drawing_mean_strain_rate,
+                                   drawing_upper_bound, extrusion_container_friction,
+                                   extrusion_theory)
     a = math.radians(20.0)
     th = extrusion_theory(40.0, 0.1, 10.0, 6.0, a, 10.0, mbar_die=0.1, mbar_container=0.3,
                           container_length=12.0, land_length=1.0)
@@ -316,8 +295,8 @@ def test_extrusion_theory():
 def test_every_process_theory_importable_from_forming():
     """The flat-rolling band is reachable from ``fxcontact.theory.forming`` too (one place for the
     processes' theory), the same function as ``fxcontact.theory.flat_rolling``'s."""
-    from fxcontact.theory import flat_rolling as rolling
     from fxcontact.theory import forming
+    from fxcontact.theory import flat_rolling as rolling
 
     assert forming.flat_rolling_theory is rolling.theory_band
     assert "flat_rolling_theory" in forming.__all__

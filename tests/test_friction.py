@@ -4,26 +4,18 @@ rotating tools, and bad input."""
 
 import numpy as np
 import pytest
-from helpers import FakeBoundary as _FakeBoundary
 from mpi4py import MPI
 
-from fxcontact.contact.friction import (
-    LAW_COULOMB,
-    LAW_NORTON,
-    LAW_TRESCA,
-    Coulomb,
-    Frictionless,
-    Norton,
-    ShearLimit,
-    Tresca,
-    friction_kernel,
-    friction_kernel_numpy,
-)
+from fxcontact.contact.friction import (LAW_COULOMB, LAW_NORTON, LAW_TRESCA, Coulomb,
+                                        Frictionless, Norton, ShearLimit, Tresca,
+                                        friction_kernel, friction_kernel_numpy)
 from fxcontact.contact.nodal import NodalContact
+from fxcontact.theory.forming import flow_stress
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic, NortonHoff
-from fxcontact.theory.forming import flow_stress
 from fxcontact.tools.analytic import Cylinder, Plane, Sphere
+
+from helpers import FakeBoundary as _FakeBoundary
 
 
 def _random_case(n, law, seed=0, d=3):

@@ -25,10 +25,10 @@ force F/(σ₀A₀) FE / UB: 1.108 / 1.117, 1.292 / 1.312, 1.445 / 1.580.
 
 import numpy as np
 import pytest
-from helpers import assert_histories_match, assert_newton_counts_match
 from mpi4py import MPI
 
 from fxcontact.processes import ring_test, upsetting_dies
+from helpers import assert_histories_match, assert_newton_counts_match
 
 #: short billet (d/h = 2), coarse mesh, 10 % reduction in 2 increments (+ start-up)
 # the volume correction (on by default) adds a volumetric rate of the order of one increment's

@@ -4,13 +4,13 @@ penalty), a block creeping under a sub-Coulomb tangential load, a block driven b
 (free: it follows the roll's surface; held: the roll slips, reaction μN and torque RμN), μ = 1
 with m̄ = 1, and 1 rank = 2 ranks."""
 
-import dolfinx
 import numpy as np
 import pytest
 import ufl
-from helpers import assert_histories_match
 from mpi4py import MPI
 from petsc4py import PETSc
+
+import dolfinx
 
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Coulomb, Norton, Tresca
@@ -20,6 +20,8 @@ from fxcontact.meshing import BLOCK_TAGS, block
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Cylinder, Plane
+
+from helpers import assert_histories_match
 
 E, NU = 1000.0, 0.3
 

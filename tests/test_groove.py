@@ -8,10 +8,10 @@ import os
 
 import numpy as np
 import pytest
-from helpers import assert_histories_match, assert_newton_counts_match, shared_tmpdir
 from mpi4py import MPI
 
 from fxcontact.processes import groove, ironing
+from helpers import assert_histories_match, assert_newton_counts_match, shared_tmpdir
 
 NAGATA, FLAT, ANALYTIC = "nagata-coarse-implicit", "flat-coarse-implicit", "analytic-implicit"
 

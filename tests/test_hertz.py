@@ -9,11 +9,11 @@ import os
 
 import numpy as np
 import pytest
-from helpers import shared_tmpdir
 from mpi4py import MPI
 
 from fxcontact.processes import hertz_cylinder, hertz_sphere
 
+from helpers import shared_tmpdir
 
 @pytest.fixture
 def outdir():

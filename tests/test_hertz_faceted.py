@@ -6,7 +6,6 @@ Nagata patch choice on shared patch edges."""
 import math
 
 import numpy as np
-from helpers import gather_by_position
 from mpi4py import MPI
 
 from fxcontact.contact.boundary import ContactBoundary
@@ -17,6 +16,8 @@ from fxcontact.processes import hertz, hertz_sphere
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.faceted import FacetedTool
+
+from helpers import gather_by_position
 
 # small block mesh of tests/test_hertz.py::test_hertz_sphere_small (5 nodes on a, 20 mm block)
 SMALL = dict(h_fine=0.05, growth=0.3, width=20.0, height=20.0, h=4.0, n_steps=2,

@@ -9,19 +9,20 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from helpers import FakeBoundary
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from fxcontact.contact.friction import Coulomb, Norton, Tresca
 from fxcontact.contact.nodal import NodalContact
-from fxcontact.idle import ControlledMotion, IdleRotation
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.materials import LinearElastic
-from fxcontact.newton.solver import BorderedOperator, BorderedPC
+from fxcontact.idle import ControlledMotion, IdleRotation
 from fxcontact.processes import RingRollingCase, ring_rolling
+from fxcontact.newton.solver import BorderedPC, BorderedOperator
 from fxcontact.tools.analytic import Cylinder, Plane
 from fxcontact.tools.base import MovedTool
+
+from helpers import FakeBoundary
 
 
 class _FakeSim:

@@ -8,11 +8,11 @@ import os
 
 import numpy as np
 import pytest
-from helpers import assert_histories_match, shared_tmpdir
 from mpi4py import MPI
 
 from fxcontact.processes import ironing, ironing_report
 from fxcontact.tools import surfaces
+from helpers import assert_histories_match, shared_tmpdir
 
 NAGATA, FLAT, ANALYTIC = "nagata-coarse-implicit", "flat-coarse-implicit", "analytic-implicit"
 

@@ -12,6 +12,7 @@ from mpi4py import MPI
 
 from fxcontact.processes import upsetting_dies
 
+
 SOLVERS = ("mumps", "condensed-amg")
 
 

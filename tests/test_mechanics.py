@@ -2,17 +2,19 @@
 
 import re
 
-import dolfinx
 import numpy as np
 import pytest
 import ufl
-from helpers import assert_newton_counts_match, box_mesh, gather_by_position
 from mpi4py import MPI
 
+import dolfinx
+
 from fxcontact.materials import LinearElastic, NortonHoff
-from fxcontact.newton.solver import SolverOptions
 from fxcontact.simulation import Simulation
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace, facets_with_tags
+
+from helpers import assert_newton_counts_match, box_mesh, gather_by_position
 
 
 def _faces(msh, L):
@@ -119,9 +121,8 @@ def test_fieldsplit_matches_mumps_and_options_do_not_leak():
     """The Schur field split (preset, or a dict with pc_type=fieldsplit) gives the MUMPS
     solution (Krylov rtol 1e-10 -> velocities within 1e-7), and a later MUMPS solver under the
     same prefix does not inherit the field-split options."""
-    from petsc4py import PETSc
-
     from fxcontact.newton.solver import LINEAR_SOLVERS
+    from petsc4py import PETSc
 
     comm = MPI.COMM_WORLD
     ref, out_ref, _ = compression(comm, 0.2, n_inc=2)

@@ -3,17 +3,20 @@ homogeneous compression, and an inverting velocity field caught before the geome
 
 import re
 
-import dolfinx
 import numpy as np
 import pytest
-from helpers import box_mesh
 from mpi4py import MPI
 
-from fxcontact import compat
+import dolfinx
+
 from fxcontact.materials import NortonHoff
+from fxcontact import compat
 from fxcontact.mesh_health import overlapping_facets, simplex_measures
 from fxcontact.simulation import MeshInversionError, Simulation
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
+
+from helpers import box_mesh
 
 
 def test_simplex_measures_of_known_shapes():

@@ -1,12 +1,15 @@
 """gmsh builders: isolation of gmsh options between builders and from a caller's session."""
 
-import dolfinx.fem
 import numpy as np
 import pytest
 import ufl
 from mpi4py import MPI
 
+import dolfinx.fem
+
 from fxcontact.meshing import RING_TAGS, block, cylinder_billet, gmsh_session, ring
+
+
 from fxcontact.tools import surfaces as tool_meshes  # noqa: E402
 
 
@@ -121,10 +124,14 @@ def test_session_never_calls_gmsh_before_initialize(monkeypatch, imported, initi
 
 
 # ------------------------------------------------------------------ drawing bar
-import dolfinx  # noqa: E402
+import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+import ufl  # noqa: E402
+
+import dolfinx  # noqa: E402
 
 from fxcontact import compat  # noqa: E402
+
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals  # noqa: E402
 
 BAR = dict(radius=5.0, length=14.0, h=1.5, nose_length=4.0, nose_radius=3.5, nose_angle=30.0)

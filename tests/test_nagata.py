@@ -7,7 +7,6 @@ import pytest
 from scipy.optimize import minimize
 
 from fxcontact.tools import nagata as ng
-from fxcontact.tools import surfaces as tm  # noqa: E402
 from fxcontact.tools.nagata import (
     crease_edge_coefficients,
     domain_samples,
@@ -25,6 +24,10 @@ from fxcontact.tools.nagata import (
     project_patch_ref,
 )
 from fxcontact.tools.normals import LOCAL_EDGES, edge_topology, facet_vertex_normals
+
+
+
+from fxcontact.tools import surfaces as tm  # noqa: E402
 
 
 def _patches(V, T, normals="nvv", crease_angle=math.radians(50)):

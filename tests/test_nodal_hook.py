@@ -1,21 +1,25 @@
 """The Newton solver's nodal hook: nodal springs equal the same springs written as a UFL form."""
 
-import dolfinx
-import dolfinx.fem.petsc
-import dolfinx.nls.petsc
 import numpy as np
 import pytest
 import ufl
-from helpers import box_mesh
 from mpi4py import MPI
+
+import dolfinx
+
 from petsc4py import PETSc
+
+import dolfinx.fem.petsc
+import dolfinx.nls.petsc
 
 from fxcontact import compat
 from fxcontact.contact.boundary import ContactBoundary
-from fxcontact.contact.springs import NodalSprings, spring_kernel, spring_kernel_numpy
 from fxcontact.materials import NortonHoff
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace, velocity_bc
+from fxcontact.contact.springs import NodalSprings, spring_kernel, spring_kernel_numpy
+
+from helpers import box_mesh
 
 
 def _mesh_and_tags(comm):

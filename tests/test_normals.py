@@ -5,12 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from fxcontact.tools import surfaces as tm  # noqa: E402
 from fxcontact.tools.normals import (
     CORNER,
     CREASE,
-    LOCAL_EDGES,
     SURFACE,
+    LOCAL_EDGES,
     crease_epsilon,
     edge_topology,
     facet_normals,
@@ -19,6 +18,10 @@ from fxcontact.tools.normals import (
     unique_rows,
     vertex_normals,
 )
+
+
+
+from fxcontact.tools import surfaces as tm  # noqa: E402
 
 
 def _cube_vertex_kind(V, half=0.5):

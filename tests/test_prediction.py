@@ -6,8 +6,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import load_file
 from mpi4py import MPI
+
+from helpers import load_file
 
 drawing = load_file("drawing_case", Path(__file__).resolve().parents[1] / "benchmarks" /
                     "drawing_case.py")
@@ -45,9 +46,9 @@ def test_corrected_step_solves_the_predicted_branch():
     condition limits it: the direct solve of J itself agrees with the dense one to ~1e-8).
     Measured (the first three corrected steps): 2, 7, 9 nodes, differences 5e-9 to 7e-9,
     corrections 0.05 to 0.73 of the step."""
-    import math
-
     import fxcontact.newton.prediction as P
+
+    import math
     rate = drawing.mean_strain_rate(5.0, 0.15, math.radians(10.0), 10.0 * 0.85)
     # ε̇₀ = 0.1 × the die's rate: a Jacobian conditioned well enough for the dense comparison
     # (with the default 1e-6 1/s the direct solve itself differs from the dense one by 7 %)
@@ -232,7 +233,6 @@ def test_batched_columns_checked_against_the_operator():
     batch is applied, its check against the operator fails, and every column is solved by the
     Krylov method, as without the batch (1 and 2 ranks)."""
     from petsc4py import PETSc
-
     from fxcontact.newton.prediction import ActiveSetPrediction
     comm = MPI.COMM_WORLD
     n = 60

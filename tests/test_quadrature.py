@@ -6,16 +6,18 @@ p = 2KU(1−x): velocity prescribed on every face but x = 1, where the exact tra
 so the errors measure the discretisation, on a distorted mesh (vertices moved by 20 % of h).
 """
 
-import dolfinx
 import numpy as np
 import pytest
 import ufl
-from helpers import box_mesh
 from mpi4py import MPI
+
+import dolfinx
 
 from fxcontact.materials import NortonHoff
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import DEFAULT_QUADRATURE, MixedSpace
+
+from helpers import box_mesh
 
 K, U = 2.0, 1.0
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from helpers import shared_tmpdir
 
 README = Path(__file__).resolve().parents[1] / "README.md"

@@ -1,27 +1,22 @@
 """Remeshing building blocks (fxcontact.remesh): transfer of fields by parallel point location,
 the new volume mesh of a deformed billet, the criteria. Serial and on 2 ranks."""
 
-import dolfinx
-import dolfinx.fem
 import numpy as np
 import pytest
 import ufl
 from mpi4py import MPI
+
+import dolfinx
+import dolfinx.fem
 
 import fxcontact as fx
 from fxcontact import compat
 from fxcontact.mesh_health import simplex_measures
 from fxcontact.remesh import criteria
 from fxcontact.remesh.surface import gather_boundary
-from fxcontact.remesh.transfer import (
-    PointLocation,
-    cell_vertex_coordinates,
-    cellwise_integral,
-    interpolate_from,
-    physical_points,
-    quadrature_rule,
-    transfer_cellwise,
-)
+from fxcontact.remesh.transfer import (PointLocation, physical_points, quadrature_rule,
+                                       cell_vertex_coordinates, cellwise_integral,
+                                       interpolate_from, transfer_cellwise)
 from fxcontact.remesh.volume import SizeZone, size_field, volume_mesh
 
 COMM = MPI.COMM_WORLD

@@ -12,11 +12,12 @@ import os
 
 import numpy as np
 import pytest
-from helpers import shared_tmpdir
 from mpi4py import MPI
 
 import fxcontact as fx
 from fxcontact.remesh.criteria import RemeshCriteria
+
+from helpers import shared_tmpdir
 
 COMM = MPI.COMM_WORLD
 DT = 0.06
@@ -256,7 +257,6 @@ def test_contact_coverage_criterion_refines_the_bite():
 
 def _ring_case(**kw):
     import dataclasses
-
     from fxcontact.processes import ring_rolling as rr
     return dataclasses.replace(rr.RingRollingCase().quick(), remesh=True, **kw)
 

@@ -4,13 +4,13 @@ every Newton iteration, with fewer factorisations (counted by PETSc's log events
 
 import numpy as np
 import pytest
-from helpers import vertex_velocities_by_position
 from mpi4py import MPI
 from petsc4py import PETSc
-from test_condense import pressed_block
 
 import fxcontact as fx
 from fxcontact.newton.solver import SolverOptions
+from helpers import vertex_velocities_by_position
+from test_condense import pressed_block
 
 #: PETSc log events of a numeric factorisation (LU and L D Lᵀ)
 FACTOR_EVENTS = ("MatLUFactorNum", "MatCholFctrNum")

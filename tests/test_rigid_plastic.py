@@ -7,8 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import load_file
 from mpi4py import MPI
+
+from helpers import load_file
 
 drawing = load_file("drawing_case", Path(__file__).resolve().parents[1] / "benchmarks" /
                     "drawing_case.py")

@@ -13,17 +13,18 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from checkpoint_driver import build
-from helpers import shared_tmpdir
 from mpi4py import MPI
-from ring_runs import CONES as SHORT
-from ring_runs import cone_runs
 
 import fxcontact as fx
 from fxcontact.checkpoint import CheckpointError, list_checkpoints, plain_state
 from fxcontact.idle import ControlledMotion, IdleRotation
 from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.processes import ring_rolling
+
+from checkpoint_driver import build
+from helpers import shared_tmpdir
+
+from ring_runs import CONES as SHORT, cone_runs
 
 
 def _json_round_trip(state):

@@ -9,9 +9,10 @@ from dataclasses import replace
 
 import pytest
 from mpi4py import MPI
-from ring_runs import CONES, NI, cone_runs
 
 from fxcontact.processes import RingRollingCase, ring_rolling
+
+from ring_runs import CONES, NI, cone_runs
 
 
 @pytest.fixture(scope="module")

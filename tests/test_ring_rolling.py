@@ -8,12 +8,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from helpers import run_readme_block, shared_tmpdir
 from mpi4py import MPI
 
 from fxcontact.contact.friction import Norton
 from fxcontact.idle import ControlledMotion
 from fxcontact.processes import RingRollingCase, ring_rolling
+
+from helpers import run_readme_block, shared_tmpdir
 
 NI = RingRollingCase().quick().increments_per_rev
 #: two increments of the quick (coarse) case 2: Coulomb friction on the main roll and the mandrel

@@ -13,8 +13,8 @@ from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.nodal import NodalContact
 from fxcontact.materials import LinearElastic
 from fxcontact.meshing import BLOCK_TAGS, block
-from fxcontact.newton.solver import NULL_PIVOT_HINT, SolverOptions
 from fxcontact.simulation import Simulation
+from fxcontact.newton.solver import NULL_PIVOT_HINT, SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Plane
 

@@ -9,17 +9,18 @@ of the sector models, and a sector model with exact symmetry conditions reproduc
 solver tolerance — a much sharper check than a comparison of different meshes.
 """
 
-import dolfinx
-import dolfinx.mesh
 import numpy as np
 import pytest
 import ufl
 from mpi4py import MPI
 
+import dolfinx
+import dolfinx.mesh
+
 from fxcontact.materials import NortonHoff
 from fxcontact.meshing import gmsh_session
-from fxcontact.newton.solver import SolverOptions
 from fxcontact.simulation import Simulation
+from fxcontact.newton.solver import SolverOptions
 from fxcontact.spaces import MixedSpace
 from fxcontact.symmetry import SymmetryPlanes
 

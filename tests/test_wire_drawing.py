@@ -15,11 +15,12 @@ import os
 
 import numpy as np
 import pytest
-from helpers import load_file
 from mpi4py import MPI
 
 from fxcontact.processes import DrawingCase, run_drawing
 from fxcontact.processes.die import die_tool
+
+from helpers import load_file
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 bench = load_file("bench_thesis_wire_drawing",
