@@ -3,16 +3,8 @@
 partition-independent keys of vertices and dofs that checkpoints (:mod:`fxcontact.checkpoint`)
 and remeshed restores use (:mod:`~fxcontact.io.keys`)."""
 
-from fxcontact.io.series import (
-                                 HistoryWriter,
-                                 SeriesWriter,
-                                 figure,
-                                 gather_mesh_data,
-                                 plot_pressure_profile,
-                                 read_pvd,
-                                 render_png,
-                                 write_pvd,
-)
+from fxcontact.io.series import (HistoryWriter, SeriesWriter, figure, gather_mesh_data,
+                                 plot_pressure_profile, read_pvd, render_png, write_pvd)
 
 __all__ = ["HistoryWriter", "SeriesWriter", "figure", "gather_mesh_data", "plot_pressure_profile",
            "read_pvd", "render_png", "write_pvd"]

@@ -40,20 +40,9 @@ pictures, ``report()``).
   their former spellings).
 """
 
-from fxcontact.processes import (
-                                 bar_rolling,
-                                 flat_rolling,
-                                 groove,
-                                 hertz,
-                                 hertz_cylinder,
-                                 hertz_sphere,
-                                 hyperelastic,
-                                 ironing,
-                                 ironing_report,
-                                 ring_rolling,
-                                 ring_test,
-                                 upsetting_dies,
-)
+from fxcontact.processes import (bar_rolling, flat_rolling, groove, hertz, hertz_cylinder,
+                                 hertz_sphere, hyperelastic, ironing, ironing_report, ring_rolling,
+                                 ring_test, upsetting_dies)
 from fxcontact.processes.bar_rolling import BarRollingCase, BarRollingResult, BarRollingSetup
 from fxcontact.processes.drawing import DrawingCase, DrawingResult, DrawingSetup
 from fxcontact.processes.drawing import build as build_drawing, run as run_drawing
@@ -63,14 +52,8 @@ from fxcontact.processes.flat_rolling import FlatRollingCase, FlatRollingResult,
 from fxcontact.processes.hertz_cylinder import run as run_hertz_cylinder
 from fxcontact.processes.hertz_sphere import run as run_hertz_sphere
 from fxcontact.processes.hyperelastic import run as run_hyperelastic
-from fxcontact.processes.monitor import (
-                                 STATUSES,
-                                 RunNumerics,
-                                 SteadyMonitor,
-                                 SteadyRun,
-                                 StopRules,
-                                 window_increments,
-)
+from fxcontact.processes.monitor import (STATUSES, RunNumerics, SteadyMonitor, SteadyRun, StopRules,
+                                         window_increments)
 from fxcontact.processes.ring_rolling import RingRollingCase, RingRollingResult, RingRollingSetup
 from fxcontact.processes.ring_test import run as run_ring_test
 from fxcontact.processes.upsetting import UpsettingCase, UpsettingResult, UpsettingSetup
