@@ -21,15 +21,16 @@ keep their former names (``--mu``, ``--main_friction``).
 from __future__ import annotations
 
 import dataclasses
+import math
 import types
 import warnings
 from dataclasses import dataclass
-from typing import Callable, Dict, Mapping, Tuple, Union
+from typing import Callable, Dict, Mapping, Optional, Tuple, Union
 
 from fxcontact.contact.friction import Coulomb, FrictionLaw, Frictionless, Norton, Tresca
 from fxcontact.contact.penalty import Penalty
 
-__all__ = ["UNSET", "Friction", "ToolLaws", "Former", "ContactLaws", "resolve_contact_laws",
+__all__ = ["UNSET", "Friction", "ToolLaws", "Former", "former_beta_gap_penalty", "ContactLaws", "resolve_contact_laws",
            "replace_case", "gap_penalty", "contact_friction", "law_text"]
 
 
@@ -94,6 +95,22 @@ class Former:
     defaults: Mapping[str, object]
     to_new: Callable[[object, Dict[str, object]], object]
     from_new: Callable[[object, object], Dict[str, object]]
+
+
+def _gap_penalty_of_beta(case, v: dict) -> Penalty:
+    if not (isinstance(v["beta"], (int, float)) and math.isfinite(v["beta"]) and v["beta"] > 0):
+        raise ValueError(f"beta must be a finite number > 0, got {v['beta']!r}")
+    return Penalty(beta=float(v["beta"]), gap=True)
+
+
+def _beta_of_gap_penalty(case, p: Penalty) -> Optional[dict]:
+    return {"beta": p.beta} if p.beta is not None else None
+
+
+def former_beta_gap_penalty(default_beta: float) -> Former:
+    """The former ``beta`` field of a case whose penalty is a gap stiffness from β
+    (``Penalty(beta, gap=True)``: extrusion, upsetting)."""
+    return Former("penalty", {"beta": default_beta}, _gap_penalty_of_beta, _beta_of_gap_penalty)
 
 
 def _is_new(field: str, value) -> bool:

@@ -68,7 +68,7 @@ from fxcontact.processes.common import (CaseBase, ProcessResult, finish_run, mer
                                         numerics_columns, plot_curves, plot_sections,
                                         run_increments, run_summary, steady_values, vertex_field)
 from fxcontact.processes.contact_laws import (UNSET, Former, Friction, ToolLaws, contact_friction,
-                                              gap_penalty, law_text)
+                                              former_beta_gap_penalty, gap_penalty, law_text)
 from fxcontact.processes.die import bar_simulation, die_profile_tool, die_radius, nose_layout
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone
@@ -114,16 +114,6 @@ def _friction_values(case, friction) -> Optional[dict]:
     return {"mbar_die": getattr(laws["die"], "mbar", 0.0),
             "mbar_container": getattr(laws["container"], "mbar", 0.0),
             "container_shear_limit": k}
-
-
-def _penalty_of(case, v: dict) -> Penalty:
-    if not (isinstance(v["beta"], (int, float)) and math.isfinite(v["beta"]) and v["beta"] > 0):
-        raise ValueError(f"beta must be a finite number > 0, got {v['beta']!r}")
-    return Penalty(beta=float(v["beta"]), gap=True)
-
-
-def _penalty_values(case, p: Penalty) -> Optional[dict]:
-    return {"beta": p.beta} if p.beta is not None else None
 
 
 @dataclass(frozen=True)
@@ -212,7 +202,7 @@ class ExtrusionCase(CaseBase):
     FORMER = (Former("friction", {"mbar_die": 0.1, "mbar_container": 0.3,
                                   "container_shear_limit": None},
                      _friction_of, _friction_values),
-              Former("penalty", {"beta": 100.0}, _penalty_of, _penalty_values))
+              former_beta_gap_penalty(100.0))
 
     #: the reduced size of the tests: R₀ 5 → 3.5 mm, h = 1 mm, a short billet
     QUICK = dict(R0=5.0, R1=3.5, length=14.0, h=1.0, land=0.5, fillet=0.5, relief_length=0.5,

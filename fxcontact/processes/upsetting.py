@@ -77,7 +77,7 @@ from fxcontact.power import PowerBalance
 from fxcontact.processes.common import (CaseBase, ProcessResult, finish_run, meridian_section,
                                         numerics_columns, plot_curves, run_summary)
 from fxcontact.processes.contact_laws import (UNSET, Former, Friction, contact_friction,
-                                              gap_penalty, law_text)
+                                              former_beta_gap_penalty, gap_penalty, law_text)
 from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone
 from fxcontact.simulation import IncrementError, Simulation
@@ -115,16 +115,6 @@ def _friction_values(case, law) -> Optional[dict]:
     if isinstance(law, (Tresca, Frictionless)):
         return {"mu": None, "mbar": getattr(law, "mbar", 0.0)}
     return None
-
-
-def _penalty_of(case, v: dict) -> Penalty:
-    if not (isinstance(v["beta"], (int, float)) and math.isfinite(v["beta"]) and v["beta"] > 0):
-        raise ValueError(f"beta must be a finite number > 0, got {v['beta']!r}")
-    return Penalty(beta=float(v["beta"]), gap=True)
-
-
-def _penalty_values(case, p: Penalty) -> Optional[dict]:
-    return {"beta": p.beta} if p.beta is not None else None
 
 
 @dataclass(frozen=True)
@@ -194,7 +184,7 @@ class UpsettingCase(CaseBase):
 
     FRICTION_TOOLS = ("die", "base")
     FORMER = (Former("friction", {"mbar": 1.0, "mu": None}, _friction_of, _friction_values),
-              Former("penalty", {"beta": 100.0}, _penalty_of, _penalty_values))
+              former_beta_gap_penalty(100.0))
 
     #: the reduced size of the tests: R₀ = 5 mm (H₀ = 15 mm), h = 1.25 mm, a 45° sector
     QUICK = dict(R0=5.0, h=1.25, dt=0.05, sector=45.0)
