@@ -92,8 +92,10 @@ MPI_RTOL = 1e-6
 #: (whatever is left below the tolerance); ring rolling case 2, whose Newton path on 2 ranks
 #: is chaotic (12 to 23 iterations in the 2nd increment, one run in 6 cut back: dissipation
 #: x 9); the remeshed upsetting, whose new meshes follow the round-off (one run in 3 took
-#: another path: 36 increments instead of 37, force within 4 %)
-MPI_IGNORE = r"^(ring_rolling|upsetting):|residual$"
+#: another path: 36 increments instead of 37, force within 4 %); the last entry of a long
+#: array gathered over the ranks (``.last``: which node comes last follows the partition, and
+#: one 2-rank run of the flat rolling's contact arc in four ended on another node)
+MPI_IGNORE = r"^(ring_rolling|upsetting):|residual$|\.last$"
 
 #: the sizes of the stories (the tests' reduced sizes; identical between record and compare)
 SIZES = {
