@@ -6,11 +6,14 @@ import pytest
 from mpi4py import MPI
 
 from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import NodalContact, penalty_from_beta
 from fxcontact.contact.penalty import Penalty, penalty_kernel, penalty_kernel_numpy
 from fxcontact.kinematics import CartesianUpdate, CylindricalUpdate
 from fxcontact.materials import LinearElastic, NortonHoff
 from fxcontact.meshing import BILLET_TAGS, BLOCK_TAGS, block, cylinder_billet
+from fxcontact.newton.options import SolverOptions
+from fxcontact.newton.problem import NodalTerms
 from fxcontact.simulation import Simulation
 from fxcontact.spaces import MixedSpace
 from fxcontact.tools.analytic import Cone, Cylinder, Plane, Sphere
@@ -404,3 +407,68 @@ def test_tiny_dt_converges_at_the_round_off_floor():
     history = sim.run(t_end=3e-6, dt=1e-6, max_cutbacks=0)
     assert len(history) == 3 and all(r["cutbacks"] == 0 for r in history)
     assert history[-1]["contact_nodes"] > 0 and history[-1]["die_force_z"] > 0
+
+
+class _GarbageAttempts:
+    """Contributor that, in every Newton solve of the increments numbered ``bad`` (0-based) at
+    dt > 0.15, pushes the contact nodes with large random forces (N) drawn afresh at each
+    evaluation and never reports a settled state: every attempt at that dt wanders off and
+    fails, and the cut-back attempt (dt/2) runs clean. Adds nothing elsewhere."""
+
+    def __init__(self, dofs, bad):
+        self.dofs, self.bad = dofs, set(bad)
+        self.rng = np.random.default_rng(1 + MPI.COMM_WORLD.rank)
+        self.on = False
+        self.seen = 0      # garbage evaluations
+
+    def begin_increment(self, sim, t, dt, x):
+        self.on = len(sim.history) in self.bad and dt > 0.15
+
+    def evaluate(self, w, jacobian):
+        n = len(self.dofs)
+        if not self.on:
+            return NodalTerms.empty(3)
+        self.seen += 1
+        r = self.rng.normal(scale=1e4, size=(n, 3))
+        return NodalTerms(self.dofs, r, np.zeros((n, 3, 3)) if jacobian else None)
+
+    def stable(self):
+        return not self.on
+
+
+def _upsetting_steps(dts, bad=()):
+    """The upsetting of _upsetting with Tresca friction on the die, stepped by ``dts`` (at most
+    one cut-back), the attempts at dt > 0.15 of the increments ``bad`` failed by garbage."""
+    msh, _, ft = cylinder_billet(MPI.COMM_WORLD, 10.0, 15.0, 4.0)
+    sp = MixedSpace(msh)
+    sim = Simulation(sp, NortonHoff(50.0, 0.15, regularization=1e-4), progress=False,
+                     solver_options=SolverOptions(max_it=12))
+    for key, comp in (("symmetry_x", 0), ("symmetry_y", 1), ("bottom", 2)):
+        sim.add_velocity_bc(sim.facets(ft, BILLET_TAGS[key]), 0.0, component=comp)
+    die = Plane((0, 0, 15.0), (0, 0, -1), velocity=(0, 0, -5.0), name="die")
+    c = sim.add_contributor(NodalContact(ContactBoundary(sp, ft, BILLET_TAGS["top"]), die,
+                                         friction=Tresca(0.3)))
+    g = sim.add_contributor(_GarbageAttempts(c.boundary.dofs, bad))
+    for dt in dts:
+        sim.step(dt, max_cutbacks=1)
+    return sim, g
+
+
+@pytest.mark.serial   # bitwise: parallel MUMPS is not reproducible from run to run
+def test_failed_attempts_leave_nothing():
+    """An increment accepted after failed attempts and the increments after it are those of a
+    run that takes the same steps without failing, bitwise: nothing of the failed attempts
+    (their iterates, dual stress, contact and friction states, factorisations, the consistent
+    tangent and the line search of the fall-backs) reaches them."""
+    sim, g = _upsetting_steps([0.2] * 4, bad={1})
+    ref, _ = _upsetting_steps([0.2, 0.1, 0.2, 0.2])
+    assert [r["cutbacks"] for r in sim.history] == [0, 1, 0, 0] and g.seen > 0
+    # three failed attempts at dt = 0.2 (the primal-dual tangent, the consistent one, the
+    # fall-back line search; the last one's factorisation fails), each followed by a reset
+    assert sim.solver.resets == 3 and ref.solver.resets == 0
+    for a, b in zip(ref.history, sim.history):
+        for key in ("time", "dt", "die_force_z", "residual", "newton_iterations",
+                    "linear_iterations", "contact_nodes", "volume"):
+            assert a[key] == b[key], (key, a["increment"], a[key], b[key])
+    assert np.array_equal(ref.w.x.array, sim.w.x.array)
+    assert np.array_equal(ref.mesh.geometry.x, sim.mesh.geometry.x)

@@ -6,7 +6,9 @@ Checked: the steady punch pressure lies between the ideal work and 1.1 × (Avitz
 + the container friction 2 m̄ k L_c/R₀), for this die and another angle and reduction (30°,
 R₁ = 4 mm: 36 % instead of 51 %); with k given in the container's law, the container's
 force equals 2 m̄ k L_c/R₀ × A₀ within 3 %; volume, element quality and the power balance; the
-container and the die as two tools of one contact give the answer of one profile; 1 vs 2 ranks.
+container and the die as two tools of one contact give the answer of one profile, but for a node
+less than its depth past the container's end (measured below the bore continued, not the die's
+entry fillet); 1 vs 2 ranks.
 Both angles with both reductions: ``benchmarks/bench_extrusion.py``."""
 
 import numpy as np
@@ -16,7 +18,7 @@ from mpi4py import MPI
 import dolfinx.mesh
 
 from fxcontact.meshing import DRAWING_BAR_TAGS
-from fxcontact.processes import ExtrusionCase, build_extrusion, run_extrusion
+from fxcontact.processes import ExtrusionCase, build_extrusion, extrusion, run_extrusion
 
 
 @pytest.fixture(scope="module")
@@ -85,14 +87,81 @@ def _histories_agree(a, b, keys, rtol=1e-8):
         assert qa["contact_nodes"] == qb["contact_nodes"]
 
 
+def _gaps_at(s, dz, dp, phi=0.7):
+    """Signed gaps (mm) of the two descriptions of ``s`` (a "separate" set-up) at the point
+    ``dz`` past the container's end and ``dp`` outside the bore (``dp > 0``: inside the tools):
+    the smallest gap over the container and the die, and the one profile's gap."""
+    r, z = s.case.R0 + dp, s.corner + dz
+    X = np.array([[r * np.cos(phi), r * np.sin(phi), z]])
+    return (min(float(t.project(X, 0.0).gap[0]) for t in s.tools),
+            float(s.profile.project(X, 0.0).gap[0]))
+
+
+def test_separate_tools_gap_at_the_container_end():
+    """The container and the die as two tools (the smallest gap of the two) measure a point
+    as the one profile of both does — outside the tools, and inside them upstream of the
+    container's end or more than its depth p past it — but not a point less than p past the
+    container's end: there the die's entry face (inside the union of the two bodies) is nearer
+    than its fillet, so the die's gap is above the container's, and the container's bore
+    continued past its end gives −p where the profile gives the depth below the fillet of radius
+    R_f, −(√(δ² + (R_f + p)²) − R_f): shallower by about δ²/2(R_f + p)."""
+    s = build_extrusion(ExtrusionCase.quick(container="separate", mbar_container=0.1))
+    assert [t.name for t in s.tools] == ["container", "die"]
+    Rf = s.case.entry_fillet
+    for dz, dp in ((-1e-3, 7.5e-4), (-1e-4, 7.5e-4), (8e-4, 7.5e-4), (2e-3, 7.5e-4),
+                   (0.3, 0.0), (5e-4, -1e-3), (-5e-4, -1e-3), (0.1, -0.2)):
+        two, one = _gaps_at(s, dz, dp)
+        assert abs(two - one) <= 1e-14, (dz, dp, two, one)
+    for dz, dp in ((2e-4, 7.5e-4), (7e-4, 7.5e-4), (1e-3, 2e-3)):
+        two, one = _gaps_at(s, dz, dp)
+        assert two == pytest.approx(-dp, abs=1e-14)
+        assert one == pytest.approx(-(np.hypot(dz, Rf + dp) - Rf), abs=1e-14)
+        assert two - one == pytest.approx(dz ** 2 / (2 * (Rf + dp)), rel=1e-2)
+
+
+def _watch_container_end(s, seen: list):
+    """Append to ``seen``, at every evaluation of the contact of the set-up ``s`` (Newton
+    iterates and line-search trials), the number of penetrated nodes less than their depth past
+    the container's end (where the two tool descriptions differ:
+    test_separate_tools_gap_at_the_container_end)."""
+    contact = s.contact
+    evaluate = contact.evaluate
+
+    def watched(w, jacobian):
+        terms = evaluate(w, jacobian)
+        n = contact.nodes
+        past = n.positions[:, 2] - s.corner
+        seen.append(int(np.sum((past > 0.0) & (past < -n.gap))))
+        return terms
+
+    contact.evaluate = watched
+    return s
+
+
 @pytest.mark.serial
-def test_separate_tools_equal_one_profile():
-    """A container and a die as two tools of one contact: each node takes the tool with the
-    smallest gap, the exact distance to the two bodies — the profile with a kink at the corner
-    gives the same answer, Newton iterations included."""
+def test_separate_tools_equal_one_profile(monkeypatch):
+    """A container and a die as two tools of one contact (each node takes the tool with the
+    smallest gap) give the history of one profile of both, Newton iterations included, as long
+    as no node comes less than its depth p past the container's end, checked at every
+    evaluation: there the two descriptions differ by about δ²/2(R_f + p)
+    (test_separate_tools_gap_at_the_container_end). With dt = 0.025 the second increment is cut
+    back (here) and the third ends with a node δ = 7.2e-4 mm past it at p = 7.5e-4 mm: gaps
+    5e-7 mm apart, punch forces 2e-5. With dt = 0.0125 (6 increments) no node comes there."""
+    seen = {}
+
+    def build_watched(case, *args, **kwargs):
+        seen[case.container] = []
+        return _watch_container_end(build_extrusion(case, *args, **kwargs),
+                                    seen[case.container])
+
+    monkeypatch.setattr(extrusion, "build", build_watched)
     runs = [run_extrusion(ExtrusionCase.quick(container=c, mbar_container=0.1, t_end=0.075,
-                                              stop_at_steady=False), pictures=False)
+                                              dt=0.0125, stop_at_steady=False), pictures=False)
             for c in ("separate", "profile")]
+    for c, counts in seen.items():
+        assert counts and not any(counts), \
+            f"{c}: a penetrated node less than its depth past the container's end"
+    assert len(runs[0].history) == 6
     _histories_agree(runs[0].history, runs[1].history, ("punch_force", "penetration"))
     assert [q["newton_iterations"] for q in runs[0].history] == \
         [q["newton_iterations"] for q in runs[1].history]

@@ -16,13 +16,18 @@ cone, the fillet, the land and the exit relief), two tools of one
 two friction factors must then be equal). How a node chooses among the tools of one contact
 (``NodalContact._project_all``): every node is projected on every tool and keeps the tool with
 the **smallest signed gap** (the deepest penetration, or the nearest surface), the first tool on
-a tie; its friction law is that tool's. For a container and a die this is the exact distance
-to the union of the two bodies (where they meet, the corner is concave seen from the billet and
-the two gaps meet on its bisector), the same as one profile: both give the same iterates and
-converge alike (``benchmarks/bench_extrusion.py``, ``tests/test_extrusion.py``). Two tools that
-coincide over a stretch (a die continued backwards along the container's radius) would leave
-the choice there to round-off: the die here starts with its entry face, so the container is
-strictly the nearer tool upstream.
+a tie; its friction law is that tool's. For a node outside the tools this is the distance to
+the union of the two bodies, as for one profile of both; for a penetrated node it is the deepest
+penetration into either body, here the depth below the union's surface except for a node less
+than its depth p past the container's end: there the die's entry face (inside the union) is
+nearer than its fillet, and the container's bore continued past its end measures the node,
+shallower than the fillet of radius R_f by about δ²/2(R_f + p) at δ past the end (5e-7 mm at
+the quick case's p = 7.5e-4 mm). Away from that band both descriptions give the same iterates,
+bitwise; a node inside it moves the history a little, by 2e-5 of the punch force in the quick
+case (``tests/test_extrusion.py``; ``benchmarks/bench_extrusion.py`` compares the Newton
+iterations of longer runs). Two tools that coincide over a stretch (a die continued backwards
+along the container's radius) would leave the choice there to round-off: the die here starts
+with its entry face, so the container is strictly the nearer tool upstream.
 
 **Which k the Tresca friction uses.** τ = m̄ k with k = K (√3 ε̄̇)^m taken at each contact
 node from its own strain rate (averaged over the adjacent cells, with the material's
