@@ -520,9 +520,10 @@ def test_trust_region_retest_of_the_same_iterate_is_not_a_cycle():
         fake = SimpleNamespace(problem=SimpleNamespace(contributors=[c]),
                                options=SolverOptions(max_it=100), _rtol=1e-12, _states=[],
                                _norms=[], _f0=None, _last_it=-1, _last_stable=False,
-                               _cycle_message="", _ftol_warned=False,
+                               _cycle_message="", _ftol_warned=False, _predicted=[], _pivots=[],
                                CYCLE_PERIODS=ContactNewtonSolver.CYCLE_PERIODS,
-                               CYCLE_RTOL=ContactNewtonSolver.CYCLE_RTOL)
+                               CYCLE_RTOL=ContactNewtonSolver.CYCLE_RTOL,
+                               ROUNDOFF_MARGIN=ContactNewtonSolver.ROUNDOFF_MARGIN)
         fake._cycle_period = lambda cs, f: ContactNewtonSolver._cycle_period(fake, cs, f)
         fake._describe_cycle = lambda cs, p, f: ContactNewtonSolver._describe_cycle(
             fake, cs, p, f)
@@ -553,6 +554,22 @@ def test_trust_region_retest_of_the_same_iterate_is_not_a_cycle():
     assert R.DIVERGED_DTOL in reasons
     assert "Newton stagnates: the residual stays at 1.000e+01" in fake._cycle_message
     assert "enter and leave" not in fake._cycle_message
+    # ... at the initial residual: not round-off (the message blamed the tolerance), and
+    # the active-set prediction named when it corrected each of the steps
+    assert "far above the round-off" in fake._cycle_message
+    assert "tolerance" not in fake._cycle_message
+    assert "active_set_prediction" not in fake._cycle_message
+    fake, c, conv = solver()
+    c.fp = ((1,),)
+    fake._predicted = [True] * 8
+    reasons = [conv(it, 10.0) for it in range(8)]
+    assert "active_set_prediction=False" in fake._cycle_message
+    # a residual that stagnates at 1e-10 of the initial one: the tolerance is blamed
+    fake, c, conv = solver()
+    c.fp = ((1,),)
+    reasons = [conv(it, 10.0 if it == 0 else 1e-9) for it in range(8)]
+    assert R.DIVERGED_DTOL in reasons
+    assert "the tolerance is below the accuracy" in fake._cycle_message
 
 
 def test_trust_region_from_rest_starts_with_the_full_newton_step():

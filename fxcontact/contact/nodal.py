@@ -630,13 +630,20 @@ class NodalContact(NodalContactIO):
         friction force changes with the status too), nor free nodes whose gap exceeds
         :attr:`PREDICTION_GAP` × the element size.
 
+        In displacement form (u = uᵗ + dt v, THEORY §3.7) the gradient is ``g/dt``; the block
+        ``S ρ g⊗g/dt`` and force ``S ρ h g`` are ``S ρ dt (g/dt)⊗(g/dt)`` and ``S ρ dt h (g/dt)``:
+        ``dc`` and ``o`` take ``S ρ dt`` (S k dt², k the gap stiffness) for the velocity's ``S ρ``.
+        The exact tangent's curvature term ``S ρ [h]₊ ∇²h`` (``implicit-exact``) stays for a node
+        predicted to leave: relative to ``S ρ g⊗g`` it is the penetration over the tool's radius.
+
         Args:
             step: the owned part of the Newton step δ (x_new = x + δ), indexed like the
                 boundary's dofs.
 
         Returns:
             ``(dofs (k, d), g (k, d), dc (k,), o (k,))`` for the k selected owned nodes (the
-            gradient with respect to the unknown: ``g/dt`` in displacement form).
+            gradient with respect to the unknown: ``g/dt`` in displacement form; ``dc`` and
+            ``o`` in the units of that gradient).
         """
         d = self.gdim
         dofs = self.boundary.dofs
@@ -646,6 +653,8 @@ class NodalContact(NodalContactIO):
         want = self._h + np.einsum("nd,nd->n", g, dl) > 0.0
         A = self._tangent_active
         c = self.boundary.areas * self._rho_eval
+        if self.formulation == "displacement":
+            c = c * self.dt    # the weight of the columns g/dt (docstring)
         dc = c * (want.astype(float) - A.astype(float))
         o = c * (np.where(want, self._h, 0.0) - np.maximum(self._h, 0.0))
         change = (dc != 0.0) | (o != 0.0)

@@ -419,6 +419,7 @@ class ContactNewtonSolver:
                 changed = self.prediction.correct(self.snes.getKSP(), y)
             finally:
                 self.linear_time += time.perf_counter() - t0
+            self._predicted.append(changed)
         fix = getattr(self.problem, "exact_dirichlet_step", None)
         fixed = bool(fix(x, y)) if fix is not None else False
         return changed or fixed
@@ -505,10 +506,19 @@ class ContactNewtonSolver:
         window = self._states[-2 * period:]
         if all(st[0] == window[-1][0] for st in window):
             target = max(self.options.atol, self._rtol * self._f0)
-            return (f"Newton stagnates: the residual stays at {fnorm:.3e} (initial "
+            head = (f"Newton stagnates: the residual stays at {fnorm:.3e} (initial "
                     f"{self._f0:.3e}, converged below {target:.3e}) with the same contact "
-                    f"state at every iteration: the tolerance is below the accuracy the "
-                    f"residual can be computed to (raise atol, or rtol)")
+                    f"state at every iteration")
+            floor = self._residual_floor(contributors)
+            if fnorm <= max(self.ROUNDOFF_MARGIN * floor, np.sqrt(np.finfo(float).eps) * self._f0):
+                return (f"{head}: the tolerance is below the accuracy the residual can be "
+                        f"computed to (raise atol, or rtol)")
+            pred = len(self._predicted) >= 2 * period and all(self._predicted[-2 * period:])
+            return (f"{head}, far above the round-off of the residual (contact floor "
+                    f"{floor:.1e}): the line search finds no decrease along the Newton steps, "
+                    f"which are not descent directions (" + ("the active-set prediction "
+                    "corrected each of them: SolverOptions.active_set_prediction=False turns "
+                    "it off; or " if pred else "") + "an inconsistent Jacobian)")
         hints = [c.cycle_hint(period) if inspect.signature(c.cycle_hint).parameters
                  else c.cycle_hint() for c in contributors if hasattr(c, "cycle_hint")]
         return (f"Newton iterates cycle with period {period} (the same contact state and "
@@ -518,6 +528,9 @@ class ContactNewtonSolver:
     #: periods looked for by the cycle detection, and the residual match that defines a repeat
     CYCLE_PERIODS = (2, 3, 4)
     CYCLE_RTOL = 1e-6
+    #: a residual that stagnates above this multiple of the contributors' round-off floor and
+    #: above √ε × the initial residual is not held up by round-off (:meth:`_describe_cycle`)
+    ROUNDOFF_MARGIN = 1e3
 
     def _cycle_period(self, contributors, fnorm: float) -> int:
         """Period p of a cycle of the Newton iterates (0 if none): the contributors' state
@@ -646,6 +659,7 @@ class ContactNewtonSolver:
         self._cycle_message = ""
         self._last_it = -1
         self._pivots = []
+        self._predicted = []   # per Newton step: corrected by the active-set prediction
         self._resolved_its = 0
         fact0 = self.factorisations
         calls0 = dict(self.callback_calls)
@@ -777,7 +791,6 @@ class ContactNewtonSolver:
 
 #: the former name of :class:`ContactNewtonSolver` (the same class)
 NewtonSolver = ContactNewtonSolver
-
 
 
 def _reason_name(reason: int, kind=PETSc.SNES.ConvergedReason) -> str:
