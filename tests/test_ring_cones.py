@@ -98,7 +98,8 @@ def test_axial_rolls_bad_inputs():
     from types import SimpleNamespace
 
     import fxcontact as fx
-    from fxcontact.idle import AxialRolls, ControlledMotion
+    from fxcontact.processes.ring_rolling import AxialRolls
+    from fxcontact.tools.base import ControlledMotion
 
     def cone(name):
         return fx.MovedTool(fx.Cone((0, 0, 1), (-1, 0, 1), 0.5, name=name),
