@@ -1,8 +1,16 @@
 #!/usr/bin/env bash
 # Run the whole test suite serially and on 2 MPI ranks (installs what is missing first).
-# Usage: bash scripts/test.sh [extra pytest arguments]
+# Usage: bash scripts/test.sh [--fast] [extra pytest arguments]
+#   --fast: only the tests not marked slow (pytest -m "not slow"), the quick loop while
+#           developing; without it everything runs (what CI runs).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+SELECT=()
+ARGS=()
+for a in "$@"; do
+  if [ "$a" = "--fast" ]; then SELECT=(-m "not slow"); else ARGS+=("$a"); fi
+done
+set -- "${SELECT[@]}" "${ARGS[@]}"
 bash scripts/setup.sh
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OPENBLAS_NUM_THREADS=1
 export VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow

@@ -653,6 +653,7 @@ def _run_driver(case, nranks, timeout=HANG_TIMEOUT):
 @pytest.mark.serial
 @pytest.mark.parametrize("case,ranks,exc,words", SUBPROCESS_CASES,
                          ids=[c[0] for c in SUBPROCESS_CASES])
+@pytest.mark.slow
 def test_bad_setup_neither_crashes_nor_hangs(case, ranks, exc, words):
     """Each rank raises the same error class with the words naming the argument and the fix
     (run from the serial session: the driver is its own 1- and 2-rank MPI job)."""

@@ -126,6 +126,7 @@ def third_and_full():
     return bar.compare(replace(SHORT, dt=0.01), 2)
 
 
+@pytest.mark.slow
 def test_third_equals_full_model(third_and_full):
     """The third with its two inclined symmetry planes and one roll, against the whole bar
     with the three rolls, on the symmetric meshes: per-roll radial force and torque of every
@@ -144,6 +145,7 @@ def test_third_equals_full_model(third_and_full):
     assert len(res["third"].history) == len(res["full"].history) == 2
 
 
+@pytest.mark.slow
 def test_volume_quality_and_power_identity(third_and_full):
     """Every increment of both models: volume kept (|ΔV/V| < 1e-4 per increment here), no
     inverted or flat element, penetration ≪ the element size, and the discrete virtual-power
@@ -156,6 +158,7 @@ def test_volume_quality_and_power_identity(third_and_full):
             assert abs(q["power_balance_penalty"]) < 1e-3, q["power_balance_penalty"]
 
 
+@pytest.mark.slow
 def test_one_and_two_ranks_agree():
     """Two increments of the third on all ranks and on COMM_SELF agree to 1e-8."""
     hs = []
@@ -172,6 +175,7 @@ def test_one_and_two_ranks_agree():
 @pytest.mark.serial
 @pytest.mark.skipif(os.environ.get("FXC_SLOW") != "1",
                     reason="~90 increments to steady state (7 min): FXC_SLOW=1 to run")
+@pytest.mark.slow
 def test_steady_state(tmp_path):
     """The test size to steady state: volume conserved to 0.5 %, exit area within the pass
     (fill between the inscribed circle's share and 1 + the penetration's share: the bar fills

@@ -35,6 +35,7 @@ def smoke_rows():
 
 
 @pytest.mark.serial   # a dozen short runs; the process's MPI path is tested in test_flat_rolling
+@pytest.mark.slow
 def test_table_complete_and_finite(smoke_rows):
     names, rows = NAMES, smoke_rows
     assert [r["variant"] for r in rows] == names
@@ -61,6 +62,7 @@ def test_table_complete_and_finite(smoke_rows):
                    "(v_t dt)^2/2R (gap 4.0e-3 mm vs 3.75e-3 predicted) and do not penetrate, "
                    "the implicit error is the penalty's own penetration (2.3e-3 mm); "
                    "benchmarks/README.md")
+@pytest.mark.slow
 def test_implicit_penetration_below_a_third_of_explicit(smoke_rows):
     acc = bench.acceptance(smoke_rows)
     a = acc["penetration implicit <= explicit/3, analytic"]

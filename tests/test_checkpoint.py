@@ -127,6 +127,7 @@ def serial_runs():
 
 
 @pytest.mark.serial
+@pytest.mark.slow
 def test_killed_serial_run_resumes_to_the_same_result(serial_runs):
     full, killed = os.path.join(serial_runs, "full"), os.path.join(serial_runs, "killed")
     # killed while writing the checkpoint of increment 6: that one is an incomplete temporary
@@ -144,6 +145,7 @@ def test_killed_serial_run_resumes_to_the_same_result(serial_runs):
 
 
 @pytest.mark.serial
+@pytest.mark.slow
 def test_killed_run_on_two_ranks_resumes_to_the_same_result(serial_runs):
     d = serial_runs
     _run(2, os.path.join(d, "full2"), "full")

@@ -208,6 +208,7 @@ def _vertex_velocities(sim):
     return gather_by_position(sim.comm, x0, sim.w.x.array[sp.vertex_dofs[own]])
 
 
+@pytest.mark.slow
 def test_plane_dies_reproduce_sliding_bc_and_penalty_consistency():
     comm = MPI.COMM_WORLD
     ref, _ = _upsetting(comm, False)
@@ -250,6 +251,7 @@ def _strip_under_arc(comm, scheme, dt, t_end=3.2, R=200.0, k=2e6, penalty=None):
     return sim, pen
 
 
+@pytest.mark.slow
 def test_explicit_error_grows_with_dt_squared_implicit_does_not():
     comm = MPI.COMM_WORLD
     pens = {}

@@ -21,6 +21,7 @@ def outdir():
     return shared_tmpdir("fxc-demo-")
 
 
+@pytest.mark.slow
 def test_upsetting_small(outdir):
     res = upsetting_dies.run(h=4.0, n_steps=4, reduction=0.2, output_dir=outdir, progress=False)
     comm = MPI.COMM_WORLD
@@ -82,6 +83,7 @@ PROCESS_DEMOS = {
 @pytest.mark.serial   # each demo is its own job, on 1 and 2 ranks
 @pytest.mark.parametrize("nranks", [1, 2])
 @pytest.mark.parametrize("name", sorted(PROCESS_DEMOS))
+@pytest.mark.slow
 def test_process_demo_runs_as_a_script(name, nranks, tmp_path):
     """A process demo run as a script (a subprocess) for a few increments of the test size
     prints its summary and writes its rows."""
@@ -107,6 +109,7 @@ def _process_demo(name, args, pictures, words, tmp_path):
 
 
 @pytest.mark.serial   # each script is its own 1- and 2-rank job
+@pytest.mark.slow
 def test_wire_drawing_demo(tmp_path):
     _process_demo("demo_wire_drawing.py", ["--quick", "--t_end", "0.01"],
                   ["wire_drawing_strain.png", "wire_drawing_contact.png"],
@@ -114,6 +117,7 @@ def test_wire_drawing_demo(tmp_path):
 
 
 @pytest.mark.serial
+@pytest.mark.slow
 def test_extrusion_demo(tmp_path):
     _process_demo("demo_extrusion.py", ["--quick", "--t_end", "0.05"],
                   ["extrusion_flow.png", "extrusion_pressure.png"],
@@ -121,6 +125,7 @@ def test_extrusion_demo(tmp_path):
 
 
 @pytest.mark.serial
+@pytest.mark.slow
 def test_upsetting_folding_demo(tmp_path):
     _process_demo("demo_upsetting_folding.py", ["--quick", "--reduction", "0.15"],
                   ["upsetting_section.png", "upsetting_pressure.png"],

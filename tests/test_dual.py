@@ -199,6 +199,7 @@ def consistent_run():
     return _drawing("consistent")
 
 
+@pytest.mark.slow
 def test_primal_dual_same_drawing_fewer_newton_iterations(consistent_run):
     """m = 0.016, β = 1e3, ε̇₀ = 1e-6 1/s, the active-set prediction on (the default with the
     direct solver): the same drawing forces to 1e-7, at most half the Newton iterations.

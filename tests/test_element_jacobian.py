@@ -259,6 +259,7 @@ def test_increments_equal_algebraic_condensation(material):
         assert_newton_counts_match(n_el, n_alg, bitwise=False)
 
 
+@pytest.mark.slow
 def test_ring_idle_tool_bordered_equals_algebraic(monkeypatch):
     """One ring-rolling increment with the idle mandrel eliminated by the bordered Newton
     matrix (friction on both rolls): element and algebraic condensation agree to 1e-8."""

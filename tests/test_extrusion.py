@@ -56,11 +56,13 @@ def _band(res):
 
 
 @pytest.mark.serial   # a run to steady state; the MPI path: test_one_and_two_ranks_agree
+@pytest.mark.slow
 def test_punch_pressure_in_band(given_k):
     _band(given_k)
 
 
 @pytest.mark.serial
+@pytest.mark.slow
 def test_other_angle_and_reduction_in_band(other_die):
     _band(other_die)
     th = other_die.theory
@@ -69,6 +71,7 @@ def test_other_angle_and_reduction_in_band(other_die):
 
 
 @pytest.mark.serial
+@pytest.mark.slow
 def test_container_force_with_given_k(given_k):
     """The billet slides rigidly in the container: with k fixed, its axial force is the
     Tresca stress m̄ k over the wall still in the container."""
@@ -216,6 +219,7 @@ def test_quick_on_the_class_and_on_a_case():
         ExtrusionCase(alpha=30.0).quick(R1=6.0)
 
 
+@pytest.mark.slow
 def test_punch_reaction_takes_the_rim_contact():
     """The punched face's rim nodes are under the punch's velocity condition and slide on the
     container (contact with friction): the punch's reaction (``Simulation.add_reaction``)

@@ -247,6 +247,7 @@ def test_flat_mode_matches_brute_force_and_twin(mesh):
 
 
 @pytest.mark.parametrize("mesh", ["sphere", "capped_cylinder", "cube"])
+@pytest.mark.slow
 def test_nagata_matches_brute_force_over_all_patches_and_twin(mesh):
     meshes = {"sphere": lambda: tm.icosphere(1),
               "capped_cylinder": lambda: tm.structured_cylinder(1, 2, 8, 3, True),
@@ -442,6 +443,7 @@ def test_empty_and_single_point(sphere80):
     assert "FacetedTool" in repr(tool)
 
 
+@pytest.mark.slow
 def test_large_tool_runs():
     """10^5 triangles, 10^4 points near the surface (nothing timed: the projection throughput
     is a benchmark figure, ``benchmarks/bench_projection_faceted.py``)."""

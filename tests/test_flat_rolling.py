@@ -76,6 +76,7 @@ def _slip_within_factor(res, factor=1.5):
 
 
 @pytest.mark.serial   # a whole pass to steady state; the MPI path: test_one_and_two_ranks_agree
+@pytest.mark.slow
 def test_default_pass(default_pass):
     _acceptance(default_pass)
     _slip_within_factor(default_pass)
@@ -83,6 +84,7 @@ def test_default_pass(default_pass):
 
 
 @pytest.mark.serial   # a whole pass to steady state; the MPI path: test_one_and_two_ranks_agree
+@pytest.mark.slow
 def test_other_radius_reduction_friction(other_pass):
     """R = 200 mm, 20 % reduction, μ = 0.25."""
     _acceptance(other_pass)
@@ -96,6 +98,7 @@ def test_other_radius_reduction_friction(other_pass):
                    "and the slab formula with the FE neutral angle gives 3.7 %: the rest is the "
                    "slab's plane-section assumption (this pass is thicker for its bite, mean "
                    "h / L = 0.71 against 0.47 for the default pass: 6.9 % against 5.1 %, x 1.36)")
+@pytest.mark.slow
 def test_other_pass_forward_slip(other_pass):
     _slip_within_factor(other_pass)
 
@@ -110,6 +113,7 @@ def test_refuses_to_enter_below_the_bite_condition(tmp_path):
     assert all(q["pusher_nodes"] > 0 for q in res.history[1:])
 
 
+@pytest.mark.slow
 def test_one_and_two_ranks_agree(tmp_path):
     """Three increments on all ranks and on COMM_SELF agree to 1e-8."""
     hs = []
@@ -149,6 +153,7 @@ def test_bad_case(field, value, words):
         FlatRollingCase(radius=3.0)
 
 
+@pytest.mark.slow
 def test_force_tolerance_same_forces_fewer_iterations(tmp_path):
     """``newton_ftol=1e-3`` (the case's field, shared by the process cases: Newton stops at
     ‖R‖ ≤ 1e-3 × the roll's nodal force norm) against the default rtol alone, ten increments
@@ -175,6 +180,7 @@ def test_readme_example():
 
 
 @pytest.mark.serial   # a dozen increments of a finer mesh; the MPI path: the 1 vs 2 ranks test
+@pytest.mark.slow
 def test_finer_mesh_not_lost_after_release(tmp_path):
     """A finer mesh and a shorter increment than the test size (5 mm elements, 3 through the
     half-thickness, dt = 1.5 ms): once the pusher has let go the roll alone drives the strip

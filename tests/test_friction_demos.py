@@ -141,6 +141,7 @@ def _at(r, key, eps):
     return np.interp(eps, r["reduction"], r[key])
 
 
+@pytest.mark.slow
 def test_ring_hole_grows_without_friction_and_shrinks_with_it(ring):
     fe = ring["fe"]
     assert fe[0.0]["id_min"][-1] > 0.0
@@ -152,6 +153,7 @@ def test_ring_hole_grows_without_friction_and_shrinks_with_it(ring):
             assert np.all(_at(fe[lo], key, eps) > _at(fe[hi], key, eps))
 
 
+@pytest.mark.slow
 def test_ring_side_by_side_with_upper_bound(ring):
     """The FE and upper-bound curves are produced at the same reductions. Without friction the
     FE ring stays straight (mid-height = die face) and follows the homogeneous bound up to the

@@ -75,6 +75,7 @@ LAWS = {"coulomb": Coulomb(0.3), "tresca": Tresca(0.5, shear_limit=2.0),
 
 
 @pytest.mark.parametrize("name", list(LAWS))
+@pytest.mark.slow
 def test_sliding_block(name):
     """Steady sliding at V: F_t/F_n = μV/s (Coulomb), F_t = m̄kA V/s (Tresca),
     F_t = α_f K A s^(q−1) V (Norton), to 1e-3, and the same with a 10× stiffer penalty."""
@@ -102,6 +103,7 @@ def test_sliding_block(name):
     assert abs(forces[1] - forces[0]) < 1e-3 * abs(forces[0])
 
 
+@pytest.mark.slow
 def test_sub_coulomb_hold():
     """A tangential load Q < μP held constant: the block creeps at v₀Q/√((μP)² − Q²)."""
     mu, v0 = 0.3, 0.01
@@ -161,6 +163,7 @@ def _roll_on_block(fixed, law=Coulomb(0.3), mode=None, R=2.0, omega=1.0, depth=0
     return sim, c
 
 
+@pytest.mark.slow
 def test_roll_drives_free_block():
     """Nothing but friction holds the block: it moves at the roll's surface speed ωR (the
     friction needed is nil, so the slip stays within the regularisation), in contact."""
@@ -180,6 +183,7 @@ def test_roll_drives_free_block():
           f"increment: {[round(-r['roll_torque'] / (R * 0.3 * r['roll_force_z']), 4) for r in sim.history[2:]]}")
 
 
+@pytest.mark.slow
 def test_roll_slips_on_held_block():
     """The block is held: the roll slips over it everywhere; the horizontal reaction equals μN
     within 1 %, the torque R μN, and the histories are steady (no stick–slip chatter)."""
@@ -196,6 +200,7 @@ def test_roll_slips_on_held_block():
 
 
 @pytest.mark.parametrize("mode", ["implicit", "explicit"])
+@pytest.mark.slow
 def test_high_friction_converges(mode):
     """μ = 1 limited by m̄ = 1 (the industrial ring case's values) converges with implicit and
     explicit friction; the Newton iterations are reported."""

@@ -23,6 +23,7 @@ def quick():
     return d, res
 
 
+@pytest.mark.slow
 def test_outputs_and_equilibrium(quick):
     d, res = quick
     assert [row["variant"] for row in res["summary"]] == [ANALYTIC, FLAT, NAGATA]
@@ -50,6 +51,7 @@ def test_outputs_and_equilibrium(quick):
         assert os.path.exists(os.path.join(d, NAGATA, f"{NAGATA}.pvd"))
 
 
+@pytest.mark.slow
 def test_bore_rotation_changes_nothing(quick):
     """A turning circular bore is the same surface at every instant: during the rotation the
     force stays at its value at the end of the lift (to 1e-7 relative; the fixture's Newton
@@ -68,6 +70,7 @@ def test_bore_rotation_changes_nothing(quick):
         assert row["newton_iterations"] <= 1
 
 
+@pytest.mark.slow
 def test_nagata_groove_force_and_oscillation(quick):
     """The Nagata groove (36 facets, 3–4 in contact) carries the bore's force within 1 %
     (measured −0.07 %) with at least 3× less oscillation than the flat facets (measured
@@ -83,6 +86,7 @@ def test_nagata_groove_force_and_oscillation(quick):
     assert 3.0 * s[NAGATA]["oscillation_std"] <= s[FLAT]["oscillation_std"]
 
 
+@pytest.mark.slow
 def test_fine_flat_groove_fails_nagata_converges(quick):
     """180 facets (2° apart): under the implicit scheme the flat groove's valleys catch nodes in
     the facet-switching cycle (THEORY §6) and the run fails even after a cut-back; the Nagata
@@ -104,6 +108,7 @@ def test_fine_flat_groove_fails_nagata_converges(quick):
     assert abs(s[NAGATA]["force_mean"] / F_a - 1.0) < 0.01
 
 
+@pytest.mark.slow
 def test_groove_parallel_matches_serial(quick):
     """The Nagata run on all ranks gives the force history of a COMM_SELF run."""
     comm = MPI.COMM_WORLD

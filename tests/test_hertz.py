@@ -78,6 +78,7 @@ def test_hertz_cylinder_schemes_agree():
         hertz_cylinder.run(indentation=-1.0, output_dir=None)
 
 
+@pytest.mark.slow
 def test_hertz_sphere_small(outdir):
     """Coarse sphere (5 nodes on a, size growth 0.3, 20 mm block): linear tetrahedra that coarse
     are too stiff, measured +5.3 % on the force; checked within 10 % (force) and 6 % (p_max),
@@ -110,6 +111,7 @@ def test_hertz_cylinder_accuracy():
                                 res["hertz_p_max"]) < 0.02
 
 
+@pytest.mark.slow
 def test_hertz_sphere_accuracy():
     """Default sphere (δ = 13.3 µm, h_fine = 25 µm, ~10 nodes on a = 0.258 mm, size growth 0.15,
     block 80 mm ≈ 300 a): force within 3 % of 4/3 E* R^½ δ^{3/2}, p_max within 5 % of p0,
@@ -124,6 +126,7 @@ def test_hertz_sphere_accuracy():
 
 # ------------------------------------------------------------------ P1 displacement (dolfinx)
 
+@pytest.mark.slow
 def test_hertz_sphere_p1_small(outdir):
     """The sphere in P1 displacement (a plain dolfinx problem + ContactProblem), reduced size
     (h_fine = 50 µm, growth 0.15, 20 mm block): the reduced-size tolerances of the mixed test
@@ -155,6 +158,7 @@ def test_hertz_sphere_p1_ranks():
         assert abs(r2[key] / r1[key] - 1.0) <= 1e-8, (key, r1[key], r2[key])
 
 
+@pytest.mark.slow
 def test_hertz_sphere_p1_accuracy():
     """Default sphere mesh (h_fine = 25 µm) in P1 displacement: the acceptance criteria of the
     mixed run — force within 3 %, p_max within 5 %, contact radius within one element

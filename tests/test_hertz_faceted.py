@@ -6,6 +6,7 @@ Nagata patch choice on shared patch edges."""
 import math
 
 import numpy as np
+import pytest
 from mpi4py import MPI
 
 from fxcontact.contact.boundary import ContactBoundary
@@ -71,6 +72,7 @@ def test_nagata_patch_choice_on_shared_edge_is_deterministic():
             assert np.allclose(pr.gap, base.gap, rtol=0.0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_hertz_faceted_sphere_nagata_vs_analytic(record_property):
     """Issue 4 acceptance: coarse faceted sphere (edges 0.98 mm at the lowest vertex ≈ 3.8 a,
     512 triangles, NVV normals) on the same block mesh as the analytic sphere. Nagata: p_max

@@ -25,6 +25,7 @@ def quick():
     return d, res
 
 
+@pytest.mark.slow
 def test_outputs_and_diagnostics(quick):
     d, res = quick
     comm = MPI.COMM_WORLD
@@ -60,6 +61,7 @@ def test_outputs_and_diagnostics(quick):
         assert "contact" in ironing_report.format_table(res["summary"]).splitlines()[0]
 
 
+@pytest.mark.slow
 def test_nagata_force_matches_analytic(quick):
     """Acceptance: Nagata on the coarse tool within 5 % of the analytic tool's force
     (measured +0.7 %); the flat facets (a 160° wedge at this depth) carry ~45 % less."""
@@ -71,6 +73,7 @@ def test_nagata_force_matches_analytic(quick):
     assert s[FLAT]["force_mean"] < 0.7 * F_a
 
 
+@pytest.mark.slow
 def test_force_oscillation_nagata_vs_flat(quick):
     """Acceptance: the vertical force oscillates at least 3× less with Nagata than with flat
     facets, (max − min)/(2 mean) of the detrended steady force for both (measured 1.5 % vs
@@ -89,6 +92,7 @@ def test_force_oscillation_nagata_vs_flat(quick):
                    "is piecewise linear and no node switches facet on this convex tool; the "
                    "same in every case of benchmarks/bench_newton_facets.py. Nagata decides "
                    "convergence where flat facets do switch (tests/test_groove.py).")
+@pytest.mark.slow
 def test_newton_iterations_nagata_vs_flat(quick):
     """Acceptance (issue): with Nagata smoothing the number of Newton iterations per increment
     is lower and steadier than with flat facets."""
@@ -99,6 +103,7 @@ def test_newton_iterations_nagata_vs_flat(quick):
     assert s[NAGATA]["newton_std"] < s[FLAT]["newton_std"]
 
 
+@pytest.mark.slow
 def test_faceted_contact_parallel_matches_serial(quick):
     """The Nagata implicit run on all ranks gives the force history of a COMM_SELF run."""
     comm = MPI.COMM_WORLD

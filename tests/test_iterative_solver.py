@@ -67,6 +67,7 @@ def test_upsetting(m):
          f"Krylov/Newton it {k:.1f}")
 
 
+@pytest.mark.slow
 def test_hertz_sphere_stiff_penalty():
     """The Hertz sphere (linear elasticity, implicit contact, β = 10⁴): same force and contact
     radius as the direct solver."""
@@ -97,6 +98,7 @@ def test_hertz_sphere_stiff_penalty():
     "290-300 (condensed-amg-robust, with an inner GMRES on the velocity block and a selfp "
     "Schur preconditioner, converges: next test). Upsetting (m = 0.015, 0.3) and the Hertz "
     "sphere (beta = 1e4) converge"))
+@pytest.mark.slow
 def test_wire_drawing_demo():
     """The wire-drawing demo at its quick size (m = 0.016, implicit contact with the exact die,
     two inclined symmetry planes, trust-region Newton), four increments: same drawing force
@@ -104,6 +106,7 @@ def test_wire_drawing_demo():
     _check_wire_drawing(_wire_drawing(SOLVERS), "condensed-amg")
 
 
+@pytest.mark.slow
 def test_wire_drawing_demo_robust_preset():
     """The same with ``"condensed-amg-robust"`` (augmented velocity block, selfp Schur
     preconditioner, inner GMRES on the velocity): it converges where the default preset does

@@ -39,6 +39,7 @@ def test_bad_prediction_options():
 
 
 @pytest.mark.serial
+@pytest.mark.slow
 def test_corrected_step_solves_the_predicted_branch():
     """At the first Newton iterations where the step changes the status of contact nodes, the
     corrected step of one round equals the dense solve of (J + U diag(dc) Uᵀ) y = F + U o,
@@ -103,6 +104,7 @@ def test_corrected_step_solves_the_predicted_branch():
         assert corr > 1e-2      # the correction is not negligible: the test can fail
 
 
+@pytest.mark.slow
 def test_prediction_same_solution_fewer_newton_iterations():
     """m = 0.016, default penalty (β = 1e3) and regularisation: with the prediction the same
     solution (drawing force) in far fewer Newton iterations than the plain backtracking Newton,
@@ -127,6 +129,7 @@ def test_prediction_same_solution_fewer_newton_iterations():
     assert max(its[True][1:]) <= 15
 
 
+@pytest.mark.slow
 def test_prediction_skipped_above_max_nodes_same_solution():
     """With ``prediction_max_nodes = 1`` the steps that change more nodes are left as they are
     (counted in the stats) and Newton still reaches the same solution."""
@@ -154,6 +157,7 @@ def test_auto_prediction_follows_the_linear_solver():
         .predicts_active_set
 
 
+@pytest.mark.slow
 def test_auto_prediction_is_built_for_the_chosen_direct_solver():
     """A Simulation with the default options (``"auto"`` linear solver, a few thousand dofs:
     MUMPS) runs with the prediction; with ``active_set_prediction=False`` it has none."""

@@ -19,6 +19,8 @@ from fxcontact.spaces import DEFAULT_QUADRATURE, MixedSpace
 
 from helpers import box_mesh
 
+pytestmark = pytest.mark.slow   # a convergence study over every allowed degree
+
 K, U = 2.0, 1.0
 
 

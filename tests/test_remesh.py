@@ -241,6 +241,7 @@ def _line_nodes(h, zones, callback):
         return np.sort(x.reshape(-1, 3)[:, 0])
 
 
+@pytest.mark.slow
 def test_gmsh_size_fields_equal_the_size_function():
     """gmsh's own fields (a Box with a transition layer, a Distance to points and a Threshold, a
     constant, their Min) give the size field of ``size_field``: a line crossing a box zone, a
@@ -364,6 +365,7 @@ def _radial_error_and_gap(surface, tag, R):
     return np.max(np.abs(r - R)), np.sum(area * e2) / (24.0 * R) / np.sum(area)
 
 
+@pytest.mark.slow
 def test_remeshing_keeps_a_cylinder_round():
     """A quarter cylinder (R 10, h 1) remeshed 5 times at the same size without deformation.
 
@@ -401,6 +403,7 @@ def test_remeshing_keeps_a_cylinder_round():
             assert np.max(np.abs(out[True].points[v, k])) < 1e-12
 
 
+@pytest.mark.slow
 def test_remeshing_keeps_a_ring_round():
     """An eighth of a ring (radii 30 and 20, concave inside), h 1.5, remeshed 5 times: both
     lateral faces within the bound of ``test_remeshing_keeps_a_cylinder_round``, and beyond it

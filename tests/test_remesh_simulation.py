@@ -101,6 +101,7 @@ def test_volume_tags_and_history(runs):
             and files[4].startswith("upset_r1")
 
 
+@pytest.mark.slow
 def test_checkpoint_after_remesh_resumes(runs):
     """A checkpoint written after a remesh, resumed from the set-up on the initial mesh, gives
     the same next increment as the run that wrote it (to round-off)."""
@@ -190,6 +191,7 @@ def test_controller_without_remesh_refused():
         sim.set_remeshing(RemeshCriteria(every=0))
 
 
+@pytest.mark.slow
 def test_extrusion_through_a_wide_die_with_remeshing():
     """The reduced extrusion through a 45° die: without remeshing an entry element inverts
     after 1 mm of punch stroke (benchmarks/bench_remesh_extrusion.py); with remeshing the run
@@ -215,6 +217,7 @@ def test_extrusion_through_a_wide_die_with_remeshing():
     assert max(abs(q["power_balance_penalty"]) for q in kept) < 1e-6
 
 
+@pytest.mark.slow
 def test_rescue_remesh_before_an_inverting_increment_fails():
     """The 45° extrusion with one cut-back allowed and no criterion: at t = 0.1 an entry cell
     (quality 0.02) inverts at dt and at dt/2; the rescue remeshes once, takes the increment
@@ -236,6 +239,7 @@ def test_rescue_remesh_before_an_inverting_increment_fails():
     assert abs(row["volume_change"]) < 5e-3
 
 
+@pytest.mark.slow
 def test_contact_coverage_criterion_refines_the_bite():
     """min_elements_across: the die's contact on the coarse billet is spanned by about 5
     elements; with a threshold of 8 the first increment calls a remesh, whose zone of size H/3
@@ -261,6 +265,7 @@ def _ring_case(**kw):
     return dataclasses.replace(rr.RingRollingCase().quick(), remesh=True, **kw)
 
 
+@pytest.mark.slow
 def test_ring_remesh_refines_in_front_of_the_bite():
     """BiteZones: a remesh of the rolled ring is finer (the zone's size h_theta) over the arc
     in front of the bite than on the opposite side (the mean edge length there); the
@@ -283,6 +288,7 @@ def test_ring_remesh_refines_in_front_of_the_bite():
     assert front < 1.5 * s.h_theta
 
 
+@pytest.mark.slow
 def test_ring_rolling_with_remeshing():
     """RingRollingCase(remesh=True) over 0.3 revolution, remeshed every 4 increments (3/4 of
     a 40° arc): the run goes on across the remeshes (centring, idle mandrel, measures on
@@ -334,6 +340,7 @@ def test_ring_rolling_with_remeshing():
     assert worst < 1e-6
 
 
+@pytest.mark.slow
 def test_ring_bite_refinement_follows_the_bite():
     """RingRollingCase(remesh=True, remesh_min_across=3): the bite zones on the rolled surfaces
     (size L/3, L = √(2Δh/Σ) the bite's contact length of ring-rolling theory) are meshed before

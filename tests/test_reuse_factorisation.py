@@ -135,6 +135,7 @@ def test_ranks_disagreeing_in_a_newton_step_raise_on_every_rank(monkeypatch):
     assert not sim.history
 
 
+@pytest.mark.slow
 def test_ring_idle_tool_bordered_with_reuse(monkeypatch):
     """Ring rolling with the idle mandrel eliminated by the bordered Newton matrix (friction on
     both rolls): with the kept factorisation (the Woodbury border built on it) the same

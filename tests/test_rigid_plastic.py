@@ -150,6 +150,7 @@ def test_drawing_m0016_default_penalty_mean_six_newton_iterations(default_run):
 
 # iteration counts only (the trust region runs on 2 ranks in test_assembly and test_wire_drawing)
 @pytest.mark.serial
+@pytest.mark.slow
 def test_drawing_m0016_default_penalty_trust_region_beats_backtracking():
     """With the default penalty (β = 1e3) and regularisation, the trust-region Newton
     (``line_search="trust-region"``) reaches the same solution as the backtracking line search
@@ -171,6 +172,7 @@ def test_drawing_m0016_default_penalty_trust_region_beats_backtracking():
     assert sum(its["trust-region"]) < 0.8 * sum(its["bt"])
 
 
+@pytest.mark.slow
 def test_drawing_m0016_penalty_continuation_same_solution_fewer_iterations():
     """Penalty continuation (``SolverOptions.penalty_continuation = 0.03``: each solve first
     with β·0.03 = 30 to a relative residual of 1e-3, then β = 1e3) gives the same solution as

@@ -101,6 +101,7 @@ def runs():
     return cone_runs()
 
 
+@pytest.mark.slow
 def test_resumed_ring_rolling_equals_uninterrupted(runs):
     """Every history column (tool forces and torques, the mandrel's ω, the ring centre and
     radius, the guide rolls' forces, Newton iterations…) of the resumed increments equals
@@ -143,6 +144,7 @@ def test_resumed_ring_rolling_equals_uninterrupted(runs):
                                                         abs=1e-9)
 
 
+@pytest.mark.slow
 def test_ring_checkpoint_without_cones_refused(runs):
     """The checkpoint of the run with cones, resumed by the same mill without them: refused."""
     _, _, ck, d = runs

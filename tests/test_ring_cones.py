@@ -77,6 +77,7 @@ def test_volume_and_mesh(run):
         assert q["mean_diameter"] == pytest.approx(q["mean_diameter_volume"], rel=5e-3)
 
 
+@pytest.mark.slow
 def test_one_and_two_ranks_agree():
     """The first increment on all ranks and on COMM_SELF agree to 1e-8. Both with Newton's
     rtol 1e-12: the increment starts from rest (‖R₀‖ = 3.9e7), so the default 1e-9 stops at

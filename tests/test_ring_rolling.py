@@ -70,6 +70,7 @@ def test_report_rows_and_pictures(short):
 
 
 @pytest.mark.serial   # the README's example: a few increments of the hot steel's case
+@pytest.mark.slow
 def test_readme_example(tmp_path):
     """The README's ring rolling block runs (shortened to two increments)."""
     ns = run_readme_block("Ring rolling", {
@@ -218,6 +219,7 @@ def implicit_pen():
 
 
 @pytest.mark.serial   # three more short runs; the MPI path is test_one_and_two_ranks_agree
+@pytest.mark.slow
 def test_implicit_penetration_is_dt_insensitive(implicit_pen):
     """Implicit contact, analytic tools, cylindrical update, gap stiffness k: the largest true
     penetration over the same time at dt and 2 dt differs by less than 25 % (measured over
@@ -235,6 +237,7 @@ def test_implicit_penetration_is_dt_insensitive(implicit_pen):
                    "exact cylinders (0.0000 mm over 0.08 rev: its nodes end outside, by about "
                    "(v dt)^2/2R), implicit + analytic 0.020 mm (the penalty compliance p/k); "
                    "benchmarks/README.md")
+@pytest.mark.slow
 def test_implicit_penetration_below_a_tenth_of_explicit_faceted(implicit_pen):
     explicit = ring_rolling.run(replace(PEN, scheme="explicit", tools="faceted",
                                         update="cartesian"))

@@ -31,6 +31,7 @@ def sticking():
     return res
 
 
+@pytest.mark.slow
 def test_reaches_70_percent_with_remeshing(sticking):
     res = sticking
     assert res.status == "completed", res.message
@@ -40,6 +41,7 @@ def test_reaches_70_percent_with_remeshing(sticking):
     assert res.min_quality >= MIN_QUALITY
 
 
+@pytest.mark.slow
 def test_report_names_the_friction_k(sticking):
     """The report has the contact's line of the run's summary: which k the dies' Tresca
     friction uses, the penalty as resolved."""
@@ -48,6 +50,7 @@ def test_report_names_the_friction_k(sticking):
     assert "contact '" in text and "rho" in text        # the penalty, however given
 
 
+@pytest.mark.slow
 def test_free_surface_folds_onto_the_die(sticking):
     c, rd, last = sticking.case, sticking.radii, sticking.history[-1]
     assert rd["contact"] - rd["face"] > c.h          # the fold: more than an element
@@ -56,6 +59,7 @@ def test_free_surface_folds_onto_the_die(sticking):
     assert last["r_contact"] == rd["contact"]
 
 
+@pytest.mark.slow
 def test_die_force_in_band(sticking):
     """σ₀ over the die contact ≤ p̄ ≤ the upper bound at every increment (the start-up
     increment included), and the pressure rises with the reduction (friction: d_h/h grows)."""
@@ -69,6 +73,7 @@ def test_die_force_in_band(sticking):
     assert th["upper"] == pytest.approx(1 + th["diameter"] / (3 * math.sqrt(3) * th["height"]))
 
 
+@pytest.mark.slow
 def test_power_balance(sticking):
     """P_in = dissipation + friction + penalty work to round-off, at the increments not
     followed by a remesh (a remesh moves the configuration the balance is evaluated on)."""
@@ -83,6 +88,7 @@ def test_power_balance(sticking):
     assert pb[len(pb) // 2] < 0.01 and pb[-1] < 0.15, pb
 
 
+@pytest.mark.slow
 def test_half_height_symmetry():
     """The mid-plane as a symmetry plane (one die) and the whole height between two dies give
     the same pressure and radii to discretisation accuracy (different meshes: 0.7 % measured at

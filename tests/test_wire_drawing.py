@@ -72,17 +72,20 @@ def _band(res):
 
 
 @pytest.mark.serial   # a run to steady state; the MPI path: test_one_and_two_ranks_agree
+@pytest.mark.slow
 def test_default_drawing_stress_in_band(default_case):
     _band(default_case)
 
 
 @pytest.mark.serial
+@pytest.mark.slow
 def test_other_angle_and_reduction_in_band(other_case):
     _band(other_case)
     assert other_case.theory["reduction"] == pytest.approx(1 - 0.85 ** 2)
 
 
 @pytest.mark.serial   # ten runs; the MPI path of the demo: test_one_and_two_ranks_agree
+@pytest.mark.slow
 def test_harness_table_complete(harness):
     """Every variant at dt and 4 dt ran to the end with finite figures; the table has them."""
     assert len(harness) == 2 * len(bench.VARIANTS)
@@ -104,6 +107,7 @@ def test_harness_table_complete(harness):
 
 
 @pytest.mark.serial
+@pytest.mark.slow
 def test_implicit_penetration_below_a_third_of_explicit(harness):
     """The thesis (Tab. V-4): implicit + facets penetrates 1/3 of explicit + facets (the
     penetration into the faceted die itself: the schemes' error on the same tool; the true
@@ -114,6 +118,7 @@ def test_implicit_penetration_below_a_third_of_explicit(harness):
 
 
 @pytest.mark.serial
+@pytest.mark.slow
 def test_implicit_penetration_independent_of_dt(harness):
     """The thesis (Tab. V-5): with 4 dt the implicit penetration does not change (< 25 %),
     the explicit one grows."""
@@ -126,6 +131,7 @@ def test_implicit_penetration_independent_of_dt(harness):
 
 
 @pytest.mark.serial
+@pytest.mark.slow
 def test_nagata_penetration_closer_to_exact_than_flat(harness):
     """Nagata's true penetration (into the exact die) is closer to the exact die's than the flat
     facets' (implicit scheme, dt; the same gmsh die mesh)."""
@@ -139,6 +145,7 @@ def test_nagata_penetration_closer_to_exact_than_flat(harness):
     "measured at the test size (h = 1.5 mm, 1 mm gmsh facets, implicit, t = 0.01 s): contact "
     "nodes exact 49, Nagata 49, flat 49 - the zones are the same to a node, Nagata is not "
     "closer; at the reduced thesis size see benchmarks/README.md"))
+@pytest.mark.slow
 def test_nagata_contact_zone_closer_to_exact_than_flat(harness):
     """Nagata's contact zone (contact nodes) is closer to the exact die's than the flat facets'
     (implicit scheme, dt)."""
@@ -244,6 +251,7 @@ def _looser_same_stress(ref, bound, **tolerance):
     return b
 
 
+@pytest.mark.slow
 def test_newton_rtol_looser_same_drawing_stress(three_increments):
     """Newton's relative tolerance 1e-6 instead of 1e-9: the same drawing stress at every
     increment within 1e-5, 500x below the 0.5 % accepted for the drawing stress (measured:
@@ -252,6 +260,7 @@ def test_newton_rtol_looser_same_drawing_stress(three_increments):
     _looser_same_stress(three_increments, 1e-5, newton_rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_force_tolerance_same_drawing_stress(three_increments):
     """Newton stopped at ‖R‖ ≤ 1e-3 × the die's nodal force norm (``newton_ftol=1e-3``)
     against the default relative tolerance 1e-9 alone: the same drawing stress at every
