@@ -46,6 +46,7 @@ from fxcontact.io.outputs import (OutputError, Outputs, format_iteration_split, 
 from fxcontact.kinematics import CartesianUpdate
 from fxcontact.la import add_nodal_residual
 from fxcontact.materials import Material
+from fxcontact.materials.local import Viscoplastic
 from fxcontact.materials.forms import (equivalent_strain_rate_ufl, primal_dual_jacobian,
                                        shear_viscosity_ufl, standard_norton_hoff, uses_dual_stress,
                                        volumetric_augment_ufl)
@@ -150,6 +151,9 @@ class Simulation:
             problem = output_dir_problem(output_dir)
             if problem:
                 raise ValueError(f"output_dir {output_dir!r} {problem}: give a directory path")
+        #: the Viscoplastic material given (its flow stress depends on the state), or None;
+        #: ``material`` is then its Norton–Hoff law on the current mesh
+        self.law = material if isinstance(material, Viscoplastic) else None
         self.material = material
         self.solver_options = solver_options or SolverOptions()
         self.kinematics = kinematics or CartesianUpdate()
@@ -161,6 +165,7 @@ class Simulation:
         self.volume_correction = "none" if material.small_strain else volume_correction
         self.t = 0.0
         self.increment = 0
+        self._clamp_reported = False
         self.contributors: List = []
         self.history: List[Dict[str, float]] = []
         self.overwrite = bool(overwrite)
@@ -184,6 +189,8 @@ class Simulation:
         self.space = space
         self.mesh = space.mesh
         self.comm = space.mesh.comm   # the mesh's own: freed with it
+        if self.law is not None:
+            self.material = self.law.on(space)
         self._bcs: List[_BC] = []
         self._reactions: Dict[str, np.ndarray] = {}
         self._symmetry = None
@@ -543,10 +550,25 @@ class Simulation:
                              f"were added) give non-finite values (NaN/inf) at t = {t:.6g}: "
                              f"check the value function")
 
+    def _update_law(self):
+        """A state-dependent flow stress (:class:`~fxcontact.materials.Viscoplastic`): its
+        per-cell pieces from the state at the start of the increment (THEORY §15); a state
+        outside a table's range is reported once."""
+        if self.law is None:
+            return
+        self.material.update(self.strain.x.array)
+        clamped = self.comm.allreduce(self.material.fields.clamped, op=MPI.SUM)
+        if clamped and not self._clamp_reported:
+            self._clamp_reported = True
+            log.warning("%s: the state (strain, temperature) of %d cells is outside the "
+                        "flow-stress table at t = %.6g s: the table's edge values are used",
+                        self.name, clamped, self.t)
+
     def _try_increment(self, dt: float) -> SolveInfo:
         t_new = self.t + dt
         self.dt_c.value = dt
         self._set_bc_values(t_new)
+        self._update_law()
         # predictor: previous increment's velocity, with the new boundary values
         self.w.x.array[:] = self.w_prev.x.array
         dolfinx.fem.petsc.set_bc(self.w.vector, self.problem.bcs)

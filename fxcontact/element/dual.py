@@ -56,7 +56,7 @@ from petsc4py import PETSc
 from fxcontact import compat
 from fxcontact.element.cell import tet_geometry
 from fxcontact.element.tensors import KernelTables
-from fxcontact.materials import NortonHoff
+from fxcontact.materials.laws import NortonHoff, kernel_reads_law
 
 __all__ = ["DualStress", "DualUpdateKernel", "dual_update_numpy", "kernel_applies"]
 
@@ -197,13 +197,14 @@ def _deviator_at(Lc, vb, gB, e):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, share, mode,
-               ca, cz2, cached):
+def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, Kc, mc, zn, eps0, g1, gb, share, mode,
+               ca, cz2, cm, cached):
     """mode 0: s = primal stress of w_new; 1: the dual update from w_old to w_new (s holds the
-    current dual stress, overwritten). ``ca[c, q]``, ``cz2[c, q]`` receive the coefficient
-    2K z^(m−1) and z² of w_new; with ``cached`` they hold those of w_old on entry (the same
-    geometry), which the update then reads instead of recomputing them (the power is the
-    loop's main cost)."""
+    current dual stress, overwritten). The law of cell c is K = Kc[c, j], m = mc[c, j] on the
+    rate interval j of the point's z (bounds ``zn``). ``ca[c, q]``, ``cz2[c, q]``, ``cm[c, q]``
+    receive the coefficient 2K z^(m−1), z² and m of w_new; with ``cached`` they hold those of
+    w_old on entry (the same geometry and law), which the update then reads instead of
+    recomputing them (the power is the loop's main cost)."""
     coords = np.empty((4, 3))
     Ki = np.empty((3, 3))
     G = np.empty((4, 3))
@@ -238,12 +239,19 @@ def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, shar
             for i in range(3):
                 for j in range(3):
                     zn2 += 2.0 * en[i, j] * en[i, j]
-            an = 2.0 * K * np.sqrt(zn2) ** (m - 1.0)
+            zq = np.sqrt(zn2)
+            j = 0
+            while j < zn.size and zq >= zn[j]:
+                j += 1
+            an = 2.0 * Kc[c, j] * zq ** (mc[c, j] - 1.0)
+            mo = 0.0
             if cached:
                 ao = ca[c, q]
                 zo2 = cz2[c, q]
+                mo = cm[c, q]
             ca[c, q] = an
             cz2[c, q] = zn2
+            cm[c, q] = mc[c, j]
             if mode == 0:
                 for i in range(3):
                     for j in range(3):
@@ -259,8 +267,13 @@ def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, shar
                 for i in range(3):
                     for j in range(3):
                         zo2 += 2.0 * eo[i, j] * eo[i, j]
-                ao = 2.0 * K * np.sqrt(zo2) ** (m - 1.0)
-            cr = 2.0 * (1.0 - m) / zo2 * ed
+                zq = np.sqrt(zo2)
+                j = 0
+                while j < zn.size and zq >= zn[j]:
+                    j += 1
+                mo = mc[c, j]
+                ao = 2.0 * Kc[c, j] * zq ** (mo - 1.0)
+            cr = 2.0 * (1.0 - mo) / zo2 * ed
             nn = 0.0
             ncap = 0.0
             for i in range(3):
@@ -275,9 +288,11 @@ def _dual_loop(x, xdofs, w_old, w_new, wdofs, s, sdofs, K, m, eps0, g1, gb, shar
                     s[row + k] *= f
 
 
-def dual_update_numpy(coords, wv_old, wv_new, s, K, m, eps0, g1, gb, share, mode):
+def dual_update_numpy(coords, wv_old, wv_new, s, K, m, eps0, g1, gb, share, mode, z_nodes=()):
     """numpy twin of the dual update for cells with geometry ``coords`` (n, 4, 3), W values
-    ``wv_*`` (n, 19), dual stress ``s`` (n, nq, 3, 3); returns the new (n, nq, 3, 3)."""
+    ``wv_*`` (n, 19), dual stress ``s`` (n, nq, 3, 3), the law's K and m (numbers, or (n, nint)
+    per cell and rate interval with the bounds ``z_nodes`` in z); returns the new
+    (n, nq, 3, 3)."""
     J = np.transpose(coords[:, 1:] - coords[:, :1], (0, 2, 1))        # (n, 3, 3)
     Ki = np.linalg.inv(J)
     G = np.einsum("nkj,ak->naj", Ki, g1)                               # (n, 4, 3)
@@ -293,17 +308,22 @@ def dual_update_numpy(coords, wv_old, wv_new, s, K, m, eps0, g1, gb, share, mode
 
     def coef(e):
         z = np.sqrt(2.0 * np.einsum("nqij,nqij->nq", e, e) + 3.0 * eps0 ** 2)
-        return 2.0 * K * z ** (m - 1.0), z
+        Kq, mq = K, m
+        if np.ndim(K):   # the piece of each point's rate interval
+            j = np.searchsorted(np.asarray(z_nodes, dtype=float), z, side="right")
+            Kq = np.take_along_axis(np.asarray(K, dtype=float), j, axis=1)
+            mq = np.take_along_axis(np.asarray(m, dtype=float), j, axis=1)
+        return 2.0 * Kq * z ** (mq - 1.0), z, mq
 
     en = dev(wv_new)
-    an, _ = coef(en)
+    an, _, _ = coef(en)
     sp_new = an[..., None, None] * en
     if mode == 0:
         return sp_new
     eo = dev(wv_old)
-    ao, zo = coef(eo)
+    ao, zo, mo = coef(eo)
     ed = np.einsum("nqij,nqij->nq", eo, en - eo)
-    s_new = ao[..., None, None] * en - (2.0 * (1.0 - m) / zo ** 2 * ed)[..., None, None] * s
+    s_new = ao[..., None, None] * en - (2.0 * (1.0 - mo) / zo ** 2 * ed)[..., None, None] * s
     nn = np.sqrt(np.einsum("nqij,nqij->nq", s_new, s_new))
     nc = np.sqrt(np.einsum("nqij,nqij->nq", sp_new, sp_new))
     return np.where((nn > nc)[..., None, None], (nc / np.where(nn > 0, nn, 1.0))[..., None, None]
@@ -315,7 +335,8 @@ def kernel_applies(material, space) -> bool:
     law (no redefined stress, z, exponent or update), the MINI space on affine tetrahedra."""
     if not (isinstance(material, NortonHoff) and all(
             getattr(type(material), name) is getattr(NortonHoff, name)
-            for name in ("stress_ufl", "z_ufl", "exponent_ufl", "dual_update_ufl"))):
+            for name in ("stress_ufl", "z_ufl", "exponent_ufl", "dual_update_ufl"))
+            and kernel_reads_law(material)):
         return False
     msh = space.mesh
     return (msh.topology.cell_type == dolfinx.mesh.CellType.tetrahedron
@@ -349,6 +370,7 @@ class DualUpdateKernel:
         # and material of the last call (``_key``): the next update starts from that state
         self._ca = np.zeros(self._sdofs.shape)
         self._cz2 = np.zeros(self._sdofs.shape)
+        self._cm = np.zeros(self._sdofs.shape)
         self._key = None
         #: calls that read the kept coefficients (for the tests)
         self.cache_hits = 0
@@ -357,17 +379,20 @@ class DualUpdateKernel:
         """Set the dual stress array: mode 0 the primal stress of ``w_new``, 1 the update
         (local W arrays with ghosts)."""
         mat = self.dual.material
-        prm = (float(mat.K), float(mat.m), float(mat.regularization))
+        Kc, mc, zn = mat.kernel_law(self._xdofs.shape[0])
+        prm = (float(mat.regularization),)
         key = self._key
         cached = (mode != 0 and key is not None and key[2] == prm
-                  and np.array_equal(key[0], w_old) and np.array_equal(key[1], self._x))
+                  and np.array_equal(key[0], w_old) and np.array_equal(key[1], self._x)
+                  and np.array_equal(key[3], Kc) and np.array_equal(key[4], mc))
         _dual_loop(self._x, self._xdofs, w_old, w_new, self._wdofs, self.dual.s.x.array,
-                   self._sdofs, *prm, self.g1, self.gb, self.share, int(mode),
-                   self._ca, self._cz2, cached)
+                   self._sdofs, Kc, mc, zn, *prm, self.g1, self.gb, self.share, int(mode),
+                   self._ca, self._cz2, self._cm, cached)
         self.cache_hits += int(cached)
-        if key is None or key[0].shape != w_new.shape:
-            self._key = (w_new.copy(), self._x.copy(), prm)
+        if key is None or key[0].shape != w_new.shape or key[3].shape != Kc.shape:
+            self._key = (w_new.copy(), self._x.copy(), prm, Kc.copy(), mc.copy())
         else:   # no new arrays at each call
-            np.copyto(key[0], w_new)
-            np.copyto(key[1], self._x)
-            self._key = (key[0], key[1], prm)
+            for a, b in zip(key, (w_new, self._x, prm, Kc, mc)):
+                if isinstance(a, np.ndarray):
+                    np.copyto(a, b)
+            self._key = key[:2] + (prm,) + key[3:]

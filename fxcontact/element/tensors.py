@@ -45,7 +45,7 @@ from petsc4py import PETSc
 
 from fxcontact import compat
 from fxcontact.element.cell import condense_system, tet_geometry
-from fxcontact.materials import NortonHoff
+from fxcontact.materials.laws import NortonHoff, kernel_reads_law
 
 __all__ = ["P1P1Layout", "CondensedAssembler", "FFCxElementTensors",
            "NortonHoffElementTensors", "KernelTables", "ffcx_tab_jacobian", "nh_tab", "norton_hoff_forms",
@@ -374,11 +374,14 @@ class KernelTables:
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _nh_cell(coords, wv, s, has_dual, K, m, eps0, g, g1, gb, share, wq, psi_w, psi_gb, A, b):
+def _nh_cell(coords, wv, s, has_dual, Kc, mc, zn, eps0, g, g1, gb, share, wq, psi_w, psi_gb,
+             A, b):
     """Element matrix A (19 × 19) and vector b (19) of the Norton–Hoff residual and of its
     primal–dual tangent (dual stress ``s`` (nq, 3, 3); ``has_dual`` False: the primal stress,
     the consistent tangent) on an affine tetrahedron, in the element order of W (not finite on
-    a degenerate cell: the condensation then reports it).
+    a degenerate cell: the condensation then reports it). The law of the cell is K = Kc[j],
+    m = mc[j] on the rate interval j of each quadrature point's z (bounds ``zn``, in z:
+    :meth:`~fxcontact.materials.NortonHoff.kernel_law`).
 
     Written in the basis (λ_n, B) of the hat functions, whose gradients are constant, and the
     bubble: the vertex–vertex block is a contraction of sums over the quadrature points
@@ -425,6 +428,11 @@ def _nh_cell(coords, wv, s, has_dual, K, m, eps0, g, g1, gb, share, wq, psi_w, p
             for j in range(3):
                 ee += e[i, j] * e[i, j]
         z = np.sqrt(2.0 * ee + 3.0 * eps0 * eps0)
+        j = 0
+        while j < zn.size and z >= zn[j]:
+            j += 1
+        K = Kc[j]
+        m = mc[j]
         om = wq[q] * adet
         eta = om * 2.0 * K * z ** (m - 1.0)
         cr = om * 2.0 * (1.0 - m) / (z * z)
@@ -540,20 +548,20 @@ def _nh_cell(coords, wv, s, has_dual, K, m, eps0, g, g1, gb, share, wq, psi_w, p
 
 @numba.njit(cache=True)
 def nh_tab(data, c, A, b):
-    (x, xdofs, warr, wdofs, sarr, sdofs, prm, g1, gb, share, wq, psi_w, psi_gb, coords, wv,
-     s) = data
+    (x, xdofs, warr, wdofs, sarr, sdofs, prm, Kc, mc, zn, g1, gb, share, wq, psi_w, psi_gb,
+     coords, wv, s) = data
     for i in range(4):
         for j in range(3):
             coords[i, j] = x[xdofs[c, i], j]
     for i in range(wdofs.shape[1]):
         wv[i] = warr[wdofs[c, i]]
-    has_dual = prm[4] != 0.0
+    has_dual = prm[2] != 0.0
     if has_dual:
         for q in range(sdofs.shape[1]):
             for k in range(9):
                 s[q, k // 3, k % 3] = sarr[sdofs[c, q] * 9 + k]
-    _nh_cell(coords, wv, s, has_dual, prm[0], prm[1], prm[2], prm[3], g1, gb, share, wq, psi_w,
-             psi_gb, A, b)
+    _nh_cell(coords, wv, s, has_dual, Kc[c], mc[c], zn, prm[0], prm[1], g1, gb, share, wq,
+             psi_w, psi_gb, A, b)
 
 
 @numba.njit(cache=True)
@@ -563,10 +571,11 @@ def _nh_tensors_loop(data, cells, A_out, b_out):
         nh_tab(data, cells[n], A_out[n], b_out[n])
 
 
-def norton_hoff_tensors_numpy(coords, wv, s, K, m, eps0, g, tables):
+def norton_hoff_tensors_numpy(coords, wv, s, K, m, eps0, g, tables, z_nodes=()):
     """numpy twin of the hand-written kernel: (A (n, 19, 19), b (n, 19)) of n cells from their
     vertex coordinates (n, 4, 3), element values of W (n, 19), dual stresses (n, nq, 3, 3) or
-    None (primal stress: the consistent tangent), the law's K, m, ε̇₀, the pressure source g and
+    None (primal stress: the consistent tangent), the law's K, m (numbers, or (n, nint) per cell
+    and rate interval with the interval bounds ``z_nodes`` in z), ε̇₀, the pressure source g and
     :func:`_reference_tables`."""
     gref, psi, wq = tables
     n = coords.shape[0]
@@ -582,6 +591,10 @@ def norton_hoff_tensors_numpy(coords, wv, s, K, m, eps0, g, tables):
     I3 = np.eye(3)
     e = eps - tr[..., None, None] / 3.0 * I3
     z = np.sqrt(2.0 * np.einsum("nqij,nqij->nq", e, e) + 3.0 * eps0**2)
+    if np.ndim(K):   # the piece of each point's rate interval
+        j = np.searchsorted(np.asarray(z_nodes, dtype=float), z, side="right")
+        K = np.take_along_axis(np.asarray(K, dtype=float), j, axis=1)
+        m = np.take_along_axis(np.asarray(m, dtype=float), j, axis=1)
     eta2 = 2.0 * K * z ** (m - 1.0)
     cr = 2.0 * (1.0 - m) / z**2
     if s is None:
@@ -634,7 +647,8 @@ class NortonHoffElementTensors:
         if not (isinstance(material, NortonHoff) and all(
                 getattr(type(material), name) is getattr(NortonHoff, name)
                 for name in ("stress_ufl", "z_ufl", "exponent_ufl", "residual",
-                             "incompressibility_ufl", "dual_tangent_ufl"))):
+                             "incompressibility_ufl", "dual_tangent_ufl"))
+                and kernel_reads_law(material)):
             raise ValueError("the hand-written kernel is NortonHoff's own law: for a material "
                              f"{type(material).__name__} use FFCxElementTensors with its forms")
         if (space.mesh.topology.cell_type != dolfinx.mesh.CellType.tetrahedron
@@ -668,11 +682,12 @@ class NortonHoffElementTensors:
     def data(self):
         """The kernel's inputs at the current state."""
         mat = self.material
-        prm = np.array([mat.K, mat.m, mat.regularization, self.pressure_source,
+        prm = np.array([mat.regularization, self.pressure_source,
                         0.0 if self.dual is None else 1.0])
         sarr = np.zeros(0) if self.dual is None else self.dual.s.x.array
+        law = mat.kernel_law(self._xdofs.shape[0])
         return (self._x, self._xdofs, self.w.x.array, self._wdofs, sarr, self._sdofs, prm) \
-            + self.tables.arrays() + self._scratch
+            + law + self.tables.arrays() + self._scratch
 
     def tensors(self, cells: np.ndarray):
         """(A, b): the (n, 19, 19) element matrices and (n, 19) vectors of ``cells``."""
@@ -691,8 +706,9 @@ class NortonHoffElementTensors:
         if self.dual is not None:
             s = self.dual.s.x.array.reshape(-1, 3, 3)[self._sdofs[cells]]
         mat = self.material
-        return (coords, wv, s, mat.K, mat.m, mat.regularization, self.pressure_source,
-                self.tables.full)
+        K, m, zn = mat.kernel_law(self._xdofs.shape[0])
+        return (coords, wv, s, K[cells], m[cells], mat.regularization, self.pressure_source,
+                self.tables.full, zn)
 
 
 # -- assembly of the condensed system ----------------------------------------------------------

@@ -28,7 +28,9 @@ def shear_viscosity_ufl(material, v, dt):
     the condensed iterative solver (:mod:`fxcontact.element.assembled`), or None if unknown:
     ``K z^(m-1)`` for Norton–Hoff, ``μ dt`` for the velocity form of linear elasticity."""
     if isinstance(material, NortonHoff):
-        return material.K * material.z_ufl(ufl.sym(ufl.grad(v))) ** (material.m - 1.0)
+        z = material.z_ufl(ufl.sym(ufl.grad(v)))
+        K, m = material.secant_law_ufl(z)
+        return K * z ** (m - 1.0)
     if isinstance(material, LinearElastic):
         return material.mu * dt
     return None

@@ -102,9 +102,29 @@ class NortonHoff(Material):
         between increments (the bar-rolling demo's start-up exponent)."""
         return self.m
 
+    def law_ufl(self, z):
+        """(K, m) of the law at the regularised ``z`` as they enter the UFL expressions:
+        ``(K, exponent_ufl())`` here; :class:`LocalNortonHoff` returns per-cell fields, chosen
+        by the rate interval of ``z``."""
+        return self.K, self.exponent_ufl()
+
+    def secant_law_ufl(self, z):
+        """(K, m) of the secant viscosity K z^(m−1) that weights the condensed solver's
+        preconditioner: the law's own K and m (not a subclass's exponent)."""
+        return self.K, self.m
+
+    def kernel_law(self, ncells: int):
+        """(K (ncells, nint), m (ncells, nint), z_nodes (nint − 1,)): the law as the
+        hand-written kernels read it, per cell and per rate interval (bounds in the
+        regularised z); one interval with this law's K and m."""
+        return (np.full((ncells, 1), float(self.K)), np.full((ncells, 1), float(self.m)),
+                np.zeros(0))
+
     def stress_ufl(self, eps):
         """Deviatoric stress ``s = 2 K z_r^(m-1) dev ε`` as a UFL expression."""
-        return 2.0 * self.K * self.z_ufl(eps) ** (self.exponent_ufl() - 1.0) * _dev(eps)
+        z = self.z_ufl(eps)
+        K, m = self.law_ufl(z)
+        return 2.0 * K * z ** (m - 1.0) * _dev(eps)
 
     def equivalent_strain_rate_ufl(self, eps):
         """Un-regularised ε̄̇ = sqrt(2/3 dev ε : dev ε)."""
@@ -144,11 +164,13 @@ class NortonHoff(Material):
         at about 60 % of its kernel cost (``benchmarks/README.md``, bench_assembly)."""
         e, de, ew = _dev(eps), _dev(deps), _dev(eps_w)
         z = self.z_ufl(eps)
-        return (2.0 * self.K * z ** (self.exponent_ufl() - 1.0) * ufl.inner(de, ew)
+        K, m = self.law_ufl(z)
+        return (2.0 * K * z ** (m - 1.0) * ufl.inner(de, ew)
                 - self._dual_rank_one_ufl(e, s_dual, de, ew, self._rank_one_factor(eps)))
 
     def _rank_one_factor(self, eps):
-        return 2.0 * (1.0 - self.exponent_ufl()) / self.z_ufl(eps) ** 2
+        z = self.z_ufl(eps)
+        return 2.0 * (1.0 - self.law_ufl(z)[1]) / z ** 2
 
     @staticmethod
     def _dual_rank_one_ufl(e, s_dual, de, ew, c):
@@ -163,8 +185,8 @@ class NortonHoff(Material):
         e = _dev(eps_old)
         de = _dev(eps_new - eps_old)
         z = self.z_ufl(eps_old)
-        m = self.exponent_ufl()
-        s_new = (self.stress_ufl(eps_old) + 2.0 * self.K * z ** (m - 1.0) * de
+        K, m = self.law_ufl(z)
+        s_new = (self.stress_ufl(eps_old) + 2.0 * K * z ** (m - 1.0) * de
                  - 2.0 * (1.0 - m) / z**2 * ufl.inner(e, de) * s_dual)
         sp_new = self.stress_ufl(eps_new)
         n_new = ufl.sqrt(ufl.inner(s_new, s_new))
@@ -233,6 +255,13 @@ class NortonHoff(Material):
         Pdev = _pdev_np(d)
         return 2.0 * self.K * z ** (self.m - 1.0) * (
             Pdev + 2.0 * (self.m - 1.0) / z**2 * np.einsum("ij,kl->ijkl", e, e))
+
+
+def kernel_reads_law(material) -> bool:
+    """Whether the hand-written kernels read what a Norton–Hoff material's UFL law is: its
+    ``law_ufl`` is NortonHoff's own, or its ``kernel_law`` is redefined with it."""
+    t = type(material)
+    return t.law_ufl is NortonHoff.law_ufl or t.kernel_law is not NortonHoff.kernel_law
 
 
 @dataclass(frozen=True)
