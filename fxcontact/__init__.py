@@ -28,10 +28,11 @@ from fxcontact.contact.springs import NodalSprings
 from fxcontact.contact.view import ContactNodes
 from fxcontact.element.dual import DualStress
 from fxcontact.idle import IdleRotation
-from fxcontact.io import figure, plot_pressure_profile, render_png
+from fxcontact.io import figure, plot_flow_curves, plot_pressure_profile, render_png
 from fxcontact.io.outputs import OutputError
 from fxcontact.kinematics import CartesianUpdate, CylindricalUpdate, RingAxisUpdate
-from fxcontact.materials import LinearElastic, Material, NortonHoff
+from fxcontact.materials import (FlowStress, HanselSpittel, LinearElastic, Material, NortonHoff,
+                                 PowerHardening, TabulatedFlowStress)
 from fxcontact.mesh_health import simplex_measures
 from fxcontact.meshing import (BILLET_TAGS, BLOCK_TAGS, DRAWING_BAR_TAGS, RING_TAGS, block,
                                cylinder_billet, drawing_bar, gmsh_session, ring,
@@ -90,6 +91,14 @@ _API = {
     "Material": ("materials.laws", "base class of the constitutive laws"),
     "NortonHoff": ("materials.laws", "incompressible Norton-Hoff viscoplasticity (§1.1)"),
     "LinearElastic": ("materials.laws", "incremental linear elasticity, mixed pressure (§1.4)"),
+    "FlowStress": ("materials.flow", "base class of the flow-stress laws sigma0(strain, rate, T) "
+                   "in MPa, with their Norton-Hoff pieces per rate interval"),
+    "PowerHardening": ("materials.flow", "Norton-Hoff with power hardening, "
+                       "sqrt3 K0 (eps0 + strain)^n (sqrt3 rate)^m"),
+    "HanselSpittel": ("materials.flow", "Hansel-Spittel flow stress (Forge's nine-parameter "
+                      "form, T in degrees C)"),
+    "TabulatedFlowStress": ("materials.flow", "flow stress tabulated in (strain, rate, T), "
+                            "read from a CSV; log-linear in the rate"),
     # contact
     "ContactBoundary": ("contact.boundary", "contact nodes and their lumped areas S_n (§1.3)"),
     "NodalContact": ("contact.nodal", "nodal penalty contact, four schemes (§2-§3)"),
@@ -197,6 +206,8 @@ _API = {
     # outputs and console
     "render_png": ("io.series", "offscreen picture of the mesh coloured by a cell field"),
     "figure": ("io.series", "a matplotlib figure saved to a PNG when its with-block ends"),
+    "plot_flow_curves": ("io.flow_curves", "flow curves of a flow-stress law: sigma0 against "
+                         "the strain for several rates and temperatures"),
     "plot_pressure_profile": ("io.series", "nodal contact pressures against Hertz's elliptic profile"),
     "configure_logging": ("console", "console of a script: rank 0, --verbose/--quiet"),
     "add_verbosity_arguments": ("console", "add --verbose/--quiet to an argparse parser"),

@@ -4,9 +4,15 @@ depend on them.
 * :mod:`fxcontact.materials.laws` — :class:`Material`, :class:`NortonHoff` (incompressible
   viscoplasticity, consistency K in MPa·s^m), :class:`LinearElastic` (E in MPa);
 * :mod:`fxcontact.materials.forms` — the equivalent strain rate, the secant shear viscosity and
-  the primal–dual Jacobian built from a material.
+  the primal–dual Jacobian built from a material;
+* :mod:`fxcontact.materials.flow` — flow-stress laws σ0(ε̄, ε̄̇, T) in MPa (:class:`FlowStress`,
+  :class:`PowerHardening`, :class:`HanselSpittel`, :class:`TabulatedFlowStress`) and their
+  Norton–Hoff pieces for an element kernel (pure numpy).
 """
 
+from fxcontact.materials.flow import (FlowStress, HanselSpittel, PowerHardening,
+                                     TabulatedFlowStress, interval_of, norton_hoff_pieces)
 from fxcontact.materials.laws import LinearElastic, Material, NortonHoff
 
-__all__ = ["LinearElastic", "Material", "NortonHoff"]
+__all__ = ["FlowStress", "HanselSpittel", "LinearElastic", "Material", "NortonHoff",
+           "PowerHardening", "TabulatedFlowStress", "interval_of", "norton_hoff_pieces"]
