@@ -32,7 +32,7 @@ from fxcontact.io import figure, plot_flow_curves, plot_pressure_profile, render
 from fxcontact.io.outputs import OutputError
 from fxcontact.kinematics import CartesianUpdate, CylindricalUpdate, RingAxisUpdate
 from fxcontact.materials import (FlowStress, HanselSpittel, LinearElastic, Material, NortonHoff,
-                                 PowerHardening, TabulatedFlowStress)
+                                 PowerHardening, TabulatedFlowStress, Viscoplastic)
 from fxcontact.mesh_health import simplex_measures
 from fxcontact.meshing import (BILLET_TAGS, BLOCK_TAGS, DRAWING_BAR_TAGS, RING_TAGS, block,
                                cylinder_billet, drawing_bar, gmsh_session, ring,
@@ -91,6 +91,8 @@ _API = {
     "Material": ("materials.laws", "base class of the constitutive laws"),
     "NortonHoff": ("materials.laws", "incompressible Norton-Hoff viscoplasticity (§1.1)"),
     "LinearElastic": ("materials.laws", "incremental linear elasticity, mixed pressure (§1.4)"),
+    "Viscoplastic": ("materials.local", "viscoplasticity with a flow stress sigma0(strain, rate, "
+                     "T) (§15): a flow-stress law and a regularisation"),
     "FlowStress": ("materials.flow", "base class of the flow-stress laws sigma0(strain, rate, T) "
                    "in MPa, with their Norton-Hoff pieces per rate interval"),
     "PowerHardening": ("materials.flow", "Norton-Hoff with power hardening, "

@@ -165,7 +165,6 @@ class Simulation:
         self.volume_correction = "none" if material.small_strain else volume_correction
         self.t = 0.0
         self.increment = 0
-        self._clamp_reported = False
         self.contributors: List = []
         self.history: List[Dict[str, float]] = []
         self.overwrite = bool(overwrite)
@@ -551,18 +550,10 @@ class Simulation:
                              f"check the value function")
 
     def _update_law(self):
-        """A state-dependent flow stress (:class:`~fxcontact.materials.Viscoplastic`): its
-        per-cell pieces from the state at the start of the increment (THEORY §15); a state
-        outside a table's range is reported once."""
-        if self.law is None:
-            return
-        self.material.update(self.strain.x.array)
-        clamped = self.comm.allreduce(self.material.fields.clamped, op=MPI.SUM)
-        if clamped and not self._clamp_reported:
-            self._clamp_reported = True
-            log.warning("%s: the state (strain, temperature) of %d cells is outside the "
-                        "flow-stress table at t = %.6g s: the table's edge values are used",
-                        self.name, clamped, self.t)
+        """A Viscoplastic material: its pieces from the state at the start of the increment
+        (THEORY §15)."""
+        if self.law is not None:
+            self.material.update(self.strain.x.array)
 
     def _try_increment(self, dt: float) -> SolveInfo:
         t_new = self.t + dt

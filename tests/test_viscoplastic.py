@@ -12,6 +12,7 @@ from petsc4py import PETSc
 
 import fxcontact as fx
 from fxcontact import compat
+from fxcontact.collective import digest
 from fxcontact.element.dual import DualStress, dual_update_numpy
 from fxcontact.element.tensors import (FFCxElementTensors, NortonHoffElementTensors, P1P1Layout,
                                         norton_hoff_forms, norton_hoff_tensors_numpy)
@@ -89,6 +90,8 @@ def test_hand_kernel_equals_ufl_with_a_state_law(law):
         assert MPI.COMM_WORLD.allreduce(len(used), op=MPI.MAX) >= 2, used
     # the cells' laws differ (the strain enters)
     assert np.ptp(mat.fields.K_cells[:, 0]) > 0.01 * mat.fields.K_cells[:, 0].max()
+    # the set-up compared between ranks sees the law, not the rank's cells
+    assert len(set(MPI.COMM_WORLD.allgather(digest(mat)))) == 1
 
 
 @pytest.mark.parametrize("law", sorted(LAWS))

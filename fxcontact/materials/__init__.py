@@ -7,12 +7,16 @@ depend on them.
   the primal–dual Jacobian built from a material;
 * :mod:`fxcontact.materials.flow` — flow-stress laws σ0(ε̄, ε̄̇, T) in MPa (:class:`FlowStress`,
   :class:`PowerHardening`, :class:`HanselSpittel`, :class:`TabulatedFlowStress`) and their
-  Norton–Hoff pieces for an element kernel (pure numpy).
+  Norton–Hoff pieces for an element kernel (pure numpy);
+* :mod:`fxcontact.materials.local` — :class:`Viscoplastic` (a flow-stress law as a material) and
+  :class:`LocalNortonHoff`, its Norton–Hoff law on a mesh with per-cell pieces.
 """
 
 from fxcontact.materials.flow import (FlowStress, HanselSpittel, PowerHardening,
                                      TabulatedFlowStress, interval_of, norton_hoff_pieces)
 from fxcontact.materials.laws import LinearElastic, Material, NortonHoff
+from fxcontact.materials.local import LocalNortonHoff, Viscoplastic
 
-__all__ = ["FlowStress", "HanselSpittel", "LinearElastic", "Material", "NortonHoff",
-           "PowerHardening", "TabulatedFlowStress", "interval_of", "norton_hoff_pieces"]
+__all__ = ["FlowStress", "HanselSpittel", "LinearElastic", "LocalNortonHoff", "Material",
+           "NortonHoff", "PowerHardening", "TabulatedFlowStress", "Viscoplastic", "interval_of",
+           "norton_hoff_pieces"]

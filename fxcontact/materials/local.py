@@ -23,14 +23,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import logging
+
 import dolfinx
 import numpy as np
 import ufl
+from mpi4py import MPI
 
 from fxcontact.materials.flow import FlowStress, norton_hoff_pieces
 from fxcontact.materials.laws import Material, NortonHoff, _check_positive
 
 __all__ = ["LocalNortonHoff", "Viscoplastic"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -129,33 +134,66 @@ class CellLaw:
         self.z_nodes = np.sqrt(3.0) * self.rate_nodes
         nint = self.rate_nodes.size + 1
         DG0 = space.DG0
-        self.K = [dolfinx.fem.Function(DG0, name=f"consistency_{j}") for j in range(nint)]
-        self.m = [dolfinx.fem.Function(DG0, name=f"rate_sensitivity_{j}") for j in range(nint)]
+        # (rank-local data in private attributes, read through properties: a set-up compared
+        # between ranks, fxcontact.collective.digest, sees the law only)
+        self._K = [dolfinx.fem.Function(DG0, name=f"consistency_{j}") for j in range(nint)]
+        self._m = [dolfinx.fem.Function(DG0, name=f"rate_sensitivity_{j}") for j in range(nint)]
         msh = space.mesh
         tdim = msh.topology.dim
         imap = msh.topology.index_map(tdim)
         ncells = imap.size_local + imap.num_ghosts
         dm = np.asarray(DG0.dofmap.list.array, dtype=np.int64)
-        #: the DG0 dof of each local cell (owned and ghost)
-        self.cell_dofs = dm.reshape(ncells, -1)[:, 0]
-        #: (ncells, nint) K_j [MPa·s^m] and m_j by cell index (the kernels' arrays)
-        self.K_cells = np.zeros((ncells, nint))
-        self.m_cells = np.zeros((ncells, nint))
-        #: cells whose state lay outside the law's data at the last update (clamped), summed
-        #: over the ranks by the caller
+        self._cell_dofs = dm.reshape(ncells, -1)[:, 0]
+        self._K_cells = np.zeros((ncells, nint))
+        self._m_cells = np.zeros((ncells, nint))
+        self._comm = msh.comm
+        self._owned = DG0.dofmap.index_map.size_local
+        #: cells whose state lay outside the law's data at the last update (clamped, all ranks)
         self.clamped = 0
+
+    @property
+    def K(self) -> list:
+        """The DG0 functions K_j [MPa·s^m], one per rate interval."""
+        return self._K
+
+    @property
+    def m(self) -> list:
+        """The DG0 functions m_j, one per rate interval."""
+        return self._m
+
+    @property
+    def cell_dofs(self) -> np.ndarray:
+        """The DG0 dof of each local cell (owned and ghost)."""
+        return self._cell_dofs
+
+    @property
+    def K_cells(self) -> np.ndarray:
+        """(ncells, nint) K_j by cell index: the kernels' array."""
+        return self._K_cells
+
+    @property
+    def m_cells(self) -> np.ndarray:
+        """(ncells, nint) m_j by cell index."""
+        return self._m_cells
 
     def update(self, strain: np.ndarray, temperature):
         """Set the pieces from the state: ``strain`` the DG0 array of ε̄ (owned and ghost
-        dofs), ``temperature`` [°C] a number or a DG0 array."""
+        dofs), ``temperature`` [°C] a number or a DG0 array. Collective (the clamped states
+        are counted over the ranks and reported once, on the first update that has some)."""
         T = np.broadcast_to(np.asarray(temperature, dtype=float), strain.shape)
         K, m = norton_hoff_pieces(self.flow, np.asarray(strain, dtype=float), T)
         for j in range(K.shape[1]):
-            self.K[j].x.array[:] = K[:, j]
-            self.m[j].x.array[:] = m[:, j]
-        self.K_cells[:] = K[self.cell_dofs]
-        self.m_cells[:] = m[self.cell_dofs]
-        self.clamped = int(self.flow.clamped(np.asarray(strain, dtype=float), T))
+            self._K[j].x.array[:] = K[:, j]
+            self._m[j].x.array[:] = m[:, j]
+        self._K_cells[:] = K[self._cell_dofs]
+        self._m_cells[:] = m[self._cell_dofs]
+        n = self._owned
+        clamped = self._comm.allreduce(
+            int(self.flow.clamped(np.asarray(strain[:n], dtype=float), T[:n])), op=MPI.SUM)
+        if clamped and not self.clamped:
+            log.warning("the state (strain, temperature) of %d cells is outside the flow-stress "
+                        "table: its edge values are used (reported once)", clamped)
+        self.clamped = max(self.clamped, clamped)
 
     def ufl(self, z):
         """(K, m) at the regularised ``z`` (UFL): the DG0 fields of z's rate interval."""
