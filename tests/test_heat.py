@@ -145,7 +145,7 @@ def test_material_helpers():
     assert varying.temperature_dependent
     assert varying.effusivity_at(np.array([20.0, 500.0])) == pytest.approx(STEEL.effusivity)
     with pytest.raises(ValueError, match="effusivity_at"):
-        varying.effusivity
+        _ = varying.effusivity
 
 
 def test_temperature_dependent_constants_match():
@@ -210,7 +210,9 @@ def test_semi_infinite_film_coefficient():
 def _bessel_roots(Bi, n):
     """The first n roots of λ J1(λ) = Bi J0(λ): one in each (j_{0,i-1}, j_{0,i}) bracket where
     J0 changes sign (j_{0,0} := 0)."""
-    f = lambda lam: lam * j1(lam) - Bi * j0(lam)    # noqa: E731
+    def f(lam):
+        return lam * j1(lam) - Bi * j0(lam)
+
     zeros = [1e-12] + [brentq(j0, (i - 0.25) * np.pi - 0.5, (i - 0.25) * np.pi + 0.5)
                        for i in range(1, n + 1)]
     return np.array([brentq(f, zeros[i] + 1e-12, zeros[i + 1] - 1e-12) for i in range(n)])
@@ -326,7 +328,7 @@ def test_energy_balance_and_ranks():
 def test_contact_areas_given_and_ghosts():
     """Areas given with the contact replace S_n; a contact entry replaces the air at its
     vertices: the same h_c as the air's with the air's ambient gives the air-only answer."""
-    msh, tags = _bar(COMM, 4.0, 8)
+    msh, _ = _bar(COMM, 4.0, 8)
     air = AirExchange(0.5, 300.0)
     ref = HeatProblem(msh, STEEL, 20.0, air=air)
     out_ref = ref.step(0.01)
@@ -347,7 +349,10 @@ def test_moving_mesh_capacity_and_areas_follow():
     stores 8× the heat per step for the same temperature rise q dt/ρc."""
     msh = box_mesh(COMM, L=(1.0, 1.0, 1.0), n=(3, 3, 3), perturb=0.1)
     hp = HeatProblem(msh, STEEL, 20.0)
-    total = lambda a: COMM.allreduce(float(a[:hp.n_owned].sum()), op=MPI.SUM)  # noqa: E731
+
+    def total(a):
+        return COMM.allreduce(float(a[:hp.n_owned].sum()), op=MPI.SUM)
+
     C0, S0 = total(hp.capacity()), total(hp.areas())
     assert C0 == pytest.approx(3.9, rel=1e-12) and S0 == pytest.approx(6.0, rel=1e-12)
     out0 = hp.step(0.1, source=1.0)

@@ -13,5 +13,5 @@ the tools and the air, on the moving mesh of an updated-Lagrangian run.
 from fxcontact.heat.materials import SIGMA_SB, AirExchange, ThermalMaterial
 from fxcontact.heat.problem import BALANCE_KEYS, HEAT_SOLVERS, HeatProblem
 
-__all__ = ["AirExchange", "BALANCE_KEYS", "HEAT_SOLVERS", "HeatProblem", "SIGMA_SB",
+__all__ = ["BALANCE_KEYS", "HEAT_SOLVERS", "SIGMA_SB", "AirExchange", "HeatProblem",
            "ThermalMaterial"]

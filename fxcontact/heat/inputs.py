@@ -14,15 +14,14 @@ import math
 import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import List, Optional
 
 import numpy as np
 
 from fxcontact.collective import check_together
 from fxcontact.heat.materials import CONTACT_H_WARN, check_temperature, film_coefficient
 
-__all__ = ["checks_together", "ToolExchange", "contact_entries", "nodal_entries",
-           "positive_dt", "cell_values", "index_array"]
+__all__ = ["ToolExchange", "cell_values", "checks_together", "contact_entries", "index_array",
+           "nodal_entries", "positive_dt"]
 
 
 @contextmanager
@@ -38,7 +37,7 @@ def checks_together(comm, where: str):
         warnings.simplefilter("always")
         try:
             yield agree
-        except Exception as e:    # raised on every rank by check_together
+        except Exception as e:  # noqa: BLE001 (raised on every rank by check_together)
             error = e
     notes = [str(w.message) for w in caught]
     got = check_together(comm, where, error, share=notes, **agree)
@@ -107,7 +106,7 @@ class ToolExchange:
     dofs: np.ndarray
     h: np.ndarray
     temperature: np.ndarray
-    areas: Optional[np.ndarray] = None
+    areas: np.ndarray | None = None
 
 
 def _one_contact(name, entry, n_local: int) -> ToolExchange:
@@ -128,7 +127,7 @@ def _one_contact(name, entry, n_local: int) -> ToolExchange:
     return ToolExchange(name, dofs, h, T, areas)
 
 
-def contact_entries(contact, n_local: int) -> List[ToolExchange]:
+def contact_entries(contact, n_local: int) -> list[ToolExchange]:
     """The ``contact`` argument of a step: None; one tuple ``(vertices, h_c, T_tool[,
     areas])``; a list of such tuples (one per tool, named 0, 1, ... in the balance); or a dict
     {name: tuple}. Local checks."""
@@ -141,8 +140,9 @@ def contact_entries(contact, n_local: int) -> List[ToolExchange]:
     elif isinstance(contact, list):
         items = list(enumerate(contact))
     else:
-        raise ValueError(f"contact must be a tuple (vertices, h_c, T_tool), a list of such "
-                         f"tuples or a dict {{name: tuple}}, got {type(contact).__name__}")
+        msg = (f"contact must be a tuple (vertices, h_c, T_tool), a list of such tuples or a "
+               f"dict {{name: tuple}}, got {type(contact).__name__}")
+        raise ValueError(msg)  # noqa: TRY004
     return [_one_contact(name, entry, n_local) for name, entry in items]
 
 

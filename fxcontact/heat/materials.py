@@ -27,9 +27,9 @@ from typing import Callable, Union
 
 import numpy as np
 
-__all__ = ["ThermalMaterial", "AirExchange", "SIGMA_SB", "KELVIN", "RHO_C_RANGE", "RHO_C_MAX",
-           "CONDUCTIVITY_RANGE", "CONDUCTIVITY_MAX", "AIR_H_WARN", "H_MAX", "CONTACT_H_WARN",
-           "HOT_CELSIUS", "check_temperature", "film_coefficient"]
+__all__ = ["AIR_H_WARN", "CONDUCTIVITY_MAX", "CONDUCTIVITY_RANGE", "CONTACT_H_WARN",
+           "HOT_CELSIUS", "H_MAX", "KELVIN", "RHO_C_MAX", "RHO_C_RANGE", "SIGMA_SB", "AirExchange",
+           "ThermalMaterial", "check_temperature", "film_coefficient"]
 
 #: Stefan–Boltzmann constant in N/(mm s K⁴): 5.670374419e-8 W/(m² K⁴) × 10⁻³
 SIGMA_SB = 5.670374419e-11

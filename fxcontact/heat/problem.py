@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Dict, Optional
 
 import dolfinx
 import dolfinx.fem
@@ -38,7 +37,7 @@ from fxcontact.heat.inputs import (cell_values, checks_together, contact_entries
 from fxcontact.heat.materials import AirExchange, ThermalMaterial, check_temperature
 from fxcontact.spaces import facets_with_tags
 
-__all__ = ["HeatProblem", "HEAT_SOLVERS", "BALANCE_KEYS"]
+__all__ = ["BALANCE_KEYS", "HEAT_SOLVERS", "HeatProblem"]
 
 log = logging.getLogger(__name__)
 
@@ -87,13 +86,14 @@ class HeatProblem:
     """
 
     def __init__(self, mesh, thermal: ThermalMaterial, initial_temperature, air=None,
-                 facet_tags=None, fixed: Optional[Dict[int, float]] = None,
+                 facet_tags=None, fixed: dict[int, float] | None = None,
                  solver: str = "cg", rtol: float = 1e-10):
         self.comm = mesh.comm
         with checks_together(self.comm, "HeatProblem()") as agree:
             agree.update(solver=str(solver), rtol=float(rtol))
             if not isinstance(thermal, ThermalMaterial):
-                raise ValueError(f"thermal must be a ThermalMaterial, got {type(thermal).__name__}")
+                raise ValueError(  # noqa: TRY004
+                    f"thermal must be a ThermalMaterial, got {type(thermal).__name__}")
             if solver not in HEAT_SOLVERS:
                 raise ValueError(f"solver must be one of {HEAT_SOLVERS}, got {solver!r}")
             if not (0 < float(rtol) < 1):
@@ -144,7 +144,7 @@ class HeatProblem:
                 raise ValueError("air given per facet tag needs facet_tags")
             for tag, a in air.items():
                 if not isinstance(a, AirExchange):
-                    raise ValueError(f"air[{tag!r}] must be an AirExchange, got "
+                    raise ValueError(f"air[{tag!r}] must be an AirExchange, got "  # noqa: TRY004
                                      f"{type(a).__name__}")
             return [(int(t), a) for t, a in sorted(air.items())]
         raise ValueError(f"air must be an AirExchange, a dict {{facet tag: AirExchange}} or "
@@ -155,8 +155,8 @@ class HeatProblem:
         if not fixed:
             return []
         if not isinstance(fixed, dict):
-            raise ValueError(f"fixed must be a dict {{facet tag: temperature °C}}, got "
-                             f"{type(fixed).__name__}")
+            msg = f"fixed must be a dict {{facet tag: temperature °C}}, got {type(fixed).__name__}"
+            raise ValueError(msg)  # noqa: TRY004
         if facet_tags is None:
             raise ValueError("fixed temperatures need facet_tags")
         return [(int(t), float(check_temperature(f"fixed[{t}]", v))) for t, v in fixed.items()]
@@ -167,9 +167,7 @@ class HeatProblem:
         arr = self.T.x.array
         owned_only = False
         with checks_together(self.comm, "HeatProblem(initial_temperature)"):
-            if callable(T0) and not hasattr(T0, "x"):
-                self.T.interpolate(T0)
-            elif hasattr(T0, "function_space") and hasattr(T0, "x"):
+            if callable(T0) or hasattr(T0, "function_space"):   # f(x) or a P1 Function
                 self.T.interpolate(T0)
             else:
                 a = np.asarray(T0, dtype=float)
