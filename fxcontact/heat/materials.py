@@ -1,5 +1,5 @@
 """Thermal data of the workpiece and of its free surface, in the units of fxcontact (N, mm, s,
-°C; THEORY §16).
+°C; THEORY §16.2).
 
 =====================  ======================  ============================  ==================
 quantity               unit                    equals                        steel
@@ -141,7 +141,7 @@ def film_coefficient(name: str, h, warn_above: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class ThermalMaterial:
-    """Heat capacity and conductivity of the workpiece (THEORY §16).
+    """Heat capacity and conductivity of the workpiece (THEORY §16.1).
 
     Args:
         rho_c: volumetric heat capacity ρc in N/(mm² K) = MJ/(m³ K) (steel 3.9): a number or a
@@ -227,7 +227,7 @@ class ThermalMaterial:
         return self.conductivity_at(T) / self.rho_c_at(T)
 
     def heat_share(self, tool) -> float:
-        """The workpiece's share β_f = b_w/(b_w + b_t) of the friction power (THEORY §16):
+        """The workpiece's share β_f = b_w/(b_w + b_t) of the friction power (THEORY §16.1):
         ``tool`` is the tool's :class:`ThermalMaterial` or its effusivity b_t (constant
         properties)."""
         bt = tool.effusivity if isinstance(tool, ThermalMaterial) else float(tool)
@@ -239,7 +239,7 @@ class ThermalMaterial:
 
 @dataclass(frozen=True)
 class AirExchange:
-    """Heat exchange of a free surface with its surroundings (THEORY §16):
+    """Heat exchange of a free surface with its surroundings (THEORY §16.1, §16.3):
     q = h (T − T_a) + ε σ_SB (T_K⁴ − T_a,K⁴) leaving the body.
 
     Args:

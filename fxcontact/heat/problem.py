@@ -1,5 +1,5 @@
 """Transient heat conduction in the workpiece: P1 temperature, backward Euler, lumped capacity and
-lumped boundary exchange (THEORY §16).
+lumped boundary exchange (THEORY §16.3).
 
 Each step solves, for the increment ΔT = Tⁿ⁺¹ − Tⁿ,
 
@@ -77,6 +77,14 @@ class HeatProblem:
     air and, at contact vertices, the tools. The unknown is :attr:`T`, a P1 Function named
     ``"temperature"``.
 
+    Coupling (THEORY §16.6): once per increment, after the mechanics has converged and before
+    the mesh update, ``step(dt, source=η_q s:ε̇ per cell, contact={tool: (dofs, h_c, T_tool)},
+    nodal_heat=(dofs, β_f τ·Δv_t S_n))``, with :meth:`dofs_of_vertices` mapping the contact's
+    mesh vertices to dofs and :meth:`ThermalMaterial.heat_share
+    <fxcontact.heat.materials.ThermalMaterial.heat_share>` giving β_f. After a remesh: a new
+    HeatProblem on the new mesh, then ``fxcontact.remesh.transfer.interpolate_from(old.T,
+    new.T)`` (its :meth:`energy` counts from there).
+
     Attributes:
         T: the temperature (°C), P1, owned and ghost values current after every step.
         V: its function space.
@@ -127,7 +135,7 @@ class HeatProblem:
         self.time = 0.0
         self.steps = 0
         self._stored = 0.0
-        self._consistent_mass = False      # private switch: the undershoot of THEORY §16
+        self._consistent_mass = False      # private switch: the undershoot of THEORY §16.4
         self._forms(air_items, fixed_items)
         self._solvers()
 
@@ -323,7 +331,7 @@ class HeatProblem:
                 repeated vertices add up.
 
         Returns:
-            The step's energy balance, the same on every rank, in N mm (= mJ) over the step,
+            The step's energy balance (THEORY §16.5), the same on every rank, in N mm (= mJ) over the step,
             flows > 0 into the body: ``stored`` Σ M (Tⁿ⁺¹ − Tⁿ), ``generated`` (source),
             ``nodal``, ``air`` (convection), ``radiation``, ``tools`` ({name: exchange}),
             ``fixed`` (through the Dirichlet faces), ``residual`` = stored − the sum of the
@@ -487,7 +495,7 @@ class HeatProblem:
     # ------------------------------------------------------------------ consistent mass
     def _add_consistent_mass(self, A, rho_c, M, dt):
         """Private: A += M_c/dt − M/dt (the consistent capacity instead of the lumped one, to
-        show the undershoot the lumping removes; THEORY §16)."""
+        show the undershoot the lumping removes; THEORY §16.4)."""
         if self._mass_form is None:
             u, v = ufl.TrialFunction(self.V), ufl.TestFunction(self.V)
             self._mass_form = compat.form(self._rho_c * u * v * ufl.dx(domain=self.mesh))
