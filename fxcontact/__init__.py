@@ -28,6 +28,7 @@ from fxcontact.contact.springs import NodalSprings
 from fxcontact.contact.view import ContactNodes
 from fxcontact.element.dual import DualStress
 from fxcontact.idle import IdleRotation
+from fxcontact.heat import AirExchange, HeatProblem, ThermalMaterial
 from fxcontact.io import figure, plot_flow_curves, plot_pressure_profile, render_png
 from fxcontact.io.outputs import OutputError
 from fxcontact.kinematics import CartesianUpdate, CylindricalUpdate, RingAxisUpdate
@@ -101,6 +102,13 @@ _API = {
                       "form, T in degrees C)"),
     "TabulatedFlowStress": ("materials.flow", "flow stress tabulated in (strain, rate, T), "
                             "read from a CSV; log-linear in the rate"),
+    # heat in the workpiece
+    "ThermalMaterial": ("heat.materials", "heat capacity rho*c, conductivity k (constant or of T), "
+                        "Taylor-Quinney fraction, effusivity (§16)"),
+    "AirExchange": ("heat.materials", "free-surface exchange: film coefficient, ambient, "
+                    "linearised radiation (§16.3)"),
+    "HeatProblem": ("heat.problem", "transient heat on the moving workpiece: lumped backward "
+                    "Euler, sources, tools, air, energy balance (§16)"),
     # contact
     "ContactBoundary": ("contact.boundary", "contact nodes and their lumped areas S_n (§1.3)"),
     "NodalContact": ("contact.nodal", "nodal penalty contact, four schemes (§2-§3)"),
