@@ -73,6 +73,13 @@ class BeginsIncrement(Protocol):
 
 
 @runtime_checkable
+class CommitsIncrement(Protocol):
+    def commit_increment(self, sim, dt: float) -> None:
+        """After an accepted increment's solve, before its geometry update: on the
+        configuration the increment was solved on (a controller's; the heat step)."""
+
+
+@runtime_checkable
 class EndsIncrement(Protocol):
     def end_increment(self, sim, dt: float) -> None:
         """After an accepted increment (before its geometry is used again)."""

@@ -54,8 +54,8 @@ from fxcontact.mesh_health import MeshHealth
 from fxcontact.newton.problem import ContributorError, NodalNonlinearProblem
 from fxcontact.newton.retry import IncrementError, MeshInversionError, RetryLadder
 from fxcontact.newton.solver import ContactNewtonSolver, SolveInfo, SolverOptions
-from fxcontact.protocols import (BeginsIncrement, Contributor, EndsIncrement, HasDiagnostics,
-                                 HasSummary, SolvesIncrement)
+from fxcontact.protocols import (BeginsIncrement, CommitsIncrement, Contributor, EndsIncrement,
+                                 HasDiagnostics, HasSummary, SolvesIncrement)
 from fxcontact.registration import (VelocityCondition as _BC, bc_label as _bc_label,
                                     check_added_once as _check_added_once,
                                     column_labels as _column_labels, label as _label,
@@ -154,6 +154,8 @@ class Simulation:
         #: the Viscoplastic material given (its flow stress depends on the state), or None;
         #: ``material`` is then its Norton–Hoff law on the current mesh
         self.law = material if isinstance(material, Viscoplastic) else None
+        #: cell temperatures [°C] (DG0 order) set by a heat controller, or None
+        self.cell_temperature = None
         self.material = material
         self.solver_options = solver_options or SolverOptions()
         self.kinematics = kinematics or CartesianUpdate()
@@ -549,11 +551,9 @@ class Simulation:
                              f"were added) give non-finite values (NaN/inf) at t = {t:.6g}: "
                              f"check the value function")
 
-    def _update_law(self):
-        """A Viscoplastic material: its pieces from the state at the start of the increment
-        (THEORY §15)."""
+    def _update_law(self):   # a Viscoplastic's pieces from the increment's start (THEORY §15)
         if self.law is not None:
-            self.material.update(self.strain.x.array)
+            self.material.update(self.strain.x.array, self.cell_temperature)
 
     def _try_increment(self, dt: float) -> SolveInfo:
         t_new = self.t + dt
@@ -599,6 +599,9 @@ class Simulation:
         self.strain_rate.x.array[:] = rate
         self.strain.x.array[:] += dt * rate
         reactions = {name: self.reaction_force(f) for name, f in self._reactions.items()}
+        for c in self.controllers:   # on the configuration of the increment (heat, THEORY §16)
+            if isinstance(c, CommitsIncrement):
+                c.commit_increment(self, dt)
         div_v = self.divergence_integral()
         restore = (self.comm.allreduce(dolfinx.fem.assemble_scalar(self._restore_form),
                                        op=MPI.SUM) if self._log_volume is not None else 0.0)

@@ -124,11 +124,11 @@ def test_dual_kernel_equals_the_expressions_with_a_state_law(law):
         assert np.abs(tw - a[blocks]).max() <= 1e-11 * scale
 
 
-def compress(comm, material, v=0.1, h0=1.0, dt=0.2, n_inc=12):
+def compress(comm, material, v=0.1, h0=1.0, dt=0.2, n_inc=12, setup=None):
     """A block compressed at constant die speed ``v`` [mm/s] between frictionless plates
     (sliding on symmetry faces): homogeneous flow, which the MINI element represents exactly.
     Returns the simulation, the initial volume and per increment (h and the volume at its
-    start, the plate force)."""
+    start, the plate force). ``setup(sim)`` adds to the simulation before the first step."""
     L = (1.0, 1.0, h0)
     msh = box_mesh(comm, L, (2, 2, 2), perturb=0.1)
     # without volume correction the flow of each increment is isochoric: ε̄̇ = v/h exactly
@@ -139,6 +139,8 @@ def compress(comm, material, v=0.1, h0=1.0, dt=0.2, n_inc=12):
     sim.add_velocity_bc(f["z0"], 0.0, 2)
     sim.add_velocity_bc(f["z1"], -v, 2)
     sim.add_reaction("top", f["z1"])
+    if setup is not None:
+        setup(sim)
     out = []
     V0 = sim.volume()
     for i in range(n_inc):

@@ -98,6 +98,13 @@ class NodalContactIO:
             out[f"{self.name}_slip_velocity"] = float(self.slip_velocity)
         return out
 
+    def node_friction_power(self) -> np.ndarray:
+        """(n,) friction power r_f·Δv_t of each contact node at the last evaluation [N mm/s]
+        (≥ 0; zeros without friction), in the order of ``nodes.vertices``."""
+        if not self.has_friction:
+            return np.zeros(len(self._r))
+        return np.sum(self._rf * self._dvt, axis=1)
+
     def tool_force(self, k: int = 0, friction_only: bool = False) -> np.ndarray:
         """Force on tool k (gdim,) from the last evaluation, summed over ranks: contact plus
         friction (= −the force on the body), or the friction part only."""

@@ -136,12 +136,12 @@ class Outputs:
     # ------------------------------------------------------------------ fields
     def functions(self) -> list:
         """The functions of each VTK step: velocity, pressure, strain, strain rate, the
-        displacement (small strain) and the contributors' ``output_fields()``."""
+        displacement (small strain) and the contributors' and controllers' ``output_fields()``."""
         sim = self.sim
         fields = [sim.velocity, sim.pressure, sim.strain, sim.strain_rate]
         if sim.displacement_out is not None:
             fields.append(sim.displacement_out)
-        for c in sim.contributors:
+        for c in sim.contributors + sim.controllers:
             if isinstance(c, HasOutputFields):
                 fields.extend(c.output_fields())
         return fields

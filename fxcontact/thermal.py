@@ -1,0 +1,220 @@
+"""Heat in a simulation: the workpiece's temperature computed with the mechanics, staggered per
+increment (THEORY §16.6).
+
+:class:`WorkpieceHeat` is a controller (``Simulation.add_controller``). At each accepted
+increment, before the geometry moves, it hands the heat problem
+(:class:`~fxcontact.heat.HeatProblem`) the sources of that increment on the configuration that
+produced them: the plastic power η_q s:ε̇ per cell, and at each contact node in contact the
+exchange with its tool (h_c, the tool's temperature, the contact's own nodal area S_n) and the
+workpiece's share β_f = b_w/(b_w + b_t) of the node's friction power r_f·Δv_t. The temperature
+it returns is the next increment's: the flow stress of a :class:`~fxcontact.materials.
+Viscoplastic` material reads the cell averages (``Simulation.cell_temperature``), explicit in
+the state as ε̄ is (THEORY §15).
+
+Units: N, mm, s, °C; ρc in N/(mm² K), k in N/(s K), h in N/(mm s K), heat in N mm (= mJ).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Dict, Optional
+
+import dolfinx
+import numpy as np
+import ufl
+from petsc4py import PETSc
+
+from fxcontact import compat
+from fxcontact.heat import HeatProblem, ThermalMaterial
+from fxcontact.remesh.transfer import interpolate_from
+
+__all__ = ["ToolHeat", "WorkpieceHeat"]
+
+
+@dataclass(frozen=True)
+class ToolHeat:
+    """A rigid tool's thermal data (the tool keeps its temperature).
+
+    Args:
+        temperature: the tool's temperature [°C].
+        h_c: the contact heat-transfer coefficient [N/(mm s K)] (= 10⁻³ × W/(m² K): a die in good
+            contact 5–20).
+        effusivity: the tool's b_t = √(k ρc) [N/(mm s^½ K)] that shares the friction heat,
+            β_f = b_w/(b_w + b_t); None: the workpiece's own (β_f = ½).
+    """
+
+    temperature: float
+    h_c: float
+    effusivity: Optional[float] = None
+
+    def __post_init__(self):
+        for name, value, unit in (("temperature", self.temperature, "°C"),
+                                  ("h_c", self.h_c, "N/(mm s K)")):
+            if not (isinstance(value, (int, float, np.floating, np.integer))
+                    and math.isfinite(value)):
+                raise ValueError(f"ToolHeat.{name} must be a finite number in {unit}, got "
+                                 f"{value!r}")
+        if self.h_c < 0:
+            raise ValueError(f"ToolHeat.h_c must be >= 0 N/(mm s K), got {self.h_c!r}")
+        if self.temperature < -273.15:
+            raise ValueError(f"ToolHeat.temperature {self.temperature} °C is below absolute "
+                             f"zero: temperatures are in °C")
+        if self.effusivity is not None and not (math.isfinite(self.effusivity)
+                                                and self.effusivity >= 0):
+            raise ValueError(f"ToolHeat.effusivity must be finite and >= 0 "
+                             f"N/(mm s^½ K), got {self.effusivity!r}")
+
+
+class WorkpieceHeat:
+    """The workpiece's temperature in a :class:`~fxcontact.simulation.Simulation` (a controller:
+    ``sim.add_controller(WorkpieceHeat(sim, ...))``; THEORY §16).
+
+    Args:
+        sim: the simulation (an updated-Lagrangian material: heat on a small-strain material is
+            refused).
+        thermal: the workpiece's :class:`~fxcontact.heat.ThermalMaterial` (ρc, k, η_q).
+        initial_temperature: T⁰ [°C], a number or a function of the points (as
+            :class:`~fxcontact.heat.HeatProblem`).
+        air: the free surface's :class:`~fxcontact.heat.AirExchange`, or {facet tag:
+            AirExchange} with ``facet_tags``; None: insulated.
+        facet_tags: the body's facet tags (for ``air`` by tag).
+        tools: {tool name: :class:`ToolHeat`} for the tools of the simulation's contacts; a
+            tool without an entry exchanges no heat (its friction heat still enters the body,
+            shared half-half).
+        solver: the heat problem's linear solver ("cg": CG + AMG with a direct fall-back,
+            "direct").
+        name: the prefix of the history columns.
+
+    History columns (per increment): ``{name}_T_min``, ``_T_mean``, ``_T_max`` [°C] and the
+    increment's heat balance [N mm]: ``_stored``, ``_generated`` (plastic work × η_q),
+    ``_friction`` (the body's share), ``_air``, ``_radiation``, ``_tools`` (all flows > 0 into
+    the body) and ``_residual`` (stored minus their sum: the linear solver's tolerance).
+    """
+
+    def __init__(self, sim, thermal: ThermalMaterial, initial_temperature, air=None,
+                 facet_tags=None, tools: Optional[Dict[str, ToolHeat]] = None,
+                 solver: str = "cg", name: str = "heat"):
+        if sim.material.small_strain:
+            raise ValueError("heat needs an updated-Lagrangian material (Norton-Hoff, "
+                             "Viscoplastic): a small-strain material has no heat coupling")
+        if not isinstance(thermal, ThermalMaterial):
+            raise ValueError(f"thermal must be a fxcontact.ThermalMaterial, got {thermal!r}")
+        tools = dict(tools or {})
+        for k, v in tools.items():
+            if not isinstance(v, ToolHeat):
+                raise ValueError(f"tools[{k!r}] must be a fxcontact.ToolHeat, got {v!r}")
+        self.thermal = thermal
+        self.air = air
+        self.tools = tools
+        self.solver = solver
+        self.name = name
+        self.balance: Dict[str, float] = {}
+        self._sim = sim
+        self._bind(sim.space, facet_tags, initial_temperature)
+
+    # ---------------------------------------------------------------------------- binding
+    def _bind(self, space, facet_tags, T0):
+        sim = self._sim
+        self._facet_tags = facet_tags
+        self.problem = HeatProblem(space.mesh, self.thermal, T0, air=self.air,
+                                   facet_tags=facet_tags, solver=self.solver)
+        q0 = ufl.TestFunction(space.DG0)
+        eps = ufl.sym(ufl.grad(ufl.split(sim.w)[0]))
+        self._power_form = compat.form(ufl.inner(sim.material.stress_ufl(eps), eps) * q0
+                                       * space.dx)
+        self._volume_form = compat.form(q0 * space.dx)
+        msh = space.mesh
+        imap = msh.topology.index_map(msh.topology.dim)
+        ncells = imap.size_local + imap.num_ghosts
+        self._dg0_dofs = np.asarray(space.DG0.dofmap.list.array).reshape(ncells, -1)[:, 0]
+        self._cell_T_dofs = compat.dofmap_array(self.problem.V)[:ncells]
+        self._set_cell_temperature()
+
+    def remesh(self, space, facet_tags):
+        """Rebind to the new mesh (``Simulation.remesh``): the temperature interpolated from the
+        old mesh (collective)."""
+        old = self.problem
+        self._bind(space, facet_tags if self._facet_tags is not None else None,
+                   float(old.mean_temperature()))
+        interpolate_from(old.T, self.problem.T)
+        old.close()
+        self._set_cell_temperature()
+
+    def _set_cell_temperature(self):
+        T = self.problem.T.x.array
+        cell = np.empty(len(self._dg0_dofs))
+        cell[self._dg0_dofs] = T[self._cell_T_dofs].mean(axis=1)
+        self._sim.cell_temperature = cell
+
+    @property
+    def temperature(self):
+        """The P1 temperature Function [°C] on the current mesh."""
+        return self.problem.T
+
+    # ---------------------------------------------------------------------- the increment
+    def _plastic_power(self) -> np.ndarray:
+        """s:ε̇ per cell [N/(mm² s)] of the converged increment (cell averages)."""
+        out = []
+        for frm in (self._power_form, self._volume_form):
+            b = dolfinx.fem.petsc.assemble_vector(frm)
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            b.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            with b.localForm() as loc:
+                out.append(loc.array.copy())
+            b.destroy()
+        return out[0] / out[1]
+
+    def _contact_terms(self, sim):
+        """(contact entries by tool, friction heat (dofs, Q)) of the contacts' last state."""
+        entries, fdofs, fq = {}, [], []
+        heat = self.problem
+        for c in sim.contributors:
+            nodes = getattr(c, "nodes", None)
+            if nodes is None or not hasattr(c, "tools"):
+                continue
+            active = np.asarray(nodes.active, dtype=bool)
+            dofs = heat.dofs_of_vertices(nodes.vertices)
+            fp = c.node_friction_power() if getattr(c, "has_friction", False) else None
+            for k, tool in enumerate(c.tools):
+                spec = self.tools.get(tool.name)
+                sel = active & (np.asarray(nodes.tool) == k)
+                if spec is not None:
+                    entries[tool.name] = (dofs[sel], spec.h_c, spec.temperature,
+                                          np.asarray(nodes.area)[sel])
+                if fp is not None:
+                    share = 0.5 if spec is None or spec.effusivity is None else \
+                        self.thermal.heat_share(spec.effusivity)
+                    fdofs.append(dofs[sel])
+                    fq.append(share * fp[sel])
+        nodal = (np.concatenate(fdofs), np.concatenate(fq)) if fdofs else None
+        return entries, nodal
+
+    def commit_increment(self, sim, dt: float):
+        """The heat step of an accepted increment, on its configuration (collective)."""
+        source = self.thermal.taylor_quinney * self._plastic_power()
+        entries, nodal = self._contact_terms(sim)
+        for name in self.tools:
+            entries.setdefault(name, (np.zeros(0, dtype=np.int64), 0.0, 0.0, np.zeros(0)))
+        bal = self.problem.step(dt, source=source, contact=entries or None, nodal_heat=nodal)
+        self._set_cell_temperature()
+        tools = sum(bal.get("tools", {}).values())
+        self.balance = {"stored": bal["stored"], "generated": bal["generated"],
+                        "friction": bal["nodal"], "air": bal["air"],
+                        "radiation": bal["radiation"], "tools": tools,
+                        "residual": bal["residual"]}
+
+    def diagnostics(self) -> Dict[str, float]:
+        p = self.problem
+        out = {f"{self.name}_T_min": p.min_temperature(), f"{self.name}_T_mean":
+               p.mean_temperature(), f"{self.name}_T_max": p.max_temperature()}
+        out.update({f"{self.name}_{k}": v for k, v in self.balance.items()})
+        return out
+
+    def output_fields(self) -> list:
+        return [self.problem.T]
+
+    def summary(self) -> str:
+        p = self.problem
+        return (f"heat: T {p.min_temperature():.1f}..{p.max_temperature():.1f} °C (mean "
+                f"{p.mean_temperature():.1f}), heat stored {p.energy():.4g} N mm")

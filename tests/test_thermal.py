@@ -1,0 +1,123 @@
+"""Heat with the mechanics (THEORY §16.6): adiabatic homogeneous compression of a thermo-softening
+hardening law against its ODE, friction heating of a block sliding on a plane, and the
+coupling's bad input."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+from scipy.integrate import solve_ivp
+
+import fxcontact as fx
+from fxcontact.contact.boundary import ContactBoundary
+from fxcontact.contact.friction import Tresca
+from fxcontact.contact.nodal import NodalContact
+from fxcontact.meshing import BLOCK_TAGS, block
+from fxcontact.tools.analytic import Plane
+from test_viscoplastic import compress, table_law
+
+
+def test_adiabatic_compression_follows_the_ode():
+    """THEORY §16 check: frictionless compression at constant speed of an insulated block with
+    a hardening, thermo-softening table law: ρc dT/dt = η_q σ₀(ε̄, ε̄̇, T) ε̄̇, ε̄̇ = v/h. The
+    discrete recurrence (state and temperature at the start of each increment, the plastic
+    power of the increment) holds to 1e-8; T − T₀ and the force are within 0.5 % of the ODE's
+    (solve_ivp) at every increment (the scheme is first order in dt: 1.6 % of T − T₀ at a 5×
+    larger dt); the heat balance closes."""
+    law = table_law()
+    mat = fx.Viscoplastic(law, regularization=1e-6, temperature=150.0)
+    rho_c, eta, T0 = 1.0, 0.9, 150.0
+    v, h0, dt, n_inc = 0.45, 1.0, 0.005, 120   # first order in dt: 1.6 % of ΔT at dt = 0.025
+    thermal = fx.ThermalMaterial(rho_c=rho_c, conductivity=30.0, taylor_quinney=eta)
+    sims = {}
+
+    def setup(sim):
+        sims["heat"] = fx.WorkpieceHeat(sim, thermal, T0)
+        sim.add_controller(sims["heat"])
+
+    sim, V0, out = compress(MPI.COMM_WORLD, mat, v=v, h0=h0, dt=dt, n_inc=n_inc, setup=setup)
+
+    def rhs(t, y):
+        h = h0 - v * t
+        rate = v / h
+        return [rate, eta * law.sigma0(y[0], rate, y[1]) * rate / rho_c]
+
+    times = dt * np.arange(n_inc + 1)
+    ode = solve_ivp(rhs, (0.0, times[-1]), [0.0, T0], t_eval=times, rtol=1e-10, atol=1e-12)
+    eps, T = 0.0, T0
+    for n, ((h, F, vol), row) in enumerate(zip(out, sim.history)):
+        rate = v / h
+        s0 = law.sigma0(eps, rate, T)
+        assert abs(F / (s0 * vol / h) - 1.0) < 1e-6, (n, F, s0 * vol / h)
+        e_ode, T_ode = ode.y[:, n]
+        assert abs(F / (law.sigma0(e_ode, rate, T_ode) * vol / h) - 1.0) < 5e-3
+        eps += dt * rate
+        T += dt * eta * s0 * rate / rho_c
+        assert abs(row["heat_T_mean"] - T) < 1e-8 * T, (n, row["heat_T_mean"], T)
+        assert abs(row["heat_T_max"] - row["heat_T_min"]) < 1e-8 * T   # homogeneous
+        assert abs(T - ode.y[1, n + 1]) < 5e-3 * (ode.y[1, n + 1] - T0), (n, T, ode.y[1, n + 1])
+        assert abs(row["heat_residual"]) < 1e-9 * row["heat_generated"]
+        assert abs(row["heat_stored"] - row["heat_generated"]) < 1e-9 * row["heat_stored"]
+    assert ode.y[1, -1] - T0 > 10.0            # the heating is large enough to soften the law
+
+
+def _sliding_block(comm, b_tool, V=1.0, w=0.01):
+    """A Norton–Hoff unit block on a static plane with Tresca friction (m̄ k = 1 MPa, far below
+    the material's shear flow stress: the block slides as a rigid body), its top moved at
+    (V, 0, −w) mm/s."""
+    msh, _, ft = block(comm, (0, 0, 0), (1, 1, 1), 0.34)
+    sp = fx.MixedSpace(msh)
+    sim = fx.Simulation(sp, fx.NortonHoff(K=100.0, m=0.2, regularization=1e-4), progress=False)
+    sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["zmax"]), np.array([V, 0.0, -w]))
+    law = Tresca(0.5, shear_limit=2.0)
+    c = NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["zmin"]),
+                     Plane((0, 0, 0), (0, 0, 1), name="anvil"), friction=law,
+                     slip_velocity=1e-3)
+    sim.add_contributor(c)
+    thermal = fx.ThermalMaterial(rho_c=3.9, conductivity=30.0)
+    heat = fx.WorkpieceHeat(sim, thermal, 20.0, tools={
+        "anvil": fx.ToolHeat(temperature=20.0, h_c=0.0, effusivity=b_tool)})
+    sim.add_controller(heat)
+    return sim, law, thermal
+
+
+def test_friction_heating_of_a_sliding_block():
+    """A block sliding at V on a plane with Tresca friction receives β_f τ V S per second
+    (β_f = b_w/(b_w + b_t), τ = m̄k, S the contact area) within 1 %, and exactly β_f times the
+    contact's friction power; with h_c = 0 and no air nothing else enters the body."""
+    V = 1.0
+    thermal = fx.ThermalMaterial(rho_c=3.9, conductivity=30.0)
+    b_tool = 3.0 * thermal.effusivity                      # β_f = 1/4
+    sim, law, _ = _sliding_block(MPI.COMM_WORLD, b_tool, V=V)
+    dt = 0.02
+    sim.run(3 * dt, dt)
+    beta = 0.25
+    for r in sim.history[1:]:
+        ref = beta * law.mbar * law.shear_limit * r["contact_area"] * V * dt
+        assert abs(r["heat_friction"] - beta * r["contact_friction_power"] * dt) \
+            < 1e-10 * ref
+        assert abs(r["heat_friction"] / ref - 1.0) < 1e-2, (r["heat_friction"], ref)
+        assert abs(r["heat_stored"] - r["heat_friction"] - r["heat_generated"]) \
+            < 1e-8 * r["heat_stored"]
+        assert r["heat_tools"] == 0.0 and r["heat_air"] == 0.0
+    assert sim.history[-1]["heat_T_max"] > 20.0 + 1e-6
+
+
+def test_heat_bad_input():
+    """Heat on a small-strain material, a wrong thermal object, a bad tool entry."""
+    msh, _, ft = block(MPI.COMM_WORLD, (0, 0, 0), (1, 1, 1), 0.5)
+    thermal = fx.ThermalMaterial(rho_c=3.9, conductivity=30.0)
+    small = fx.Simulation(fx.MixedSpace(msh), fx.LinearElastic(1000.0, 0.3), progress=False)
+    with pytest.raises(ValueError, match="small-strain"):
+        fx.WorkpieceHeat(small, thermal, 20.0)
+    sim = fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(K=10.0, m=0.2), progress=False)
+    with pytest.raises(ValueError, match="ThermalMaterial"):
+        fx.WorkpieceHeat(sim, 3.9, 20.0)
+    with pytest.raises(ValueError, match="ToolHeat"):
+        fx.WorkpieceHeat(sim, thermal, 20.0, tools={"die": (20.0, 10.0)})
+    with pytest.raises(ValueError, match="absolute zero"):
+        fx.ToolHeat(temperature=-300.0, h_c=10.0)
+    with pytest.raises(ValueError, match="h_c"):
+        fx.ToolHeat(temperature=20.0, h_c=float("nan"))
+    assert dataclasses.is_dataclass(fx.ToolHeat(20.0, 10.0))
