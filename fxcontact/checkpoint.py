@@ -252,6 +252,10 @@ def prune(comm: MPI.Comm, directory: str, name: str, keep: int):
             shutil.rmtree(os.path.join(directory, d), ignore_errors=True)
 
 
+#: the marker of a controller's per-vertex state entry in a manifest (its values are arrays)
+_PER_VERTEX = "__per_vertex__"
+
+
 # ------------------------------------------------------------------------------ a simulation's
 def plain_state(value):
     """A controller's state as plain JSON values (numpy arrays and scalars to lists/numbers)."""
@@ -405,10 +409,16 @@ class Checkpoints:
                             "no state between increments", type(c).__name__)
             states.append(st)
         self._warned_stateless = True
-        controllers = [{"type": type(c).__name__,
-                        "state": plain_state(c.checkpoint_state())
-                        if isinstance(c, SavesState) else None}
-                       for c in sim.controllers]
+        controllers = []
+        for i, c in enumerate(sim.controllers):
+            st = dict(c.checkpoint_state()) if isinstance(c, SavesState) else None
+            for k, val in (st or {}).items():   # per-vertex entries: keyed arrays, as above
+                if isinstance(val, PerVertex):
+                    arrays[f"k{i}.{k}.key"] = keys["v"][np.asarray(val.vertices)][:, None]
+                    arrays[f"k{i}.{k}.val"] = np.asarray(val.values)
+                    st[k] = {_PER_VERTEX: True}
+            controllers.append({"type": type(c).__name__,
+                                "state": None if st is None else plain_state(st)})
         kin = sim.kinematics
         last = sim.history[-1] if sim.history else None
         manifest = {"format": FORMAT_VERSION, "fxcontact": __version__, "name": sim.name,
@@ -529,8 +539,14 @@ class Checkpoints:
             c.restore_state(state)
         for i, (c, e) in enumerate(zip(sim.controllers, man.get("controllers", []))):
             if e["state"] is not None:
+                state = {k: VertexLookup(KeyTable(arrays[f"k{i}.{k}.key"],
+                                                  arrays[f"k{i}.{k}.val"]), keys["v"][:, None],
+                                         f"{type(c).__name__}.{k}")
+                         if isinstance(v, dict) and v.get(_PER_VERTEX) else v
+                         for k, v in e["state"].items()} \
+                    if isinstance(e["state"], dict) else e["state"]
                 try:
-                    c.restore_state(e["state"])
+                    c.restore_state(state)
                 except (KeyError, TypeError, ValueError) as err:
                     raise CheckpointError(f"checkpoint {path}: the state of controller "
                                           f"{type(c).__name__} #{i} does not fit this one: "

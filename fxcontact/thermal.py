@@ -26,7 +26,9 @@ import ufl
 from petsc4py import PETSc
 
 from fxcontact import compat
+from fxcontact.collective import describe
 from fxcontact.heat import HeatProblem, ThermalMaterial
+from fxcontact.io.keys import CheckpointError, PerVertex
 from fxcontact.remesh.transfer import interpolate_from
 
 __all__ = ["ToolHeat", "WorkpieceHeat"]
@@ -210,6 +212,29 @@ class WorkpieceHeat:
                p.mean_temperature(), f"{self.name}_T_max": p.max_temperature()}
         out.update({f"{self.name}_{k}": v for k, v in self.balance.items()})
         return out
+
+    # ------------------------------------------------------------------------ checkpoints
+    def checkpoint_state(self) -> dict:
+        """The temperature of the owned vertices (:mod:`fxcontact.checkpoint`)."""
+        p = self.problem
+        v2d = np.asarray(p.vertex_to_dof)
+        owned = np.flatnonzero(v2d < p.n_owned)
+        return {"name": self.name, "T": PerVertex(owned, p.T.x.array[v2d[owned]].copy())}
+
+    def restore_state(self, state: dict):
+        if state.get("name") != self.name:
+            raise CheckpointError(f"the checkpoint's heat is '{state.get('name')}', this one "
+                                  f"'{self.name}'")
+        p = self.problem
+        v2d = np.asarray(p.vertex_to_dof)
+        p.T.x.array[v2d] = state["T"].at(np.arange(len(v2d)))
+        p.T.x.scatter_forward()
+        self._set_cell_temperature()
+
+    def setup_signature(self) -> dict:
+        """The thermal parameters as given: a checkpoint is resumed only with the same."""
+        return {"name": self.name, "thermal": describe(self.thermal),
+                "air": describe(self.air), "tools": describe(self.tools)}
 
     def output_fields(self) -> list:
         return [self.problem.T]

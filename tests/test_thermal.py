@@ -3,6 +3,8 @@ hardening law against its ODE, friction heating of a block sliding on a plane, a
 coupling's bad input."""
 
 import dataclasses
+import os
+import shutil
 
 import numpy as np
 import pytest
@@ -10,11 +12,13 @@ from mpi4py import MPI
 from scipy.integrate import solve_ivp
 
 import fxcontact as fx
+from fxcontact.checkpoint import list_checkpoints
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import NodalContact
 from fxcontact.meshing import BLOCK_TAGS, block
 from fxcontact.tools.analytic import Plane
+from helpers import shared_tmpdir
 from test_viscoplastic import compress, table_law
 
 
@@ -62,13 +66,14 @@ def test_adiabatic_compression_follows_the_ode():
     assert ode.y[1, -1] - T0 > 10.0            # the heating is large enough to soften the law
 
 
-def _sliding_block(comm, b_tool, V=1.0, w=0.01):
+def _sliding_block(comm, b_tool, V=1.0, w=0.01, **kw):
     """A Norton–Hoff unit block on a static plane with Tresca friction (m̄ k = 1 MPa, far below
     the material's shear flow stress: the block slides as a rigid body), its top moved at
     (V, 0, −w) mm/s."""
     msh, _, ft = block(comm, (0, 0, 0), (1, 1, 1), 0.34)
     sp = fx.MixedSpace(msh)
-    sim = fx.Simulation(sp, fx.NortonHoff(K=100.0, m=0.2, regularization=1e-4), progress=False)
+    sim = fx.Simulation(sp, fx.NortonHoff(K=100.0, m=0.2, regularization=1e-4), progress=False,
+                        name="slide", **kw)
     sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["zmax"]), np.array([V, 0.0, -w]))
     law = Tresca(0.5, shear_limit=2.0)
     c = NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["zmin"]),
@@ -121,3 +126,26 @@ def test_heat_bad_input():
     with pytest.raises(ValueError, match="h_c"):
         fx.ToolHeat(temperature=20.0, h_c=float("nan"))
     assert dataclasses.is_dataclass(fx.ToolHeat(20.0, 10.0))
+
+
+def test_heat_checkpoint_resumes_the_temperature():
+    """A run with friction heating checkpointed at increment 2 and resumed gives the
+    uninterrupted run's temperatures and heat balances (to 1e-10)."""
+    thermal = fx.ThermalMaterial(rho_c=3.9, conductivity=30.0)
+    d = shared_tmpdir("fxc_heat_ckpt_")
+    sims = []
+    for k in range(2):
+        sim, _, _ = _sliding_block(MPI.COMM_WORLD, thermal.effusivity, output_dir=d,
+                                   checkpoint_every=2 if k == 0 else 0, overwrite=True)
+        sims.append(sim)
+    sims[0].run(0.08, 0.02)
+    ck = list_checkpoints(os.path.join(d, "checkpoints"), "slide")
+    sims[1].resume(ck[0])
+    sims[1].run(0.08, 0.02)
+    a, b = sims[0].history, sims[1].history
+    assert len(a) == len(b) == 4
+    for k in ("heat_T_max", "heat_T_mean", "heat_stored", "heat_friction"):
+        assert abs(a[-1][k] - b[-1][k]) <= 1e-10 * abs(a[-1][k]), (k, a[-1][k], b[-1][k])
+    assert a[-1]["heat_T_max"] > a[1]["heat_T_max"] > 20.0
+    if MPI.COMM_WORLD.rank == 0:
+        shutil.rmtree(d, ignore_errors=True)
