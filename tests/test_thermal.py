@@ -16,7 +16,7 @@ from fxcontact.checkpoint import list_checkpoints
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import NodalContact
-from fxcontact.meshing import BLOCK_TAGS, block
+from fxcontact.meshing import BILLET_TAGS, BLOCK_TAGS, block, cylinder_billet
 from fxcontact.tools.analytic import Plane
 from helpers import shared_tmpdir
 from test_viscoplastic import compress, table_law
@@ -149,3 +149,34 @@ def test_heat_checkpoint_resumes_the_temperature():
     assert a[-1]["heat_T_max"] > a[1]["heat_T_max"] > 20.0
     if MPI.COMM_WORLD.rank == 0:
         shutil.rmtree(d, ignore_errors=True)
+
+
+def test_heat_follows_a_remesh():
+    """A quarter billet compressed (sliding plates) and cooled by air on its side: after a
+    remesh the temperature is interpolated on the new mesh (extremes and mean kept to the
+    interpolation error, the field on the new mesh) and the run goes on with the heat coupled."""
+    msh, _, ft = cylinder_billet(MPI.COMM_WORLD, 1.0, 1.0, 0.3)
+    sim = fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(K=100.0, m=0.2, regularization=1e-4),
+                        progress=False)
+    f = {k: sim.facets(ft, v) for k, v in BILLET_TAGS.items()}
+    sim.add_velocity_bc(f["top"], -0.1, 2)
+    sim.add_velocity_bc(f["bottom"], 0.0, 2)
+    sim.add_velocity_bc(f["symmetry_x"], 0.0, 0)
+    sim.add_velocity_bc(f["symmetry_y"], 0.0, 1)
+    air = {BILLET_TAGS["lateral"]: fx.AirExchange(h=1.0, temperature=20.0)}
+    heat = fx.WorkpieceHeat(sim, fx.ThermalMaterial(rho_c=3.9, conductivity=3.0), 600.0,
+                            air=air, facet_tags=ft)
+    sim.add_controller(heat)
+    sim.run(0.4, 0.2)
+    before = {k: sim.history[-1][f"heat_T_{k}"] for k in ("min", "mean", "max")}
+    spread = before["max"] - before["min"]
+    assert spread > 1.0
+    sim.remesh(size=0.25)
+    p = heat.problem
+    assert heat.temperature.function_space.mesh is sim.mesh
+    for k, now in (("min", p.min_temperature()), ("mean", p.mean_temperature()),
+                   ("max", p.max_temperature())):
+        assert abs(now - before[k]) < 0.05 * spread, (k, now, before[k])
+    sim.run(0.6, 0.2)
+    r = sim.history[-1]
+    assert r["heat_air"] < 0 and abs(r["heat_residual"]) < 1e-8 * abs(r["heat_stored"])
