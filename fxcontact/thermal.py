@@ -17,6 +17,7 @@ Units: N, mm, s, °C; ρc in N/(mm² K), k in N/(s K), h in N/(mm s K), heat in 
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from typing import Dict, Optional
 
@@ -91,7 +92,8 @@ class WorkpieceHeat:
     History columns (per increment): ``{name}_T_min``, ``_T_mean``, ``_T_max`` [°C] and the
     increment's heat balance [N mm]: ``_stored``, ``_generated`` (plastic work × η_q),
     ``_friction`` (the body's share), ``_air``, ``_radiation``, ``_tools`` (all flows > 0 into
-    the body) and ``_residual`` (stored minus their sum: the linear solver's tolerance).
+    the body) and ``_residual`` (stored minus their sum: the linear solver's tolerance);
+    ``_wall`` the heat step's wall time [s] (sources, solve, cell temperatures).
     """
 
     def __init__(self, sim, thermal: ThermalMaterial, initial_temperature, air=None,
@@ -194,6 +196,7 @@ class WorkpieceHeat:
 
     def commit_increment(self, sim, dt: float):
         """The heat step of an accepted increment, on its configuration (collective)."""
+        t0 = time.perf_counter()
         source = self.thermal.taylor_quinney * self._plastic_power()
         entries, nodal = self._contact_terms(sim)
         for name in self.tools:
@@ -204,7 +207,7 @@ class WorkpieceHeat:
         self.balance = {"stored": bal["stored"], "generated": bal["generated"],
                         "friction": bal["nodal"], "air": bal["air"],
                         "radiation": bal["radiation"], "tools": tools,
-                        "residual": bal["residual"]}
+                        "residual": bal["residual"], "wall": time.perf_counter() - t0}
 
     def diagnostics(self) -> Dict[str, float]:
         p = self.problem
