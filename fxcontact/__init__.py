@@ -48,7 +48,7 @@ from fxcontact.protocols import Contributor, Controller
 from fxcontact.simulation import VOLUME_CORRECTIONS, IncrementResult, Simulation
 from fxcontact.spaces import MixedSpace, facets_with_tags
 from fxcontact.steady import steady_window
-from fxcontact.thermal import ToolHeat, WorkpieceHeat
+from fxcontact.thermal import HeatSetup, ToolHeat, WorkpieceHeat
 from fxcontact.symmetry import SymmetryPlanes
 from fxcontact.theory.forming import (avitzur_f, drawing_ideal_stress, drawing_mean_strain_rate,
                                       drawing_optimal_angle, drawing_sachs_stress, drawing_theory,
@@ -113,6 +113,8 @@ _API = {
     "WorkpieceHeat": ("thermal", "the workpiece's temperature with the mechanics, staggered per "
                       "increment: plastic and friction heat, tools, air (§16.6)"),
     "ToolHeat": ("thermal", "a tool's temperature, contact coefficient h_c and effusivity"),
+    "HeatSetup": ("thermal", "a process case's thermal set-up: workpiece material, initial "
+                  "temperature, air, tools"),
     # contact
     "ContactBoundary": ("contact.boundary", "contact nodes and their lumped areas S_n (§1.3)"),
     "NodalContact": ("contact.nodal", "nodal penalty contact, four schemes (§2-§3)"),

@@ -32,7 +32,7 @@ from fxcontact.heat import HeatProblem, ThermalMaterial
 from fxcontact.io.keys import CheckpointError, PerVertex
 from fxcontact.remesh.transfer import interpolate_from
 
-__all__ = ["ToolHeat", "WorkpieceHeat"]
+__all__ = ["HeatSetup", "ToolHeat", "WorkpieceHeat"]
 
 
 @dataclass(frozen=True)
@@ -67,6 +67,51 @@ class ToolHeat:
                                                 and self.effusivity >= 0):
             raise ValueError(f"ToolHeat.effusivity must be finite and >= 0 "
                              f"N/(mm s^½ K), got {self.effusivity!r}")
+
+
+@dataclass(frozen=True)
+class HeatSetup:
+    """A process case's thermal set-up (``heat=`` of the cases of :mod:`fxcontact.processes`):
+    what :class:`WorkpieceHeat` needs but the mesh.
+
+    Args:
+        thermal: the workpiece's :class:`~fxcontact.heat.ThermalMaterial`.
+        initial_temperature: T⁰ of the workpiece [°C].
+        air: the :class:`~fxcontact.heat.AirExchange` of the free surface (the process says
+            which faces are free: symmetry planes stay insulated), or None (insulated).
+        tools: {tool name: :class:`ToolHeat`}; a tool's name is the process's (``die``,
+            ``base``, ``roll``, ...): an unknown name is refused when the process builds.
+    """
+
+    thermal: ThermalMaterial
+    initial_temperature: float
+    air: object = None
+    tools: Optional[Dict[str, ToolHeat]] = None
+
+    def __post_init__(self):
+        if not isinstance(self.thermal, ThermalMaterial):
+            raise ValueError(f"HeatSetup.thermal must be a fxcontact.ThermalMaterial, got "
+                             f"{self.thermal!r}")
+        T0 = self.initial_temperature
+        if not (isinstance(T0, (int, float, np.floating, np.integer)) and math.isfinite(T0)
+                and T0 >= -273.15):
+            raise ValueError(f"HeatSetup.initial_temperature must be a temperature in °C, got "
+                             f"{T0!r}")
+
+    def attach(self, sim, facet_tags, free_tags, tool_names) -> "WorkpieceHeat":
+        """The :class:`WorkpieceHeat` of this set-up on ``sim``, added as its controller:
+        ``free_tags`` the facet tags of the free surface (air), ``tool_names`` the process's
+        tools (a ValueError names an entry of ``tools`` that is none of them)."""
+        unknown = sorted(set(self.tools or {}) - set(tool_names))
+        if unknown:
+            raise ValueError(f"HeatSetup.tools names {unknown}, which are not tools of this "
+                             f"process: {sorted(tool_names)}")
+        air = None if self.air is None else {int(t): self.air for t in free_tags}
+        heat = WorkpieceHeat(sim, self.thermal, float(self.initial_temperature), air=air,
+                             facet_tags=facet_tags if air is not None else None,
+                             tools=self.tools)
+        sim.add_controller(heat)
+        return heat
 
 
 class WorkpieceHeat:

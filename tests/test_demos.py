@@ -77,6 +77,8 @@ PROCESS_DEMOS = {
     "demo_hertz_cylinder": (("--quick",), "half-width a [mm]", "a/R = 0.035", "profile.csv"),
     "demo_hyperelastic_contact": (("--quick",), "588 dofs, 3 load steps, indentation 0.3",
                                   "penetration (penalty)", "force.csv"),
+    "demo_hot_upsetting": (("--quick", "--reduction", 0.2), "height reduction 20.0 %",
+                           "(chilled at the die)", "upsetting_diagnostics.csv"),
 }
 
 

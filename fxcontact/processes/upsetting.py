@@ -70,7 +70,7 @@ from fxcontact.contact.friction import Coulomb, Frictionless, Tresca
 from fxcontact.contact.nodal import SCHEMES, NodalContact
 from fxcontact.contact.penalty import Penalty
 from fxcontact.io.series import pyplot
-from fxcontact.materials import NortonHoff
+from fxcontact.materials import NortonHoff, Viscoplastic
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
@@ -83,6 +83,7 @@ from fxcontact.remesh.volume import SizeZone
 from fxcontact.simulation import IncrementError, Simulation
 from fxcontact.spaces import MixedSpace
 from fxcontact.theory import forming
+from fxcontact.thermal import HeatSetup
 from fxcontact.tools.analytic import Plane
 
 __all__ = ["UpsettingCase", "UpsettingSetup", "UpsettingResult", "build", "run"]
@@ -159,6 +160,13 @@ class UpsettingCase(CaseBase):
     # material (Norton–Hoff)
     K: float = 50.0
     m: float = 0.15
+    #: a flow stress σ₀(ε̄, ε̄̇, T) (:class:`~fxcontact.Viscoplastic`) instead of K, m; the
+    #: theory's σ₀ is then the law's at the homogeneous strain ln(H₀/h), the rate v/h and the
+    #: billet's mean temperature
+    material: Optional[Viscoplastic] = None
+    #: heat (:class:`~fxcontact.HeatSetup`: the billet's thermal material and temperature, air
+    #: on the free surface, the tools ``die`` and ``base``), or None
+    heat: Optional[HeatSetup] = None
     #: the dies' friction law: Tresca m̄, or Coulomb μ capped by m̄ k (sticking by default)
     friction: Friction = Tresca(1.0)
     # kinematics
@@ -198,6 +206,11 @@ class UpsettingCase(CaseBase):
                              "reduction", "remesh_min_quality"))
         if not 0 < self.m <= 1:
             raise ValueError(f"m must be in (0, 1], got {self.m}")
+        if self.material is not None and not isinstance(self.material, Viscoplastic):
+            raise ValueError(f"material must be a fxcontact.Viscoplastic (a flow stress; "
+                             f"plain Norton-Hoff: K and m), got {self.material!r}")
+        if self.heat is not None and not isinstance(self.heat, HeatSetup):
+            raise ValueError(f"heat must be a fxcontact.HeatSetup, got {self.heat!r}")
         if not 0 < self.sector <= 90:
             raise ValueError(f"sector must be in (0, 90] degrees (a sector with its two "
                              f"symmetry planes), got {self.sector}")
@@ -231,10 +244,24 @@ class UpsettingCase(CaseBase):
             return law.mu, law.mbar
         return None, getattr(law, "mbar", 0.0)
 
+    def flow_stress(self, rate: float, height: float, temperature: Optional[float] = None):
+        """σ₀ [MPa] of the theory at the strain rate ``rate`` [1/s]: Norton–Hoff's, or the
+        ``material``'s at the homogeneous strain ln(H₀/h) and ``temperature`` [°C] (default:
+        the heat's initial temperature, else the material's)."""
+        if self.material is None:
+            return float(forming.flow_stress(self.K, self.m, rate))
+        if temperature is None:
+            temperature = (self.heat.initial_temperature if self.heat is not None
+                           else self.material.temperature)
+        return float(self.material.flow.sigma0(math.log(self.H0 / height), rate,
+                                               20.0 if temperature is None else temperature))
+
     def theory(self, height: float, volume: Optional[float] = None,
-               contact_radius: Optional[float] = None) -> dict:
+               contact_radius: Optional[float] = None,
+               temperature: Optional[float] = None) -> dict:
         """The band of p̄/σ₀ at the current ``height`` (module docstring) for the billet's
-        ``volume`` (default the initial one) and die ``contact_radius`` r_c (default d_h/2):
+        ``volume`` (default the initial one) and die ``contact_radius`` r_c (default d_h/2),
+        σ₀ of :meth:`flow_stress` at the billet's mean ``temperature``:
         ``sigma0``, ``strain_rate``, ``area`` A_h, ``diameter`` d_h, ``lower`` (π r_c²/A_h),
         ``upper_bound`` (m̄; NaN for pure Coulomb), ``slab`` (Coulomb; NaN for Tresca) and
         ``upper`` (the band's upper edge)."""
@@ -247,7 +274,7 @@ class UpsettingCase(CaseBase):
         slab = forming.upsetting_slab_coulomb(mu, 0.5 * d, height) if mu is not None \
             else math.nan
         upper = ub if mu is None else float(np.nanmin([slab, ub]))
-        return dict(sigma0=float(forming.flow_stress(self.K, self.m, rate)), strain_rate=rate,
+        return dict(sigma0=self.flow_stress(rate, height, temperature), strain_rate=rate,
                     area=area, diameter=d, height=height,
                     lower=math.pi * contact_radius ** 2 / area if contact_radius else 1.0,
                     upper_bound=ub, slab=slab, upper=upper)
@@ -283,7 +310,8 @@ def build(case: UpsettingCase, comm=None, output_dir: Optional[str] = None,
     H = case.H0 if not case.half else 0.5 * case.H0
     msh, _, ft = drawing_bar(comm, case.R0, H, case.h, sector=case.sector)
     rate = case.speed / case.H0
-    mat = NortonHoff(K=case.K, m=case.m, regularization=1e-3 * rate)
+    mat = (case.material if case.material is not None
+           else NortonHoff(K=case.K, m=case.m, regularization=1e-3 * rate))
     sim = Simulation(MixedSpace(msh), mat, solver_options=SolverOptions(max_it=int(case.max_it)),
                      output_dir=output_dir if vtk_every else None, name=name,
                      output_every=max(1, int(vtk_every or 1)), progress=False)
@@ -307,6 +335,8 @@ def build(case: UpsettingCase, comm=None, output_dir: Optional[str] = None,
                            friction=contact_friction(case.friction), name="contact",
                            penalty=penalty)
     sim.add_contributor(contact)
+    if case.heat is not None:   # the end face(s) and the side are free (symmetry: insulated)
+        case.heat.attach(sim, ft, faces, [d.name for d in dies])
     s = UpsettingSetup(case, sim, contact, dies, ft, 360.0 / case.sector,
                        360.0 / case.sector * (2.0 if case.half else 1.0),
                        sim.space.W.dofmap.index_map.size_global * sim.space.W.dofmap.index_map_bs)
@@ -378,7 +408,7 @@ class UpsettingResult(ProcessResult):
               else law_text(c.friction))
         lines = [
             f"upsetting R0 {c.R0:g} mm, H0/D0 {c.aspect:g} (H0 {c.H0:g} mm), {fr} dies closing "
-            f"at {c.speed:g} mm/s, K {c.K:g} m {c.m:g}; {'half height, ' if c.half else ''}"
+            f"at {c.speed:g} mm/s, {_material_text(c)}; {'half height, ' if c.half else ''}"
             f"sector {c.sector:g} deg; h {self.h:.3g} mm, {self.dofs} dofs, {self.ranks} "
             f"rank(s), remeshing {'on' if c.remesh else 'off'}",
             f"status: {self.status} {self.message[:200]}; {self.increments} increments to "
@@ -398,6 +428,16 @@ class UpsettingResult(ProcessResult):
                 "in the band " + (f"from increment {self.band_from}" if self.band_from is not None
                                   else "never to the end") +
                 (f"; out of it: {self.out_of_band}" if self.out_of_band else "")]
+            if "heat_T_mean" in q:
+                tot = {k: sum(r[f"heat_{k}"] for r in self.history) / 1e3
+                       for k in ("generated", "friction", "tools", "air", "radiation",
+                                 "stored", "residual")}
+                lines.append(
+                    f"temperature at the end: {q['heat_T_min']:.0f} (chilled at the die) / mean "
+                    f"{q['heat_T_mean']:.0f} / max {q['heat_T_max']:.0f} °C; heat of the model "
+                    f"[J]: plastic work {tot['generated']:.3g} + friction {tot['friction']:.3g} "
+                    f"+ tools {tot['tools']:.3g} + air {tot['air'] + tot['radiation']:.3g} = "
+                    f"stored {tot['stored']:.3g} (balance residual {tot['residual']:.1e})")
             lines += self.numerics_lines()
         return self.report_text(lines)
 
@@ -421,7 +461,9 @@ def run(case: UpsettingCase, comm=None, output_dir: Optional[str] = None,
         h0 = case.H0 - case.speed * t0
         F = s.scale * r["die_force_z"]
         rc0 = radii_start[-1]
-        th = case.theory(h0, s.volume_scale * volume[-1], rc0)
+        T = temperature[-1]
+        temperature.append(r.get("heat_T_mean"))
+        th = case.theory(h0, s.volume_scale * volume[-1], rc0, T)
         p = F / th["area"] / th["sigma0"]
         rd = radii(s)
         radii_start.append(rd["contact"])
@@ -437,7 +479,8 @@ def run(case: UpsettingCase, comm=None, output_dir: Optional[str] = None,
             r_face=rd["face"], r_free=rd["free"],
             r_homogeneous=math.sqrt(s.volume_scale * volume[-1] / (math.pi * _height(case, r["time"]))),
             penetration=r["contact_penetration_true"], contact_nodes=r["contact_nodes"],
-            remesh=r["remesh"], **numerics_columns(r), **balance(r, p_in))
+            remesh=r["remesh"], **numerics_columns(r), **balance(r, p_in),
+            **{k: v for k, v in r.items() if k.startswith("heat_")})
 
     def progress(q):
         if comm.rank == 0:
@@ -447,6 +490,7 @@ def run(case: UpsettingCase, comm=None, output_dir: Optional[str] = None,
                      q["newton_iterations"], q["remesh"])
 
     radii_start = [case.R0]
+    temperature = [None]     # the billet's mean temperature at each increment's start
     wall0 = time.perf_counter()
     rows, status, message = [], "completed", ""
     dt = case.startup * case.dt
@@ -477,39 +521,63 @@ def run(case: UpsettingCase, comm=None, output_dir: Optional[str] = None,
                       lambda: _pictures(comm, s, out, output_dir))
 
 
+def _material_text(c: UpsettingCase) -> str:
+    if c.material is None:
+        return f"K {c.K:g} m {c.m:g}"
+    heat = "" if c.heat is None else (f", billet at {c.heat.initial_temperature:g} °C, "
+                                      f"tools {sorted(c.heat.tools or {})}")
+    return f"{type(c.material.flow).__name__} flow stress{heat}"
+
+
 def _height(case: UpsettingCase, t: float) -> float:
     return case.H0 - case.speed * t
 
 
 def _pictures(comm, s: UpsettingSetup, res: UpsettingResult, out: str):
-    """The deformed θ = 0 section (equivalent strain) with the die, the initial outline and the
-    fold (the free surface folded onto the die, between the original end face's radius and
-    the contact radius); p̄/σ₀ against the band and the radii over the reduction (rank 0
-    draws; every rank returns the paths)."""
+    """The deformed θ = 0 section (equivalent strain; with heat, the temperature too) with the
+    die, the initial outline and the fold (the free surface folded onto the die, between the
+    original end face's radius and the contact radius); p̄/σ₀ against the band and the radii
+    over the reduction (rank 0 draws; every rank returns the paths)."""
     sim, c = s.sim, res.case
     ft = getattr(sim, "_remesh_facet_tags", s.facet_tags)
-    zr, (strain,) = meridian_section(comm, sim, ft, DRAWING_BAR_TAGS["symmetry_0"],
-                                     (sim.strain,))
-    f1 = os.path.join(out, "upsetting_section.png")
-    f2 = os.path.join(out, "upsetting_pressure.png")
+    fields = [sim.strain]
+    if sim.cell_temperature is not None:
+        T = dolfinx.fem.Function(sim.space.DG0, name="temperature")
+        T.x.array[:] = sim.cell_temperature
+        fields.append(T)
+    zr, values = meridian_section(comm, sim, ft, DRAWING_BAR_TAGS["symmetry_0"], tuple(fields))
+    names = ["upsetting_section.png", "upsetting_temperature.png"][: len(fields)]
+    paths = [os.path.join(out, n) for n in names] + [os.path.join(out, "upsetting_pressure.png")]
     if comm.rank != 0:
-        return [f1, f2]
+        return paths
     plt = pyplot()
-    from matplotlib.collections import PolyCollection
+    for k, (vals, path) in enumerate(zip(values, paths)):
+        _section_picture(plt, c, res, s, zr, vals, path, temperature=k == 1)
+    _pressure_picture(plt, c, res, paths[-1])
+    return paths
 
+
+def _section_picture(plt, c, res, s, zr, vals, path, temperature=False):
+    from matplotlib.collections import PolyCollection
+    sim = s.sim
     rd, zd = res.radii, _die_z(c, sim.t)
     z0 = 0.0 if c.half else c.H0 - zd
     rz = zr[..., ::-1]
     H = 0.5 * c.H0 if c.half else c.H0
     xr, yr = 1.25 * rd["free"], (z0 - 0.5, max(zd, H) + 0.25 * (zd - z0) + 1.5)
     fig, ax = plt.subplots(figsize=(9, 0.75 * 9 * (yr[1] - yr[0]) / xr + 1.2))
-    pc = PolyCollection(rz, array=strain, cmap="viridis", edgecolors="k", linewidths=0.15)
+    pc = PolyCollection(rz, array=vals, cmap="inferno" if temperature else "viridis",
+                        edgecolors="k", linewidths=0.15)
     ax.add_collection(pc)
-    fig.colorbar(pc, ax=ax, label="equivalent strain", fraction=0.04, pad=0.01)
+    fig.colorbar(pc, ax=ax, label="temperature [°C]" if temperature else "equivalent strain",
+                 fraction=0.04, pad=0.01)
     ax.plot([0, c.R0, c.R0, 0], [H, H, 0, 0], "k--", lw=1,
             label=f"initial billet (H0/D0 {c.aspect:g})")
-    for z in ([zd] if c.half else [zd, z0]):
+    tools = (c.heat.tools or {}) if c.heat is not None else {}
+    for z, name in ([(zd, "die")] if c.half else [(zd, "die"), (z0, "base")]):
+        tool = f"{name}" + (f" at {tools[name].temperature:g} °C" if name in tools else "")
         ax.plot([0, 1.2 * rd["free"]], [z, z], "k-", lw=2.5)
+        ax.annotate(tool, (1.2 * rd["free"], z), (1.0 * rd["free"], z + 0.3), fontsize=8)
         ax.plot([rd["face"], rd["contact"]], [z, z], "r-", lw=5, solid_capstyle="butt",
                 label="free surface folded onto the die" if z == zd else None)
     ax.annotate(f"end face r = {rd['face']:.1f}", (rd["face"], zd), (rd["face"] * 0.4,
@@ -523,13 +591,18 @@ def _pictures(comm, s: UpsettingSetup, res: UpsettingResult, out: str):
     ax.set_xlabel("r [mm]")
     ax.set_ylabel("z [mm]" + (" (mid-plane z = 0)" if c.half else ""))
     ax.legend(loc="upper right", fontsize=8)
+    what = (f"temperature {np.min(vals):.0f}–{np.max(vals):.0f} °C (billet at "
+            f"{c.heat.initial_temperature:g} °C)" if temperature else "equivalent strain")
     ax.set_title(f"Upsetting to {100 * res.reduction:.0f} % height reduction, "
                  f"{'sticking' if c.friction == Tresca(1.0) else 'friction'} dies, "
-                 f"{res.remeshes} remeshes\nθ = 0 section, equivalent strain; free-surface "
+                 f"{res.remeshes} remeshes\nθ = 0 section, {what}; free-surface "
                  f"radius {rd['free']:.1f} mm", fontsize=9)
     fig.tight_layout()
-    fig.savefig(f1, dpi=120)
+    fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def _pressure_picture(plt, c, res, f2):
     hist = res.history
     red = [100 * q["reduction"] for q in hist]
     red_end = [100 * (1.0 - _height(c, q["time"]) / c.H0) for q in hist]
@@ -553,4 +626,3 @@ def _pictures(comm, s: UpsettingSetup, res: UpsettingResult, out: str):
     fig.tight_layout()
     fig.savefig(f2, dpi=110)
     plt.close(fig)
-    return [f1, f2]

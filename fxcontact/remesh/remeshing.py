@@ -363,6 +363,7 @@ def rebind(sim, space, facet_tags, state=None, build: bool = True):
     for c in sim.contributors + sim.controllers + [sim.kinematics]:
         if isinstance(c, Remeshable):
             c.remesh(space, facet_tags)
+    sim._update_law()   # a state-dependent flow stress: its pieces from the transferred state
     sim._remesh_facet_tags = facet_tags
     sim._outputs = Outputs(sim)
     sim._outputs.opened = opened
