@@ -55,3 +55,30 @@ def test_hot_upsetting_bad_setups():
     with pytest.raises(ValueError, match="initial_temperature"):
         fx.HeatSetup(fx.ThermalMaterial(4.5, 28.0), float("nan"))
     assert np.isfinite(hot_case().flow_stress(1.0, 10.0))
+
+
+def test_cold_drawing_with_hardening_heats_the_bar():
+    """The test-size drawing (43.75 % reduction, frictionless) with power hardening and heat:
+    the steady drawing stress against the theory with the law's mean flow stress over the ideal
+    strain (ideal ≤ σ_d ≤ 1.1 Avitzur, and within 3 % of the ideal work: no friction), and
+    the bar heated by tens of kelvin — at most the adiabatic rise of the upper-bound work
+    η_q 1.1 σ_Avitzur/ρc, at least 0.3 × that of the measured work η_q σ_d/ρc (conduction and
+    the die at 20 °C take the rest)."""
+    from fxcontact.processes import DrawingCase, run_drawing
+    law = fx.Viscoplastic(fx.PowerHardening(K0=200.0, m=0.016, n=0.2, eps0=0.02),
+                          regularization=1.0)
+    heat = fx.HeatSetup(fx.ThermalMaterial(rho_c=2.4, conductivity=150.0), 20.0,
+                        air=fx.AirExchange(h=0.01, temperature=20.0),
+                        tools={"die": fx.ToolHeat(temperature=20.0, h_c=10.0)})
+    res = run_drawing(DrawingCase.quick(material=law, heat=heat), MPI.COMM_WORLD,
+                      pictures=False)
+    th = res.theory
+    assert res.steady_stress is not None
+    assert 0.97 * th["ideal"] <= res.steady_stress <= 1.1 * th["avitzur"]
+    assert abs(res.steady_stress / th["ideal"] - 1.0) < 0.03
+    rise = res.history[-1]["heat_T_max"] - 20.0
+    eta, rho_c = heat.thermal.taylor_quinney, heat.thermal.rho_c
+    assert 0.3 * eta * res.steady_stress / rho_c < rise < eta * 1.1 * th["avitzur"] / rho_c
+    assert 10.0 < rise < 100.0                       # tens of kelvin
+    for q in res.history:
+        assert abs(q["heat_residual"]) < 1e-8 * max(abs(q["heat_stored"]), q["heat_generated"])

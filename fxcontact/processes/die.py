@@ -93,7 +93,8 @@ def bar_simulation(case, g: NoseLayout, comm, strain_rate: float, solver_options
     facets by tag name, material)``; the VTK series every ``vtk_every`` increments into
     ``output_dir`` (0: none)."""
 
-    mat = NortonHoff(K=case.K, m=case.m, regularization=1e-3 * strain_rate)
+    mat = getattr(case, "material", None) or NortonHoff(K=case.K, m=case.m,
+                                                         regularization=1e-3 * strain_rate)
     msh, _, ft = drawing_bar(comm, case.R0, case.length, g.h, nose_length=g.nose_length,
                              nose_radius=g.nose_radius, nose_angle=case.alpha,
                              sector=case.sector)

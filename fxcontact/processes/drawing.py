@@ -52,11 +52,28 @@ from fxcontact.processes.contact_laws import (UNSET, Former, Friction, contact_f
 from fxcontact.processes.die import (DIE_MESHES, DIES, bar_simulation, die_profile_tool, die_radius,
                                      die_tool, nose_layout, true_penetration)
 from fxcontact.simulation import Simulation
+from fxcontact.materials import Viscoplastic
 from fxcontact.theory import forming
+from fxcontact.thermal import HeatSetup
 
 __all__ = ["DrawingCase", "DrawingSetup", "DrawingResult", "build", "run"]
 
 log = logging.getLogger("fxcontact.processes.drawing")
+
+
+def mean_norton_hoff(material: Viscoplastic, strain: float, rate: float,
+                     temperature: Optional[float] = None):
+    """(K, m) of the Norton–Hoff law whose flow stress at ``rate`` [1/s] is the material's
+    mean flow stress over the strain 0..``strain`` (the classical σ̄ of slab and upper-bound
+    theories with hardening) at ``temperature`` [°C] (default the material's), m the local
+    rate sensitivity there."""
+    T = material.temperature if temperature is None else temperature
+    T = 20.0 if T is None else T
+    e = np.linspace(0.0, strain, 201)
+    s = material.flow.sigma0(e, rate, T)
+    mean = float(np.sum(0.5 * (s[1:] + s[:-1]) * np.diff(e)) / strain)
+    m = float(np.mean(material.flow.rate_sensitivity(e, rate, T)))
+    return mean / (math.sqrt(3.0) * (math.sqrt(3.0) * rate) ** m), m
 
 
 def _friction_of(case, v: dict):
@@ -153,6 +170,13 @@ class DrawingCase(CaseBase):
     # material (Norton–Hoff)
     K: float = 445.0
     m: float = 0.016
+    #: a flow stress σ₀(ε̄, ε̄̇, T) (:class:`~fxcontact.Viscoplastic`, e.g. a hardening law)
+    #: instead of K, m; the theory's σ₀ is then its mean over the ideal strain 2 ln(R₀/R₁) at
+    #: the die's mean strain rate and the initial temperature
+    material: Optional[Viscoplastic] = None
+    #: heat (:class:`~fxcontact.HeatSetup`: the bar's thermal material and temperature, air on
+    #: the free surface, the tool ``die``), or None
+    heat: Optional[HeatSetup] = None
     #: the die's friction law (or ``{"die": law}``)
     friction: Friction = Frictionless()
     # kinematics
@@ -232,6 +256,11 @@ class DrawingCase(CaseBase):
             raise ValueError(f"newton_rtol must be in (0, 1), got {self.newton_rtol!r}")
         if not 0.0 <= self.newton_ftol < 1.0:
             raise ValueError(f"newton_ftol must be in [0, 1), got {self.newton_ftol!r}")
+        if self.material is not None and not isinstance(self.material, Viscoplastic):
+            raise ValueError(f"material must be a fxcontact.Viscoplastic (a flow stress; "
+                             f"plain Norton-Hoff: K and m), got {self.material!r}")
+        if self.heat is not None and not isinstance(self.heat, HeatSetup):
+            raise ValueError(f"heat must be a fxcontact.HeatSetup, got {self.heat!r}")
         self.layout()       # the bar must hold the nose
 
     def layout(self):
@@ -257,7 +286,13 @@ class DrawingCase(CaseBase):
         """The band of THEORY §14.2 (:func:`fxcontact.theory.forming.drawing_theory`) with the
         reference friction (``mu_ref``, ``mbar_ref``)."""
         mu_ref, mbar_ref = self.friction_references()
-        th = forming.drawing_theory(self.K, self.m, self.R0, self.R1, math.radians(self.alpha),
+        K, m = self.K, self.m
+        if self.material is not None:   # the mean flow stress over the ideal strain
+            rate = forming.drawing_theory(1.0, 1.0, self.R0, self.R1, math.radians(self.alpha),
+                                          self.speed)["strain_rate"]
+            K, m = mean_norton_hoff(self.material, 2.0 * math.log(self.R0 / self.R1), rate,
+                                    self.heat.initial_temperature if self.heat else None)
+        th = forming.drawing_theory(K, m, self.R0, self.R1, math.radians(self.alpha),
                                     self.speed, mu=mu_ref, mbar=mbar_ref,
                                     land_length=self.land)
         th.update(mu_ref=mu_ref, mbar_ref=mbar_ref)
@@ -315,6 +350,9 @@ def build(case: DrawingCase, comm=None, output_dir: Optional[str] = None,
                            scheme=case.scheme, friction=contact_friction(case.friction),
                            name="contact", penalty=penalty)
     sim.add_contributor(contact)
+    if case.heat is not None:   # the side and the end faces are free; symmetry: insulated
+        case.heat.attach(sim, ft, [DRAWING_BAR_TAGS[k] for k in ("lateral", "front", "back")],
+                         [t.name for t in contact.tools])
     dofs = space.W.dofmap.index_map.size_global * space.W.dofmap.index_map_bs
     return DrawingSetup(case, sim, contact, exact, die, sag, ft, g, theory, dofs)
 
@@ -370,8 +408,22 @@ class DrawingResult(ProcessResult):
                 f"max true penetration (exact die) {self.max_penetration:.3g} mm, against the "
                 f"die used {self.max_penetration_tool:.3g} mm (facet sag "
                 f"{self.facet_sag:.2g}); contact nodes at t = {self.time_01:.3g} s: "
-                f"{self.contact_nodes_01}"] + self.numerics_lines()
+                f"{self.contact_nodes_01}"] + _heat_line(self) + self.numerics_lines()
         return self.report_text(lines)
+
+
+def _heat_line(res) -> list:
+    """The bar's temperature at the end against the adiabatic rise of the steady drawing
+    work, η_q σ_d/ρc (σ_d = the work per unit volume drawn), if the run has heat."""
+    q = res.history[-1] if res.history else {}
+    if "heat_T_max" not in q:
+        return []
+    heat = res.case.heat
+    sd = res.steady_stress if res.steady_stress is not None else q["drawing_stress"]
+    rise = heat.thermal.taylor_quinney * sd / float(heat.thermal.rho_c)
+    return [f"bar temperature at the end: min {q['heat_T_min']:.1f} / mean {q['heat_T_mean']:.1f}"
+            f" / max {q['heat_T_max']:.1f} °C (from {heat.initial_temperature:g}); adiabatic "
+            f"rise of the drawing work eta_q sigma_d / rho c = {rise:.1f} K"]
 
 
 def run(case: DrawingCase, comm=None, output_dir: Optional[str] = None, pictures: bool = True,
@@ -396,7 +448,8 @@ def run(case: DrawingCase, comm=None, output_dir: Optional[str] = None, pictures
             drawing_stress=Fz / g.A1,
             penetration_true=true_penetration(comm, s.exact_die, contact, sim),
             penetration_tool=r["contact_penetration_true"], contact_nodes=r["contact_nodes"],
-            **numerics_columns(r), **balance(r, Fz * case.speed))
+            **numerics_columns(r), **balance(r, Fz * case.speed),
+            **{k: v for k, v in r.items() if k.startswith("heat_")})
 
     def progress(q):
         if comm.rank == 0:   # progress of a long run
