@@ -27,7 +27,7 @@ import ufl
 from petsc4py import PETSc
 
 from fxcontact import compat
-from fxcontact.collective import describe
+from fxcontact.collective import describe, digest, together
 from fxcontact.heat import HeatProblem, ThermalMaterial
 from fxcontact.io.keys import CheckpointError, PerVertex
 from fxcontact.remesh.transfer import interpolate_from
@@ -144,15 +144,25 @@ class WorkpieceHeat:
     def __init__(self, sim, thermal: ThermalMaterial, initial_temperature, air=None,
                  facet_tags=None, tools: Optional[Dict[str, ToolHeat]] = None,
                  solver: str = "cg", name: str = "heat"):
-        if sim.material.small_strain:
-            raise ValueError("heat needs an updated-Lagrangian material (Norton-Hoff, "
-                             "Viscoplastic): a small-strain material has no heat coupling")
-        if not isinstance(thermal, ThermalMaterial):
-            raise ValueError(f"thermal must be a fxcontact.ThermalMaterial, got {thermal!r}")
+        T0 = initial_temperature
+        # the same checks on every rank, raised on every rank; the thermal set-up compared
+        # between ranks (a rank with other values would compute another heat silently)
+        with together(sim.comm, "WorkpieceHeat()", name=name, thermal=digest(thermal),
+                      air=digest(air), tools=digest(tools),
+                      initial_temperature=digest(T0) if not callable(T0) else "function"):
+            if sim.material.small_strain:
+                raise ValueError("heat needs an updated-Lagrangian material (Norton-Hoff, "
+                                 "Viscoplastic): a small-strain material has no heat coupling")
+            if not isinstance(thermal, ThermalMaterial):
+                raise ValueError(f"thermal must be a fxcontact.ThermalMaterial, got "
+                                 f"{thermal!r}")
+            for k, v in dict(tools or {}).items():
+                if not isinstance(v, ToolHeat):
+                    raise ValueError(f"tools[{k!r}] must be a fxcontact.ToolHeat, got {v!r}")
+            if any(isinstance(c, WorkpieceHeat) for c in sim.controllers):
+                raise ValueError("the simulation already has a WorkpieceHeat: one heat "
+                                 "problem per workpiece")
         tools = dict(tools or {})
-        for k, v in tools.items():
-            if not isinstance(v, ToolHeat):
-                raise ValueError(f"tools[{k!r}] must be a fxcontact.ToolHeat, got {v!r}")
         self.thermal = thermal
         self.air = air
         self.tools = tools
@@ -241,6 +251,9 @@ class WorkpieceHeat:
 
     def commit_increment(self, sim, dt: float):
         """The heat step of an accepted increment, on its configuration (collective)."""
+        if sum(isinstance(c, WorkpieceHeat) for c in sim.controllers) > 1:
+            raise ValueError("the simulation has several WorkpieceHeat controllers: one heat "
+                             "problem per workpiece (each would add the same heat)")
         t0 = time.perf_counter()
         source = self.thermal.taylor_quinney * self._plastic_power()
         entries, nodal = self._contact_terms(sim)

@@ -180,3 +180,27 @@ def test_heat_follows_a_remesh():
     sim.run(0.6, 0.2)
     r = sim.history[-1]
     assert r["heat_air"] < 0 and abs(r["heat_residual"]) < 1e-8 * abs(r["heat_stored"])
+
+
+def test_heat_added_twice_or_different_on_the_ranks_refused():
+    """A second WorkpieceHeat on one simulation is refused (made after the first was added, or
+    both added: before any heat is counted twice); a thermal set-up that differs between the
+    ranks raises on every rank instead of computing another heat on one of them."""
+    msh, _, ft = block(MPI.COMM_WORLD, (0, 0, 0), (1, 1, 1), 0.5)
+    thermal = fx.ThermalMaterial(rho_c=3.9, conductivity=30.0)
+    sim = fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(K=10.0, m=0.2), progress=False)
+    sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["zmax"]), np.array([0.0, 0.0, -0.1]))
+    sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["zmin"]), np.array([0.0, 0.0, 0.0]))
+    first = fx.WorkpieceHeat(sim, thermal, 20.0)
+    second = fx.WorkpieceHeat(sim, thermal, 20.0)
+    sim.add_controller(first)
+    with pytest.raises(ValueError, match="already has a WorkpieceHeat"):
+        fx.WorkpieceHeat(sim, thermal, 20.0)
+    sim.add_controller(second)
+    with pytest.raises(ValueError, match="several WorkpieceHeat"):
+        sim.step(0.1)
+    if MPI.COMM_WORLD.size > 1:
+        sim2 = fx.Simulation(fx.MixedSpace(msh), fx.NortonHoff(K=10.0, m=0.2), progress=False)
+        k = 30.0 + MPI.COMM_WORLD.rank
+        with pytest.raises(ValueError, match="thermal"):
+            fx.WorkpieceHeat(sim2, fx.ThermalMaterial(rho_c=3.9, conductivity=k), 20.0)
