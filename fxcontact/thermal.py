@@ -24,6 +24,7 @@ from typing import Dict, Optional
 import dolfinx
 import numpy as np
 import ufl
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from fxcontact import compat
@@ -81,12 +82,15 @@ class HeatSetup:
             which faces are free: symmetry planes stay insulated), or None (insulated).
         tools: {tool name: :class:`ToolHeat`}; a tool's name is the process's (``die``,
             ``base``, ``roll``, ...): an unknown name is refused when the process builds.
+        probes: {label: (x, y, z)} material points [mm] whose temperature the history follows
+            (``heat_T_at_{label}``; see :class:`WorkpieceHeat`).
     """
 
     thermal: ThermalMaterial
     initial_temperature: float
     air: object = None
     tools: Optional[Dict[str, ToolHeat]] = None
+    probes: Optional[Dict[str, tuple]] = None
 
     def __post_init__(self):
         if not isinstance(self.thermal, ThermalMaterial):
@@ -109,7 +113,7 @@ class HeatSetup:
         air = None if self.air is None else {int(t): self.air for t in free_tags}
         heat = WorkpieceHeat(sim, self.thermal, float(self.initial_temperature), air=air,
                              facet_tags=facet_tags if air is not None else None,
-                             tools=self.tools)
+                             tools=self.tools, probes=self.probes)
         sim.add_controller(heat)
         return heat
 
@@ -133,6 +137,11 @@ class WorkpieceHeat:
         solver: the heat problem's linear solver ("cg": CG + AMG with a direct fall-back,
             "direct").
         name: the prefix of the history columns.
+        probes: {label: (x, y, z)} material points [mm] followed through the run: each is the
+            body's vertex nearest to the point when the heat is set up, followed as the mesh
+            moves (and, after a remesh, the new mesh's vertex nearest to where it had gone);
+            its temperature is the history column ``{name}_T_at_{label}`` [°C] — the T(t)
+            curve of a thermocouple in the part.
 
     History columns (per increment): ``{name}_T_min``, ``_T_mean``, ``_T_max`` [°C] and the
     increment's heat balance [N mm]: ``_stored``, ``_generated`` (plastic work × η_q),
@@ -143,12 +152,12 @@ class WorkpieceHeat:
 
     def __init__(self, sim, thermal: ThermalMaterial, initial_temperature, air=None,
                  facet_tags=None, tools: Optional[Dict[str, ToolHeat]] = None,
-                 solver: str = "cg", name: str = "heat"):
+                 solver: str = "cg", name: str = "heat", probes=None):
         T0 = initial_temperature
         # the same checks on every rank, raised on every rank; the thermal set-up compared
         # between ranks (a rank with other values would compute another heat silently)
         with together(sim.comm, "WorkpieceHeat()", name=name, thermal=digest(thermal),
-                      air=digest(air), tools=digest(tools),
+                      air=digest(air), tools=digest(tools), probes=digest(probes),
                       initial_temperature=digest(T0) if not callable(T0) else "function"):
             if sim.material.small_strain:
                 raise ValueError("heat needs an updated-Lagrangian material (Norton-Hoff, "
@@ -162,6 +171,7 @@ class WorkpieceHeat:
             if any(isinstance(c, WorkpieceHeat) for c in sim.controllers):
                 raise ValueError("the simulation already has a WorkpieceHeat: one heat "
                                  "problem per workpiece")
+            probes = _checked_probes(probes, sim.space.gdim)
         tools = dict(tools or {})
         self.thermal = thermal
         self.air = air
@@ -170,6 +180,7 @@ class WorkpieceHeat:
         self.name = name
         self.balance: Dict[str, float] = {}
         self._sim = sim
+        self._probe_points = probes       # label -> where the followed point is now [mm]
         self._bind(sim.space, facet_tags, initial_temperature)
 
     # ---------------------------------------------------------------------------- binding
@@ -189,11 +200,28 @@ class WorkpieceHeat:
         self._dg0_dofs = np.asarray(space.DG0.dofmap.list.array).reshape(ncells, -1)[:, 0]
         self._cell_T_dofs = compat.dofmap_array(self.problem.V)[:ncells]
         self._set_cell_temperature()
+        self._locate_probes()
+
+    def _locate_probes(self):
+        """Each probe's vertex: the owned P1 dof nearest to its point, on the rank nearest
+        (ties to the lowest rank; collective)."""
+        p, comm = self.problem, self._sim.comm
+        X = p.dof_coordinates()[:p.n_owned]
+        self._probe_dofs = {}
+        for label, point in self._probe_points.items():
+            P = np.asarray(point, float)[:3]
+            d = np.linalg.norm(X[:, :len(P)] - P, axis=1) if len(X) else np.zeros(0)
+            k = int(np.argmin(d)) if len(d) else -1
+            best = comm.allreduce((float(d[k]) if k >= 0 else math.inf, comm.rank),
+                                  op=MPI.MIN)
+            if best[1] == comm.rank and k >= 0:
+                self._probe_dofs[label] = k
 
     def remesh(self, space, facet_tags):
         """Rebind to the new mesh (``Simulation.remesh``): the temperature interpolated from the
         old mesh (collective)."""
         old = self.problem
+        self._probe_values()       # where the probes are now, to find them on the new mesh
         self._bind(space, facet_tags if self._facet_tags is not None else None,
                    float(old.mean_temperature()))
         interpolate_from(old.T, self.problem.T)
@@ -272,7 +300,23 @@ class WorkpieceHeat:
         out = {f"{self.name}_T_min": p.min_temperature(), f"{self.name}_T_mean":
                p.mean_temperature(), f"{self.name}_T_max": p.max_temperature()}
         out.update({f"{self.name}_{k}": v for k, v in self.balance.items()})
+        out.update(self._probe_values())
         return out
+
+    def _probe_values(self) -> Dict[str, float]:
+        """T at the probes, and where they are now (kept for a remesh; collective)."""
+        if not self._probe_points:
+            return {}
+        labels = list(self._probe_points)
+        X = self.problem.dof_coordinates()
+        buf = np.zeros((len(labels), 4))
+        for i, label in enumerate(labels):
+            k = self._probe_dofs.get(label)
+            if k is not None:
+                buf[i] = (self.problem.T.x.array[k], *X[k, :3])
+        buf = self._sim.comm.allreduce(buf, op=MPI.SUM)
+        self._probe_points = {label: tuple(buf[i, 1:]) for i, label in enumerate(labels)}
+        return {f"{self.name}_T_at_{label}": float(buf[i, 0]) for i, label in enumerate(labels)}
 
     # ------------------------------------------------------------------------ checkpoints
     def checkpoint_state(self) -> dict:
@@ -304,3 +348,26 @@ class WorkpieceHeat:
         p = self.problem
         return (f"heat: T {p.min_temperature():.1f}..{p.max_temperature():.1f} °C (mean "
                 f"{p.mean_temperature():.1f}), heat stored {p.energy():.4g} N mm")
+
+
+def _checked_probes(probes, gdim: int) -> Dict[str, tuple]:
+    """{label: point} checked: labels are names (letters, digits, ``_``), points finite
+    [mm] in the mesh's dimension."""
+    out = {}
+    if probes is None:
+        return out
+    if not isinstance(probes, dict):
+        raise ValueError(f"probes must be a dict {{label: (x, y, z) in mm}}, got {probes!r}")
+    for label, point in probes.items():
+        if not (isinstance(label, str) and label.replace("_", "a").isalnum()):
+            raise ValueError(f"a probe's label must be a name of letters, digits and '_' (it "
+                             f"becomes a history column), got {label!r}")
+        try:
+            x = np.asarray(point, dtype=float).ravel()
+        except (TypeError, ValueError):
+            x = np.zeros(0)
+        if x.shape != (gdim,) or not np.all(np.isfinite(x)):
+            raise ValueError(f"probes[{label!r}] must be a finite point of {gdim} coordinates "
+                             f"in mm, got {point!r}")
+        out[label] = tuple(float(v) for v in x)
+    return out

@@ -126,6 +126,11 @@ def test_heat_bad_input():
     with pytest.raises(ValueError, match="h_c"):
         fx.ToolHeat(temperature=20.0, h_c=float("nan"))
     assert dataclasses.is_dataclass(fx.ToolHeat(20.0, 10.0))
+    for probes, what in (({"a/b": (0, 0, 0)}, "label"), ({"core": (0, 0)}, "3 coordinates"),
+                         ({"core": (0, 0, float("nan"))}, "finite point"),
+                         ([(0, 0, 0)], "dict")):
+        with pytest.raises(ValueError, match=what):
+            fx.WorkpieceHeat(sim, thermal, 20.0, probes=probes)
 
 
 def test_heat_checkpoint_resumes_the_temperature():
@@ -164,22 +169,37 @@ def test_heat_follows_a_remesh():
     sim.add_velocity_bc(f["symmetry_x"], 0.0, 0)
     sim.add_velocity_bc(f["symmetry_y"], 0.0, 1)
     air = {BILLET_TAGS["lateral"]: fx.AirExchange(h=1.0, temperature=20.0)}
+    # probes (thermocouples): on the axis, the hottest; at the side's mid-height, the coldest
     heat = fx.WorkpieceHeat(sim, fx.ThermalMaterial(rho_c=3.9, conductivity=3.0), 600.0,
-                            air=air, facet_tags=ft)
+                            air=air, facet_tags=ft, probes={"axis": (0.0, 0.0, 0.5),
+                                                            "side": (1.0, 0.0, 0.5)})
     sim.add_controller(heat)
     sim.run(0.4, 0.2)
     before = {k: sim.history[-1][f"heat_T_{k}"] for k in ("min", "mean", "max")}
     spread = before["max"] - before["min"]
     assert spread > 1.0
+    probe = {k: sim.history[-1][f"heat_T_at_{k}"] for k in ("axis", "side")}
+    # each probe reads T at the vertex nearest where its point went (an independent search)
+    X = np.concatenate(MPI.COMM_WORLD.allgather(heat.problem.dof_coordinates()))
+    T = np.concatenate(MPI.COMM_WORLD.allgather(heat.temperature.x.array))
+    for k, (x0, z0) in (("axis", (0.0, 0.5)), ("side", (1.0, 0.5))):
+        near = np.argmin(np.hypot(np.hypot(X[:, 0] - x0, X[:, 1]), X[:, 2] - z0))
+        assert abs(probe[k] - T[near]) < 0.05 * spread, (k, probe[k], T[near])
+    assert probe["axis"] > before["mean"] > probe["side"]
     sim.remesh(size=0.25)
     p = heat.problem
     assert heat.temperature.function_space.mesh is sim.mesh
     for k, now in (("min", p.min_temperature()), ("mean", p.mean_temperature()),
                    ("max", p.max_temperature())):
         assert abs(now - before[k]) < 0.05 * spread, (k, now, before[k])
+    # the probes found again on the new mesh: the same temperatures, to the interpolation
+    after = heat.diagnostics()
+    for k in ("axis", "side"):
+        assert abs(after[f"heat_T_at_{k}"] - probe[k]) < 0.05 * spread, (k, after, probe)
     sim.run(0.6, 0.2)
     r = sim.history[-1]
     assert r["heat_air"] < 0 and abs(r["heat_residual"]) < 1e-8 * abs(r["heat_stored"])
+    assert r["heat_T_at_axis"] > r["heat_T_mean"] > r["heat_T_at_side"]
 
 
 def test_heat_added_twice_or_different_on_the_ranks_refused():
