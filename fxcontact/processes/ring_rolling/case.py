@@ -29,10 +29,13 @@ import numpy as np
 from fxcontact.contact.friction import Norton
 from fxcontact.contact.penalty import Penalty
 from fxcontact.idle import IDLE_METHODS
+from fxcontact.materials import Viscoplastic
 from fxcontact.processes.contact_laws import UNSET, Friction
 from fxcontact.processes.monitor import RunNumerics, is_number
+from fxcontact.processes.drawing import mean_norton_hoff
 from fxcontact.processes.ring_rolling import mill as ring_mill
 from fxcontact.theory import forming
+from fxcontact.thermal import HeatSetup
 
 __all__ = ["RingRollingCase", "theory", "K_THESIS", "K_HOT", "QUICK", "TOOLS", "UPDATES"]
 
@@ -78,6 +81,13 @@ class RingRollingCase(RunNumerics):
     # the material (Norton–Hoff)
     K: float = K_HOT
     m: float = 0.14
+    #: a flow stress σ₀(ε̄, ε̄̇, T) (:class:`~fxcontact.Viscoplastic`: hardening, temperature,
+    #: a table) in place of K, m; None: Norton–Hoff K, m
+    material: Optional[Viscoplastic] = None
+    #: heat (:class:`~fxcontact.HeatSetup`: the ring's thermal material and temperature, air
+    #: on its outer, bore and top faces, ``tools`` by name: main_roll, mandrel, guide1, guide2,
+    #: cone); None: isothermal
+    heat: Optional[HeatSetup] = None
     friction: Friction = ring_mill.DEFAULT_FRICTION     #: tool name -> law
     mu_bite: float = 0.3            #: μ of the bite-in limit of the feed window
     # the kinematics
@@ -156,6 +166,11 @@ class RingRollingCase(RunNumerics):
                 and (self.remesh_zone_h is None or self.remesh_zone_h > 0)):
             raise ValueError("remesh_min_quality must be in (0, 1), remesh_arc in (0, 360) "
                              "degrees, remesh_min_across >= 0 and remesh_zone_h > 0 (or None)")
+        if self.material is not None and not isinstance(self.material, Viscoplastic):
+            raise ValueError(f"material must be a fxcontact.Viscoplastic (a flow stress; "
+                             f"plain Norton-Hoff: K and m), got {self.material!r}")
+        if self.heat is not None and not isinstance(self.heat, HeatSetup):
+            raise ValueError(f"heat must be a fxcontact.HeatSetup, got {self.heat!r}")
         if self.cone_speed is not None and not is_number(self.cone_speed):
             raise ValueError(f"cone_speed must be a finite number, got {self.cone_speed!r}")
 
@@ -192,7 +207,7 @@ class RingRollingCase(RunNumerics):
     @property
     def thesis_flow_stress_note(self) -> str:
         """A warning when K is the thesis's printed value (implausible for a hot ring)."""
-        if self.K >= 0.5 * K_THESIS:
+        if self.material is None and self.K >= 0.5 * K_THESIS:
             return (f"K = {self.K:g} MPa s^m is the thesis's value taken literally: hot "
                     f"42CrMo4 (1050-1150 C) flows at about 80-130 MPa (K = K_HOT = "
                     f"{K_HOT:g}); the forces scale with K")
@@ -209,8 +224,16 @@ def theory(case: RingRollingCase) -> dict:
     B0 = case.R - case.r
     # representative strain rate of the bite: wall strain dh/B over the bite time L/v_s
     rate = dh / B0 * v_s / L
-    sigma0 = float(forming.flow_stress(case.K, case.m, rate))
+    # plane-strain thinning of the wall: the equivalent strain of one revolution
+    strain_rev = 2.0 / math.sqrt(3.0) * math.log(B0 / (B0 - dh)) if dh < B0 else math.inf
+    K, m = case.K, case.m
+    if case.material is not None:   # the mean flow stress over the run's strain at the bite
+        T = case.heat.initial_temperature if case.heat is not None else None
+        K, m = mean_norton_hoff(case.material, max(strain_rev * case.revolutions, 1e-6),
+                                rate, T)
+    sigma0 = float(forming.flow_stress(K, m, rate))
     est = forming.ring_rolling_force(sigma0 / math.sqrt(3.0), case.H, L, B0)
     return dict(feed_per_rev=dh, window=forming.ring_rolling_feed_window(
         case.R1, case.R2, case.R, case.r, case.mu_bite), contact_length=L,
-        strain_rate_bite=rate, sigma0=sigma0, force_estimate=est["force"], Q=est["Q"])
+        strain_rate_bite=rate, sigma0=sigma0, force_estimate=est["force"], Q=est["Q"],
+        K=K, m=m, strain_per_rev=strain_rev)

@@ -15,9 +15,9 @@
 
 They are registered with :meth:`fxcontact.Simulation.add_controller`, save what changes with
 ``checkpoint_state()`` and get it back with ``restore_state()``. The tool motions they drive
-(:class:`fxcontact.tools.base.ControlledMotion`) and idle tools (:class:`fxcontact.idle.IdleRotation`)
-are not specific to rings and stay in :mod:`fxcontact.idle` (which still exports these two
-names as aliases).
+(:class:`fxcontact.tools.base.ControlledMotion`) and idle tools
+(:class:`fxcontact.idle.IdleRotation`) are not specific to rings and stay in
+:mod:`fxcontact.idle` (which still exports these two names as aliases).
 """
 
 from __future__ import annotations

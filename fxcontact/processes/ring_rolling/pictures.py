@@ -11,6 +11,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fxcontact.io.series import pyplot
+from fxcontact.thermal import WorkpieceHeat
 
 __all__ = ["snapshot", "pictures", "top_view_png", "curves_png"]
 
@@ -29,7 +30,13 @@ def snapshot(setup, center) -> dict:
         pts.append(np.concatenate(comm.allgather(x[:, :2])))
     circ = [(tl.name, *tl.motion.axis_point_at(t)[:2], tl.motion.angle(t))
             for tl in setup.tools]
-    return dict(t=t, outer=pts[0], inner=pts[1], tools=circ, center=np.array(center))
+    out = dict(t=t, outer=pts[0], inner=pts[1], tools=circ, center=np.array(center))
+    heat = [c for c in sim.controllers if isinstance(c, WorkpieceHeat)]
+    if heat:   # the top face's temperature (the face a camera above the mill sees)
+        v = setup.top.vertices
+        T = heat[0].temperature.x.array[heat[0].problem.dofs_of_vertices(v)]
+        out["top"] = np.concatenate(comm.allgather(np.column_stack([X[v][:, :2], T])))
+    return out
 
 
 def _outline(ax, p, center):
@@ -38,6 +45,19 @@ def _outline(ax, p, center):
         o = np.argsort(np.arctan2(p[:, 1] - center[1], p[:, 0] - center[0]))
         q = np.vstack([p[o], p[o][:1]])
         ax.plot(q[:, 0], q[:, 1], "-", color="C0", lw=1.2)
+
+
+def _temperature(ax, top, limits):
+    """The temperature of the top face's points (x, y, T), smoothly shaded on their Delaunay
+    triangulation with the triangles across the bore (edges far longer than the mesh's)
+    masked."""
+    from matplotlib.tri import Triangulation
+    tri = Triangulation(top[:, 0], top[:, 1])
+    p = np.column_stack([top[:, 0], top[:, 1]])[tri.triangles]
+    edge = np.max(np.linalg.norm(p - np.roll(p, 1, axis=1), axis=2), axis=1)
+    tri.set_mask(edge > 3.0 * np.median(edge))
+    return ax.tripcolor(tri, top[:, 2], shading="gouraud", cmap="inferno", vmin=limits[0],
+                        vmax=limits[1])
 
 
 def _cone(ax, g, x, y):
@@ -65,7 +85,14 @@ def top_view_png(res, snaps, path) -> str:
     fig, axs = plt.subplots(nr, nc, figsize=(6.2 * nc, 4.4 * nr), squeeze=False)
     for ax in axs.ravel()[n:]:
         ax.axis("off")
+    hot = [s["top"] for s in snaps if "top" in s]
+    limits = None
+    if hot:
+        allT = np.concatenate([h[:, 2] for h in hot])
+        limits = (allT.min(), max(allT.max(), allT.min() + 1.0))
     for ax, s in zip(axs.ravel(), snaps):
+        if "top" in s:
+            art = _temperature(ax, s["top"], limits)
         _outline(ax, s["outer"], s["center"])
         _outline(ax, s["inner"], s["center"])
         for nm, x, y, ang in s["tools"]:
@@ -86,10 +113,16 @@ def top_view_png(res, snaps, path) -> str:
         ax.set_title(f"t = {s['t']:.2f} s ({s['t'] / res.t_rev:.2f} rev)", fontsize=10)
         ax.set_xlabel("x [mm] (mill line)", fontsize=8)
         ax.tick_params(labelsize=8)
-    fig.suptitle("ring rolling: top view (ring top face blue, its centre +; tools grey, black "
-                 "line = tool angle" + (", upper cone orange, apex ▲" if res.cone_geometry
-                                        else "") + ")", fontsize=10)
+    fig.suptitle("ring rolling: top view (ring top face blue" + (", coloured by its temperature"
+                                                              if hot else "")
+                 + ", its centre +; tools grey, black line = tool angle"
+                 + (", upper cone orange, apex ▲" if res.cone_geometry else "") + ")",
+                 fontsize=10)
     fig.tight_layout()
+    if hot:
+        fig.subplots_adjust(right=0.88)
+        cb = fig.colorbar(art, cax=fig.add_axes([0.9, 0.15, 0.015, 0.7]), format="%.0f")
+        cb.set_label("temperature of the top face [°C]")
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
@@ -100,9 +133,10 @@ def curves_png(res, path) -> str:
     plt = pyplot()
     h = res.history
     t = np.array([q["time"] for q in h])
-    fig, axs = plt.subplots(1, 3, figsize=(15, 4.3))
-    ax = axs[0]
     q0 = h[0]
+    hot = "heat_T_mean" in q0
+    fig, axs = plt.subplots(1, 4 if hot else 3, figsize=(20 if hot else 15, 4.3))
+    ax = axs[0]
     for key, lab, st in (("outer_diameter", "outer D", "-"), ("inner_diameter", "inner d", "-"),
                          ("mean_diameter", "mean (D+d)/2", "-"),
                          ("mean_diameter_volume", "mean, volume constancy V/(πHB)", "k--")):
@@ -134,10 +168,26 @@ def curves_png(res, path) -> str:
     ax.set_ylabel("rad/s")
     ax.legend(fontsize=8)
     ax.set_title("rotation speeds")
+    if hot:
+        _temperatures(axs[3], t, h, res.case.heat.initial_temperature)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
+
+
+def _temperatures(ax, t, h, T0):
+    """T(t): the ring's minimum, mean and maximum, and the probes (thermocouples) if any."""
+    for key, lab, st in (("heat_T_max", "max", "r-"), ("heat_T_mean", "mean", "k-"),
+                         ("heat_T_min", "min", "b-")):
+        ax.plot(t, [q[key] for q in h], st, lw=1.5, label=lab)
+    for k in (k for k in h[0] if k.startswith("heat_T_at_")):
+        ax.plot(t, [q[k] for q in h], "--", lw=1.0, label=f"probe '{k[10:]}'")
+    ax.axhline(T0, color="0.5", ls=":", lw=1.0, label=f"initial {T0:g} °C")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("temperature [°C]")
+    ax.legend(fontsize=8)
+    ax.set_title("ring temperature")
 
 
 def pictures(res, snaps, out, name) -> dict:

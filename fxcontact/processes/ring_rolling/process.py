@@ -6,9 +6,10 @@ main roll's axis is at x = R + R₁ (driven, turning clockwise at ``rpm``), the 
 x = r − R₂ + v_f t (fed at ``feed_speed``, idle: its ω is found at each increment from zero
 torque about its axis, :class:`fxcontact.IdleRotation`); both start ``initial_bite`` into the
 ring. Two frictionless guide rolls at ± ``guide_angle`` from the mill line on the main-roll side
-follow the growing ring (:class:`~fxcontact.processes.ring_rolling.mill.RingCentring`). Forces and
-torques are those of the whole ring (twice the half model's). The configuration update is cylindrical about the
-ring's centroid (:class:`~fxcontact.kinematics.RingAxisUpdate`, THEORY §5) or cartesian.
+follow the growing ring (:class:`~fxcontact.processes.ring_rolling.mill.RingCentring`).
+Forces and torques are those of the whole ring (twice the half model's). The configuration
+update is cylindrical about the ring's centroid (:class:`~fxcontact.kinematics.RingAxisUpdate`,
+THEORY §5) or cartesian.
 
 The case, its material and the theory of the pass: :mod:`~fxcontact.processes.ring_rolling.case`.
 
@@ -16,8 +17,8 @@ The case, its material and the theory of the pass: :mod:`~fxcontact.processes.ri
 kinematics and the numerics; :func:`build` returns the ready :class:`fxcontact.Simulation` with
 its handles (:class:`RingRollingSetup`); :func:`run` rolls the ring for ``revolutions`` and
 returns a :class:`RingRollingResult` (forces, torques, mandrel speed, diameter growth against
-volume constancy, the theory of :mod:`fxcontact.theory.forming` (feed window, contact length, 2kHLQ),
-volume, quality, pictures, ``report()``).
+volume constancy, the theory of :mod:`fxcontact.theory.forming` (feed window, contact length,
+2kHLQ), volume, quality, pictures, ``report()``).
 """
 
 from __future__ import annotations
@@ -40,7 +41,8 @@ from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.power import PowerBalance, delivered_power
 from fxcontact.processes.contact_laws import law_text
 from fxcontact.processes.monitor import SteadyRun, contact_lines
-from fxcontact.processes.ring_rolling import mill as ring_mill, pictures as ring_pictures
+from fxcontact.processes.ring_rolling import heat as ring_heat, mill as ring_mill
+from fxcontact.processes.ring_rolling import pictures as ring_pictures
 from fxcontact.processes.ring_rolling.case import RingRollingCase, theory
 from fxcontact.processes.ring_rolling.mill import (AxialRolls, RingCentring, cone_row,
                                                    set_ring_remeshing)
@@ -78,7 +80,8 @@ class RingRollingSetup:
     top: object                     #: ... of the top face
     centring: object                #: :class:`~fxcontact.processes.ring_rolling.mill.RingCentring`
     idle: object                    #: :class:`fxcontact.IdleRotation`
-    axial: object = None            #: :class:`~fxcontact.processes.ring_rolling.mill.AxialRolls` (cones)
+    #: :class:`~fxcontact.processes.ring_rolling.mill.AxialRolls` (cones)
+    axial: object = None
     update: object = None           #: :class:`~fxcontact.kinematics.RingAxisUpdate` or None
     theory: dict = field(default_factory=dict)   #: feed window, L, rate, σ₀, 2kHLQ
     dt: float = math.nan
@@ -117,7 +120,8 @@ def build(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
     R1, R2, R, r, H, Rg = (float(x) for x in (c.R1, c.R2, c.R, c.r, c.H, c.Rg))
     w1 = c.omega_main
     v_s = w1 * R1
-    mat = fx.NortonHoff(K=c.K, m=c.m, regularization=1e-3 * th["strain_rate_bite"])
+    mat = (c.material if c.material is not None else
+           fx.NortonHoff(K=c.K, m=c.m, regularization=1e-3 * th["strain_rate_bite"]))
     dt = c.t_rev / int(c.increments_per_rev)
     n_inc = min(int(math.ceil(c.revolutions * c.increments_per_rev - 1e-9)),
                 int(c.max_increments))
@@ -201,6 +205,9 @@ def build(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
         axial = sim.add_controller(AxialRolls(contact, [tools[4]], centring,
                                               [0.5 * c.cone_speed]))
     sim.add_contributor(contact)
+    if c.heat is not None:   # air on the outer, bore and top faces; the mid-plane: insulated
+        c.heat.attach(sim, ft, [fx.RING_TAGS[k] for k in ("outer", "inner", "top")],
+                      [t.name for t in tools])
     if c.remesh:
         set_ring_remeshing(sim, centring, c, h_theta, start=not resume)
     if resume:
@@ -352,10 +359,11 @@ class _Measure:
                    center_x=ctr[0], center_y=ctr[1], center_offset=q["ring_center_offset"],
                    max_strain=self._max(np.max(sim.strain.x.array, initial=0.0)),
                    max_strain_rate=self._max(np.max(sim.strain_rate.x.array, initial=0.0)),
-                   min_quality=q["min_quality"], **power)
+                   min_quality=q["min_quality"], **power,
+                   **{k: v for k, v in q.items() if k.startswith("heat_")})
         if c.cones:
             row.update(cone_row(q, self.nodes_on(4), self.cone_depth(), Hm, Ro, Ri, w_ring,
-                                 s.cone_geometry, c.K, c.m))
+                                 s.cone_geometry, s.theory["K"], s.theory["m"]))
         return row
 
 
@@ -417,6 +425,9 @@ class RingRollingResult(SteadyRun):
     wall_per_rev: float = _NAN
     cone: dict = field(default_factory=dict)   #: the cones' summary (with cones)
     remeshes: list = field(default_factory=list)   #: the RemeshRecords (``remesh=True``)
+    #: with heat: the run's heat terms and temperatures against the estimate
+    #: (:func:`~fxcontact.processes.ring_rolling.heat.summary`)
+    heat: dict = field(default_factory=dict)
     pictures: Dict[str, str] = field(default_factory=dict)
 
     def second_half(self) -> List[dict]:
@@ -439,8 +450,12 @@ class RingRollingResult(SteadyRun):
             f"{c.mu_bite}): {w['min']:.3f} - {w['max']:.3f} mm/rev -> "
             f"{'inside' if inside else 'OUTSIDE'}",
             f"bite contact length L = {self.contact_length:.2f} mm, strain rate ~ "
-            f"{self.strain_rate_bite:.3g} 1/s, sigma0 = {self.sigma0:.0f} MPa (K = {c.K:g}, "
-            f"m = {c.m:g}), 2kHLQ = {self.force_estimate / 1e3:.1f} kN (Q = {self.Q:.3f})"]
+            f"{self.strain_rate_bite:.3g} 1/s, sigma0 = {self.sigma0:.0f} MPa ("
+            + (f"K = {c.K:g}, m = {c.m:g}" if c.material is None else
+               f"{type(c.material.flow).__name__}: its mean over the run's strain at "
+               + (f"{c.heat.initial_temperature:g} °C" if c.heat is not None
+                  else f"{c.material.temperature} °C"))
+            + f"), 2kHLQ = {self.force_estimate / 1e3:.1f} kN (Q = {self.Q:.3f})"]
         if c.thesis_flow_stress_note:
             lines.append(f"note: {c.thesis_flow_stress_note}")
         lines.append(f"status {self.status} {self.message}")
@@ -478,6 +493,7 @@ class RingRollingResult(SteadyRun):
             f"{100 * self.power_balance:.1f} % (with the penalty work "
             f"{self.power_balance_penalty:.1e}; the bite is crossed in "
             f"{self.bite_increments:.2g} increments)")
+        lines += ring_heat.report_lines(self)
         return "\n".join(lines + [self.run_summary()])
 
 
@@ -592,6 +608,7 @@ def run(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
         remeshes=list(sim.remeshes), contacts=contact_lines(sim))
     if rows:
         _summarize(res, comm, sim.mesh)
+        res.heat = ring_heat.summary(res, th)
     paths = {}
     if comm.rank == 0 and output_dir:
         os.makedirs(output_dir, exist_ok=True)
