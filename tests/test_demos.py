@@ -63,6 +63,8 @@ PROCESS_DEMOS = {
                          "bar_rolling_third_diagnostics.csv"),
     "demo_ring_rolling": (("--quick", "--revolutions", 0.04), "status done",
                           "sigma0 = 107 MPa (K = 50, m = 0.14)", "ring_rolling.csv"),
+    "demo_hot_ring_rolling": (("--quick", "--revolutions", 0.06), "status done",
+                              "heat (whole ring): T at the end", "hot_ring.csv"),
     "demo_upsetting": (("--quick",), "final height 12.000 mm",
                        "radius at mid-height 11.603 mm, at the end faces 10.000 mm",
                        "upsetting_pressure.csv"),
