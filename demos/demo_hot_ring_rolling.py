@@ -103,6 +103,10 @@ def main(argv=None):
     fx.configure_logging(verbose=a.verbose, quiet=a.quiet)
     case = hot_ring(a.quick, a.revolutions, a.T0, a.roll_temperature, a.h_c, a.feed_speed,
                     a.rpm, a.table)
+    if a.pictures and MPI.COMM_WORLD.rank == 0:   # the table as typed: see what the ring gets
+        os.makedirs(a.output_dir, exist_ok=True)
+        fx.plot_flow_curves(case.material.flow, os.path.join(a.output_dir,
+                                                             "hot_ring_flow_curves.png"))
     res = run(case, MPI.COMM_WORLD, output_dir=a.output_dir, pictures=a.pictures,
               name="hot_ring")
     if MPI.COMM_WORLD.rank == 0:
@@ -113,6 +117,7 @@ def main(argv=None):
 # %% [markdown]
 # ## The pictures
 #
+# `hot_ring_flow_curves.png`: the table as typed (σ₀ against ε̄ at its rates and temperatures).
 # `hot_ring_top.png`: the top face coloured by its temperature at four times — a cold band
 # just behind each bite on the outer surface and the bore, fading as the skin reheats from the
 # wall during the rest of the revolution. `hot_ring_curves.png`: the diameters, the roll forces
