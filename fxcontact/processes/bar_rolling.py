@@ -24,6 +24,15 @@ pusher moves it until the rolls grip it (:class:`~fxcontact.processes.monitor.St
 The first increment is solved with the strain-rate sensitivity ``m_start`` (Newton from rest
 with m = 0.03 stalls), the following ones with m.
 
+**Hot rolling** (``material``, ``heat``): a flow stress σ₀(ε̄, ε̄̇, T)
+(:class:`~fxcontact.Viscoplastic`, its regularisation as given) instead of K, m — solved from the
+first increment with its own rate sensitivity (no ``m_start``: its pieces are per cell and set
+from the state before each increment) — and a :class:`~fxcontact.HeatSetup`: air on the bar's
+lateral surface (where no roll touches it), its front and back, the tools ``roll0`` (…) and
+``pusher``; the symmetry planes of the third are insulated. :meth:`BarRollingCase.theory`: the
+pass's homogeneous strain ln(A0/A_pass), σ0 (the material's mean over it) and the ideal work of
+the stand.
+
 Measured per increment: per roll the radial force, axial force and torque, the exit section's
 area (exact plane cut of the tetrahedra ``exit_offset`` × the bite length past the roll axes),
 the power balance. At steady state: the fill of the pass and the exit section's outline.
@@ -47,7 +56,8 @@ from fxcontact import compat
 from fxcontact.io.series import pyplot
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.power import PowerBalance
-from fxcontact.processes.common import gather
+from fxcontact.processes.common import (check_material_heat, gather, heat_columns, heat_lines,
+                                        material_text, mean_norton_hoff, theory_temperature)
 from fxcontact.processes.contact_laws import UNSET, Former, Friction, contact_friction
 from fxcontact.processes.monitor import (RunNumerics, SteadyMonitor, SteadyRun, StopRules,
                                          is_number, window_increments)
@@ -128,6 +138,13 @@ class BarRollingCase(RunNumerics):
     K: float = 50.0
     m: float = 0.03
     regularization: float = 1e-3    #: × the bite's strain rate
+    #: a flow stress σ₀(ε̄, ε̄̇, T) (:class:`~fxcontact.Viscoplastic`, its own regularisation)
+    #: instead of K, m (and m_start, regularization); the theory's σ0 is its mean over the
+    #: pass's strain ln(A0/A_pass)
+    material: Optional[fx.Viscoplastic] = None
+    #: heat (:class:`~fxcontact.HeatSetup`: the bar's thermal material and temperature, air on
+    #: its free surface, the tools ``roll0`` (…) and ``pusher``), or None
+    heat: Optional[fx.HeatSetup] = None
     #: the rolls' friction law (Norton, K of the material), or ``{roll name: law}``
     friction: Friction = fx.Norton(0.3, 0.15)
     slip_velocity: float = 1e-3     #: × v_roll
@@ -190,6 +207,7 @@ class BarRollingCase(RunNumerics):
             raise ValueError(f"model must be 'third' or 'full', got {self.model!r}")
         if self.mesh not in ("symmetric", "gmsh"):
             raise ValueError(f"mesh must be 'symmetric' or 'gmsh', got {self.mesh!r}")
+        check_material_heat(self.material, self.heat)
         pass_geometry(self.R1, self.groove_angle, self.roll_radius)   # checks groove_angle
 
     def quick(self) -> "BarRollingCase":
@@ -202,6 +220,25 @@ class BarRollingCase(RunNumerics):
         """Bite length at the groove bottom ``√(R_w² − (R_w − (R0 − R1))²)``."""
         Rw = float(self.roll_radius)
         return math.sqrt(Rw**2 - (Rw - (float(self.R0) - float(self.R1))) ** 2)
+
+    def theory(self, geo: Optional[dict] = None) -> dict:
+        """The pass's homogeneous strain ``strain`` = ln(A0/A_pass) (``geo``: the
+        :func:`stand_pass`, computed if not given), the bite's representative rate
+        ``strain_rate`` = (v_R/L) ln(A0/A_pass) [1/s], ``sigma0`` [MPa] there (Norton–Hoff's, or
+        the ``material``'s mean over the strain at the heat's initial temperature, else the
+        material's) with its Norton–Hoff ``K``, ``m``, and the ideal work: ``ideal_work`` σ0 ε
+        per unit volume [MPa] and ``ideal_power`` [N mm/s] of the stand at the entry speed
+        ``entry_speed`` v_R A_pass/A0 (a lower bound of the stand's power at steady state)."""
+        geo = geo or stand_pass(self)
+        A0 = math.pi * float(self.R0) ** 2
+        eps = math.log(A0 / geo["A_pass"])
+        rate = float(self.v_roll) / self.bite_length * eps
+        K, m = (self.K, self.m) if self.material is None else mean_norton_hoff(
+            self.material, eps, rate, theory_temperature(self))
+        s0 = fx.NortonHoff(K=K, m=m).flow_stress(rate)
+        v0 = float(self.v_roll) * geo["A_pass"] / A0
+        return dict(strain=eps, strain_rate=rate, sigma0=s0, K=K, m=m, ideal_work=s0 * eps,
+                    entry_speed=v0, ideal_power=s0 * eps * A0 * v0)
 
 
 _number = is_number
@@ -366,7 +403,7 @@ class BarRollingSetup:
     case: BarRollingCase
     sim: object                   #: the :class:`fxcontact.Simulation`
     rolls: list                   #: the rolls of the model (roll0, …)
-    material: object              #: Norton–Hoff with the start-up exponent
+    material: object              #: Norton–Hoff with the start-up exponent, or the case's
     pass_geometry: dict           #: :func:`stand_pass`
     bite_length: float
     omega: float
@@ -419,8 +456,12 @@ def build(case: BarRollingCase, comm=None) -> BarRollingSetup:
     g[:, :2] *= (rs / R0)[:, None]
     # representative strain rate of the bite: (v_R / L) ln(A0 / A_pass)
     rate = v_R / L * math.log(math.pi * R0**2 / geo["A_pass"])
-    mat = _StartupNortonHoff(K=case.K, m=case.m, regularization=case.regularization * rate)
-    mat.bind(msh, case.m_start)
+    if case.material is None:
+        mat = _StartupNortonHoff(K=case.K, m=case.m, regularization=case.regularization * rate)
+        mat.bind(msh, case.m_start)
+    else:   # per-cell pieces from the state: no start-up exponent (the first increment from
+        # rest starts from the linearised material's solve, then Newton with the law's own m)
+        mat = case.material
     sp = fx.MixedSpace(msh)
     sim = fx.Simulation(sp, mat, solver_options=case.solver_options(), progress=False)
     if third:
@@ -445,6 +486,9 @@ def build(case: BarRollingCase, comm=None) -> BarRollingSetup:
         **penalty)
     sim.add_contributor(rc)
     sim.add_contributor(setup.pusher_contact)
+    if case.heat is not None:   # the symmetry planes of the third insulated
+        case.heat.attach(sim, ft, [DRAWING_BAR_TAGS[k] for k in ("lateral", "front", "back")],
+                         [t.name for c in (rc, setup.pusher_contact) for t in c.tools])
     return setup
 
 
@@ -501,7 +545,7 @@ class _Measure:
                    min_quality=rr["min_quality"], dissipation=pw["dissipation"],
                    friction_power=pw["friction_power"], roll_power=P_roll, pusher_power=P_push,
                    penalty_power=pw["penalty_power"], power_balance=pw["power_balance"],
-                   power_balance_penalty=pw["power_balance_penalty"])
+                   power_balance_penalty=pw["power_balance_penalty"], **heat_columns(rr))
         for k, roll in enumerate(rolls):
             row[f"{roll.name}_radial_force"] = Fr[k]
             row[f"{roll.name}_torque"] = M[k]
@@ -571,6 +615,11 @@ class BarRollingResult(SteadyRun):
                  f"{geo['R_b']:.2f}) mm, corner r_c = {geo['r_c']:.2f} mm; A_pass = "
                  f"{geo['A_pass']:.0f} mm2 (inscribed circle {geo['A_inscribed']:.0f}); bite "
                  f"length {self.bite_length:.1f} mm"]
+        th = c.theory(geo)
+        lines.append(f"material {material_text(c, 'bar')}: sigma0 = {th['sigma0']:.1f} MPa "
+                     f"over the strain ln(A0/A_pass) = {th['strain']:.3f} at "
+                     f"{th['strain_rate']:.3f} 1/s; ideal stand power "
+                     f"{th['ideal_power'] / 1e6:.2f} kW")
         if self.steady:
             lines += [
                 f"steady from increment {self.steady_from} of {self.increments} (gripped at "
@@ -587,7 +636,9 @@ class BarRollingResult(SteadyRun):
                 f"contact area (stand) {self.stand_contact_area:.0f} mm2; true penetration "
                 f"{self.penetration:.3g} mm",
                 f"power balance (M w + P_push)/(D + P_f) - 1 = {100 * self.power_balance:.2f} %"
-                f" (with the penalty work {100 * self.power_balance_penalty:.3f} %)"]
+                f" (with the penalty work {100 * self.power_balance_penalty:.3f} %); stand "
+                f"power / ideal {self.stand_power / th['ideal_power']:.3f}"]
+        lines += heat_lines(self.history, c.heat, "bar")
         lines += [f"max penetration {self.max_penetration:.3g} mm", self.run_summary()]
         return "\n".join(lines)
 
@@ -603,7 +654,7 @@ def run(case: BarRollingCase, comm=None, output_dir: Optional[str] = None,
     measure = _Measure(s)
 
     def before_step(it):
-        if it == 1:
+        if it == 1 and case.material is None:
             s.material.exponent.value = case.m    # after the start-up increment
 
     length = case.length_factor * L

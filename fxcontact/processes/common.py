@@ -1,6 +1,7 @@
 """Pieces shared by the forming processes: nodal gathers, the numerics columns of a history
-row and their summary, steady values over a window, a meridian (symmetry-face) section of cell fields, curve and section pictures, the CSV of the
-rows.
+row and their summary, steady values over a window, a meridian (symmetry-face) section of cell
+fields, curve and section pictures, the CSV of the rows; a case's flow-stress material and heat
+(their checks, the theory's mean flow stress, the report's lines).
 
 Every function that communicates is collective (call it on every rank); the pictures are drawn
 on rank 0 only (matplotlib, no VTK).
@@ -22,15 +23,19 @@ from mpi4py import MPI
 from fxcontact import compat
 from fxcontact.console import add_verbosity_arguments, configure_logging
 from fxcontact.io.series import pyplot
+from fxcontact.materials import Viscoplastic
 from fxcontact.processes.contact_laws import ContactLaws
 from fxcontact.processes.monitor import contact_lines
 from fxcontact.simulation import (IncrementError, format_iteration_split, format_wall_split,
                                   wall_split)
 from fxcontact.steady import steady_window
+from fxcontact.thermal import HeatSetup
 
-__all__ = ["CaseBase", "script_main", "gather", "numerics_columns", "run_summary", "steady_values", "run_increments",
-           "ProcessResult", "meridian_section", "vertex_field", "plot_sections",
-           "plot_curves", "write_rows"]
+__all__ = ["CaseBase", "script_main", "gather", "numerics_columns", "run_summary",
+           "steady_values", "run_increments", "ProcessResult", "meridian_section",
+           "vertex_field", "plot_sections", "plot_curves", "write_rows", "mean_norton_hoff",
+           "check_material_heat", "theory_temperature", "material_text", "heat_columns",
+           "heat_lines"]
 
 
 class _ClassOrCase:
@@ -357,3 +362,72 @@ def write_rows(comm, path: Optional[str], rows: Sequence[dict]) -> Optional[str]
             wr.writeheader()
             wr.writerows(rows)
     return path
+
+
+# ---- a case's flow-stress material and heat (the fields ``material`` and ``heat``)
+
+def mean_norton_hoff(material: Viscoplastic, strain: float, rate: float,
+                     temperature: Optional[float] = None):
+    """(K, m) of the Norton–Hoff law whose flow stress at ``rate`` [1/s] is the material's
+    mean flow stress over the strain 0..``strain`` (the classical σ̄ of slab and upper-bound
+    theories with hardening) at ``temperature`` [°C] (default the material's), m the local
+    rate sensitivity there."""
+    T = material.temperature if temperature is None else temperature
+    T = 20.0 if T is None else T
+    e = np.linspace(0.0, strain, 201)
+    s = material.flow.sigma0(e, rate, T)
+    mean = float(np.sum(0.5 * (s[1:] + s[:-1]) * np.diff(e)) / strain)
+    m = float(np.mean(material.flow.rate_sensitivity(e, rate, T)))
+    return mean / (math.sqrt(3.0) * (math.sqrt(3.0) * rate) ** m), m
+
+
+def check_material_heat(material, heat):
+    """ValueError unless ``material`` is None or a :class:`~fxcontact.Viscoplastic` and
+    ``heat`` None or a :class:`~fxcontact.HeatSetup` (a case's ``__post_init__``)."""
+    if material is not None and not isinstance(material, Viscoplastic):
+        raise ValueError(f"material must be a fxcontact.Viscoplastic (a flow stress; "
+                         f"plain Norton-Hoff: K and m), got {material!r}")
+    if heat is not None and not isinstance(heat, HeatSetup):
+        raise ValueError(f"heat must be a fxcontact.HeatSetup, got {heat!r}")
+
+
+def theory_temperature(case) -> Optional[float]:
+    """The temperature [°C] of a case's theory: the heat's initial temperature, else the
+    material's (None: the material's own default)."""
+    return case.heat.initial_temperature if case.heat is not None else None
+
+
+def material_text(case, body: str = "workpiece") -> str:
+    """The report's phrase of the material: ``K .. m ..`` (Norton–Hoff), or the flow stress's
+    class with its temperature, the ``body``'s initial temperature and the heated tools."""
+    if case.material is None:
+        return f"K {case.K:g} m {case.m:g}"
+    T = case.material.temperature
+    text = f"{type(case.material.flow).__name__} flow stress" + (
+        f" at {T:g} °C" if T is not None and case.heat is None else "")
+    if case.heat is not None:
+        text += (f", {body} at {case.heat.initial_temperature:g} °C, tools "
+                 f"{sorted(case.heat.tools or {})}")
+    return text
+
+
+def heat_columns(r: dict) -> Dict[str, float]:
+    """The heat's columns (``heat_*``) of a :class:`~fxcontact.Simulation` history row."""
+    return {k: v for k, v in r.items() if k.startswith("heat_")}
+
+
+def heat_lines(history: Sequence[dict], heat, body: str = "workpiece") -> list:
+    """The report's line of the temperature at the end (min, mean, max) and of the run's heat
+    balance [J] (the sums of the increments' ``heat_*`` columns), if the run has heat."""
+    q = history[-1] if history else {}
+    if "heat_T_mean" not in q:
+        return []
+    tot = {k: sum(r[f"heat_{k}"] for r in history) / 1e3
+           for k in ("generated", "friction", "tools", "air", "radiation", "stored",
+                     "residual")}
+    return [f"{body} temperature at the end: min {q['heat_T_min']:.0f} / mean "
+            f"{q['heat_T_mean']:.0f} / max {q['heat_T_max']:.0f} °C (from "
+            f"{heat.initial_temperature:g}); heat of the model [J]: plastic work "
+            f"{tot['generated']:.3g} + friction {tot['friction']:.3g} + tools "
+            f"{tot['tools']:.3g} + air {tot['air'] + tot['radiation']:.3g} = stored "
+            f"{tot['stored']:.3g} (balance residual {tot['residual']:.1e})"]

@@ -45,8 +45,9 @@ from fxcontact.meshing import DRAWING_BAR_TAGS
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
 from fxcontact.processes.common import (CaseBase, ProcessResult, finish_run, gather,
-                                        meridian_section, numerics_columns, plot_curves,
-                                        plot_sections, run_increments, run_summary, steady_values)
+                                        mean_norton_hoff, meridian_section, numerics_columns,
+                                        plot_curves, plot_sections, run_increments, run_summary,
+                                        steady_values)
 from fxcontact.processes.contact_laws import (UNSET, Former, Friction, contact_friction,
                                               gap_penalty, law_text)
 from fxcontact.processes.die import (DIE_MESHES, DIES, bar_simulation, die_profile_tool, die_radius,
@@ -59,21 +60,6 @@ from fxcontact.thermal import HeatSetup
 __all__ = ["DrawingCase", "DrawingSetup", "DrawingResult", "build", "run"]
 
 log = logging.getLogger("fxcontact.processes.drawing")
-
-
-def mean_norton_hoff(material: Viscoplastic, strain: float, rate: float,
-                     temperature: Optional[float] = None):
-    """(K, m) of the Norton–Hoff law whose flow stress at ``rate`` [1/s] is the material's
-    mean flow stress over the strain 0..``strain`` (the classical σ̄ of slab and upper-bound
-    theories with hardening) at ``temperature`` [°C] (default the material's), m the local
-    rate sensitivity there."""
-    T = material.temperature if temperature is None else temperature
-    T = 20.0 if T is None else T
-    e = np.linspace(0.0, strain, 201)
-    s = material.flow.sigma0(e, rate, T)
-    mean = float(np.sum(0.5 * (s[1:] + s[:-1]) * np.diff(e)) / strain)
-    m = float(np.mean(material.flow.rate_sensitivity(e, rate, T)))
-    return mean / (math.sqrt(3.0) * (math.sqrt(3.0) * rate) ** m), m
 
 
 def _friction_of(case, v: dict):

@@ -11,23 +11,24 @@ radius ``entry_fillet``). Tresca friction on the die and on the container (``fri
 :class:`~fxcontact.RevolvedProfile` of one straight line at R₀ (an infinite bore), and the die
 another (its entry face perpendicular to the axis at the container's end, the entry fillet, the
 cone, the fillet, the land and the exit relief), two tools of one
-:class:`~fxcontact.NodalContact`, each with its own friction law; the container's force is then a history column of its own. ``"profile"``
-— one profile: the container's segment followed by the die's (one tool, one friction law: the
-two friction factors must then be equal). How a node chooses among the tools of one contact
-(``NodalContact._project_all``): every node is projected on every tool and keeps the tool with
-the **smallest signed gap** (the deepest penetration, or the nearest surface), the first tool on
-a tie; its friction law is that tool's. For a node outside the tools this is the distance to
-the union of the two bodies, as for one profile of both; for a penetrated node it is the deepest
-penetration into either body, here the depth below the union's surface except for a node less
-than its depth p past the container's end: there the die's entry face (inside the union) is
-nearer than its fillet, and the container's bore continued past its end measures the node,
-shallower than the fillet of radius R_f by about δ²/2(R_f + p) at δ past the end (5e-7 mm at
-the quick case's p = 7.5e-4 mm). Away from that band both descriptions give the same iterates,
-bitwise; a node inside it moves the history a little, by 2e-5 of the punch force in the quick
-case (``tests/test_extrusion.py``; ``benchmarks/bench_extrusion.py`` compares the Newton
-iterations of longer runs). Two tools that coincide over a stretch (a die continued backwards
-along the container's radius) would leave the choice there to round-off: the die here starts
-with its entry face, so the container is strictly the nearer tool upstream.
+:class:`~fxcontact.NodalContact`, each with its own friction law; the container's force is then
+a history column of its own. ``"profile"`` — one profile: the container's segment followed by
+the die's (one tool, one friction law: the two friction factors must then be equal). How a node
+chooses among the tools of one contact (``NodalContact._project_all``): every node is projected
+on every tool and keeps the tool with the **smallest signed gap** (the deepest penetration, or
+the nearest surface), the first tool on a tie; its friction law is that tool's. For a node
+outside the tools this is the distance to the union of the two bodies, as for one profile of
+both; for a penetrated node it is the deepest penetration into either body, here the depth below
+the union's surface except for a node less than its depth p past the container's end: there the
+die's entry face (inside the union) is nearer than its fillet, and the container's bore
+continued past its end measures the node, shallower than the fillet of radius R_f by about
+δ²/2(R_f + p) at δ past the end (5e-7 mm at the quick case's p = 7.5e-4 mm). Away from that band
+both descriptions give the same iterates, bitwise; a node inside it moves the history a little,
+by 2e-5 of the punch force in the quick case (``tests/test_extrusion.py``;
+``benchmarks/bench_extrusion.py`` compares the Newton iterations of longer runs). Two tools that
+coincide over a stretch (a die continued backwards along the container's radius) would leave the
+choice there to round-off: the die here starts with its entry face, so the container is strictly
+the nearer tool upstream.
 
 **Which k the Tresca friction uses.** τ = m̄ k with k = K (√3 ε̄̇)^m taken at each contact
 node from its own strain rate (averaged over the adjacent cells, with the material's
@@ -40,6 +41,14 @@ Measured per increment: punch force and pressure F/A₀, the container's axial f
 theory, the die pressure (punch minus container), penetration, contact nodes, the power
 balance, Newton iterations, volume change and element quality. Steady state on the die
 pressure (the container's share falls as the billet shortens).
+
+**Hot extrusion** (``material``, ``heat``): a flow stress σ₀(ε̄, ε̄̇, T)
+(:class:`~fxcontact.Viscoplastic`) instead of K, m — the theory's σ₀ is then its mean over the
+ideal strain ln(A₀/A₁) at the die's mean strain rate — and a :class:`~fxcontact.HeatSetup`: air on
+the billet's lateral surface (where no tool touches it) and its front, the tools ``container`` and
+``die`` (the one profile: ``die``); the back face under the punch (a velocity condition, not a
+contact) and the symmetry planes are insulated. The rows then carry the heat's ``heat_*``
+columns.
 
 Example::
 
@@ -69,9 +78,12 @@ from fxcontact.io.series import pyplot
 from fxcontact.meshing import DRAWING_BAR_TAGS
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
-from fxcontact.processes.common import (CaseBase, ProcessResult, finish_run, meridian_section,
-                                        numerics_columns, plot_curves, plot_sections,
-                                        run_increments, run_summary, steady_values, vertex_field)
+from fxcontact.materials import Viscoplastic
+from fxcontact.processes.common import (CaseBase, ProcessResult, check_material_heat,
+                                        finish_run, heat_columns, heat_lines, material_text,
+                                        mean_norton_hoff, meridian_section, numerics_columns,
+                                        plot_curves, plot_sections, run_increments, run_summary,
+                                        steady_values, theory_temperature, vertex_field)
 from fxcontact.processes.contact_laws import (UNSET, Former, Friction, ToolLaws, contact_friction,
                                               former_beta_gap_penalty, gap_penalty, law_text)
 from fxcontact.processes.die import bar_simulation, die_profile_tool, die_radius, nose_layout
@@ -79,6 +91,7 @@ from fxcontact.remesh.criteria import RemeshCriteria
 from fxcontact.remesh.volume import SizeZone
 from fxcontact.simulation import Simulation
 from fxcontact.theory import forming
+from fxcontact.thermal import HeatSetup
 from fxcontact.tools.revolved import RevolvedProfile
 
 __all__ = ["ExtrusionCase", "ExtrusionSetup", "ExtrusionResult", "CONTAINERS", "build", "run"]
@@ -172,6 +185,13 @@ class ExtrusionCase(CaseBase):
     # material (Norton–Hoff)
     K: float = 40.0
     m: float = 0.1
+    #: a flow stress σ₀(ε̄, ε̄̇, T) (:class:`~fxcontact.Viscoplastic`, e.g. a hardening law)
+    #: instead of K, m; the theory's σ₀ is then its mean over the ideal strain ln(A₀/A₁) at the
+    #: die's mean strain rate and the initial temperature
+    material: Optional[Viscoplastic] = None
+    #: heat (:class:`~fxcontact.HeatSetup`: the billet's thermal material and temperature, air
+    #: on the lateral surface and the front, the tools ``container`` and ``die``), or None
+    heat: Optional[HeatSetup] = None
     #: the friction laws (Tresca): ``{"container": law, "die": law}`` or one law for both
     friction: Friction = ToolLaws(container=Tresca(0.3), die=Tresca(0.1))
     # kinematics
@@ -233,6 +253,7 @@ class ExtrusionCase(CaseBase):
         self.check_remesh_fields()
         if self.scheme not in SCHEMES:
             raise ValueError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
+        check_material_heat(self.material, self.heat)
         self.die_profile()      # the billet must hold the nose, the cone the fillets
 
     def layout(self):
@@ -273,12 +294,25 @@ class ExtrusionCase(CaseBase):
         return dict(mbar_die=getattr(die, "mbar", 0.0), mbar_container=getattr(cont, "mbar", 0.0),
                     container_shear_limit=src.value)
 
+    def flow_K_m(self):
+        """(K, m) of the theory: the case's, or with a ``material`` those of the Norton–Hoff
+        law whose flow stress at the die's mean strain rate is the material's mean over the
+        ideal strain ln(A₀/A₁) (:func:`~fxcontact.processes.common.mean_norton_hoff`) at the
+        heat's initial temperature (else the material's)."""
+        if self.material is None:
+            return self.K, self.m
+        rate = forming.drawing_mean_strain_rate(self.R0, self.R1, math.radians(self.alpha),
+                                                self.speed)
+        return mean_norton_hoff(self.material, 2.0 * math.log(self.R0 / self.R1), rate,
+                                theory_temperature(self))
+
     def theory(self, container_length: float = 0.0) -> dict:
         """:func:`fxcontact.theory.forming.extrusion_theory` for ``container_length`` L_c of billet
         in the container (k of the container's friction: the k given in its law, else σ₀/√3
-        at the die's mean rate)."""
+        at the die's mean rate), σ₀ of :meth:`flow_K_m`."""
         f = self.friction_factors()
-        return forming.extrusion_theory(self.K, self.m, self.R0, self.R1,
+        K, m = self.flow_K_m()
+        return forming.extrusion_theory(K, m, self.R0, self.R1,
                                         math.radians(self.alpha), self.speed, f["mbar_die"],
                                         f["mbar_container"], container_length, self.land,
                                         shear_yield=f["container_shear_limit"])
@@ -339,6 +373,10 @@ def build(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
                            scheme=case.scheme, friction=friction, name="contact",
                            penalty=penalty)
     sim.add_contributor(contact)
+    if case.heat is not None:   # the side and the front are free; the back face under the
+        # punch and the symmetry planes: insulated
+        case.heat.attach(sim, ft, [DRAWING_BAR_TAGS[k] for k in ("lateral", "front")],
+                         [t.name for t in contact.tools])
     if case.remesh:
         sim.set_remeshing(RemeshCriteria(min_quality=case.remesh_min_quality), size=case.h,
                           zones=_die_zone(case))
@@ -390,8 +428,8 @@ class ExtrusionResult(ProcessResult):
             f"forward extrusion R0 {c.R0:g} -> {c.R1:g} mm (reduction "
             f"{100 * th['reduction']:.1f} %, ratio {th['extrusion_ratio']:.2f}), alpha "
             f"{c.alpha:g} deg, mbar die {f['mbar_die']:g} / container {f['mbar_container']:g} "
-            f"({k_c}), tools {c.container}; h {self.h:.3g} mm, {self.dofs} dofs, "
-            f"{self.ranks} rank(s)",
+            f"({k_c}), tools {c.container}; {material_text(c, 'billet')}; h {self.h:.3g} mm, "
+            f"{self.dofs} dofs, {self.ranks} rank(s)",
             f"status: {self.status} {self.message}; {self.increments} increments of {c.dt:g} s "
             f"to t = {self.time:.4g} s ({c.speed * self.time:.3g} mm of punch travel)",
             f"theory (THEORY 14.2): sigma0 = {th['sigma0']:.1f} MPa at the die's mean strain "
@@ -413,7 +451,7 @@ class ExtrusionResult(ProcessResult):
             lines.append(f"no steady state detected; last punch pressure {last:.1f} MPa")
         if self.history:
             lines.append(f"max penetration {self.max_penetration:.3g} mm")
-            lines += self.numerics_lines()
+            lines += heat_lines(self.history, c.heat, "billet") + self.numerics_lines()
         return self.report_text(lines)
 
 
@@ -448,7 +486,7 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
             die_pressure=(F - Fc) / g.A0 if separate else F / g.A0,
             penetration=r["contact_penetration_true"], contact_nodes=r["contact_nodes"],
             remesh=r["remesh"],
-            **numerics_columns(r), **balance(r, F * case.speed))
+            **numerics_columns(r), **balance(r, F * case.speed), **heat_columns(r))
 
     def progress(q):
         if comm.rank == 0:

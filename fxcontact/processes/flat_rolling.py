@@ -16,6 +16,14 @@ numerics; :func:`build` returns the ready :class:`fxcontact.Simulation` with its
 :func:`run` rolls to steady state (:class:`~fxcontact.processes.monitor.SteadyMonitor`) and
 returns a :class:`FlatRollingResult` (steady means, the classical band of
 :func:`fxcontact.theory.flat_rolling.theory_band`, forward slip, spread, power balance, pictures).
+
+**Hot rolling** (``material``, ``heat``): a flow stress σ₀(ε̄, ε̄̇, T)
+(:class:`~fxcontact.Viscoplastic`, its regularisation as given) instead of K, m — the theory's
+σ0 is then its mean over the plane-strain strain (2/√3) ln(h0/h1) at the bite's mean strain rate
+(:meth:`FlatRollingCase.flow_stress`) — and a :class:`~fxcontact.HeatSetup`: air on the strip's
+top (where the roll does not touch it), its side, front and tail, the tools ``roll`` and
+``pusher``; the two symmetry planes are insulated. The rows then carry the heat's ``heat_*``
+columns.
 """
 
 from __future__ import annotations
@@ -36,7 +44,8 @@ import fxcontact as fx
 from fxcontact import compat
 from fxcontact.io.series import pyplot
 from fxcontact.power import PowerBalance
-from fxcontact.processes.common import gather
+from fxcontact.processes.common import (check_material_heat, gather, heat_columns, heat_lines,
+                                        material_text, mean_norton_hoff, theory_temperature)
 from fxcontact.processes.contact_laws import UNSET, Former, Friction, contact_friction, law_text
 from fxcontact.processes.monitor import (RunNumerics, SteadyMonitor, SteadyRun, StopRules,
                                          is_number, window_increments)
@@ -107,6 +116,12 @@ class FlatRollingCase(RunNumerics):
     # the material
     K: float = 30.0                 #: Norton–Hoff consistency
     m: float = 0.3                  #: strain-rate sensitivity
+    #: a flow stress σ₀(ε̄, ε̄̇, T) (:class:`~fxcontact.Viscoplastic`) instead of K, m; the
+    #: theory's σ0 is then its mean over the strain (:meth:`flow_stress`)
+    material: Optional[fx.Viscoplastic] = None
+    #: heat (:class:`~fxcontact.HeatSetup`: the strip's thermal material and temperature, air
+    #: on its free faces, the tools ``roll`` and ``pusher``), or None
+    heat: Optional[fx.HeatSetup] = None
     #: the roll's friction law (Coulomb limited by Tresca, k from the material at the nodes)
     friction: Friction = fx.Coulomb(0.3, mbar=1.0)
     slip_ratio: float = 1e-3        #: regularisation velocity of the law / v_roll
@@ -166,6 +181,7 @@ class FlatRollingCase(RunNumerics):
             raise ValueError(f"roll must be one of {ROLLS}, got {self.roll!r}")
         if self.facet_size is not None:
             _positive("facet_size", self.facet_size)
+        check_material_heat(self.material, self.heat)
 
     def quick(self) -> "FlatRollingCase":
         """This pass at the reduced size of the tests: 7.5 mm elements, 3 × 2 across the
@@ -190,6 +206,24 @@ class FlatRollingCase(RunNumerics):
     @property
     def bite(self) -> rolling.BiteGeometry:
         return rolling.bite(float(self.R), float(self.h0), self.h1)
+
+    @property
+    def mean_strain_rate(self) -> float:
+        """(v_R / L) ln(h0/h1) [1/s] (:func:`fxcontact.theory.flat_rolling.mean_strain_rate`)."""
+        return rolling.mean_strain_rate(float(self.R), float(self.h0), self.h1,
+                                        float(self.v_roll))
+
+    def flow_stress(self) -> float:
+        """σ0 [MPa] of the theory at the bite's mean strain rate: Norton–Hoff's, or the
+        ``material``'s mean over the plane-strain equivalent strain (2/√3) ln(h0/h1)
+        (:func:`~fxcontact.processes.common.mean_norton_hoff`) at the heat's initial
+        temperature (else the material's)."""
+        rate = self.mean_strain_rate
+        if self.material is None:
+            return fx.NortonHoff(K=self.K, m=self.m).flow_stress(rate)
+        K, m = mean_norton_hoff(self.material, 2.0 / math.sqrt(3.0) * math.log(self.h0 / self.h1),
+                                rate, theory_temperature(self))
+        return fx.NortonHoff(K=K, m=m).flow_stress(rate)
 
 
 _number = is_number
@@ -299,9 +333,12 @@ def build(case: FlatRollingCase, comm=None, output_dir: Optional[str] = None,
     L, alpha = geo.contact_length, geo.bite_angle
     x_entry = -R * math.sin(alpha)
     omega = v_R / R
-    mat = fx.NortonHoff(K=case.K, m=case.m, regularization=1e-4 * v_R / L)
     rate = rolling.mean_strain_rate(R, h0, h1, v_R)
-    sigma0 = mat.flow_stress(rate)
+    if case.material is None:
+        mat = fx.NortonHoff(K=case.K, m=case.m, regularization=1e-4 * v_R / L)
+        sigma0 = mat.flow_stress(rate)
+    else:       # the flow stress with its own regularisation; σ0 its mean over the strain
+        mat, sigma0 = case.material, case.flow_stress()
     theory = rolling.theory_band(R, h0, h1, sigma0, *case.friction_coefficients(),
                                  b0=case.width)
     # the mesh: front `nose` L inside the bite, length from the travel needed
@@ -337,6 +374,9 @@ def build(case: FlatRollingCase, comm=None, output_dir: Optional[str] = None,
         name="pusher_contact", penalty=case.penalty)
     sim.add_contributor(rc)
     sim.add_contributor(setup.pusher_contact)
+    if case.heat is not None:   # the symmetry planes y = 0 and z = 0 insulated
+        case.heat.attach(sim, ft, [fx.BLOCK_TAGS[k] for k in ("zmax", "ymax", "xmax", "xmin")],
+                         [t.name for c in (rc, setup.pusher_contact) for t in c.tools])
     # the tail's pseudo-inertia: c (v − v̄_prev), v̄_prev its mean velocity of the last increment
     setup.tail = fx.ContactBoundary(sp, ft, fx.BLOCK_TAGS["xmin"])
     c_tail = case.tail_damping * sigma0 / v_R
@@ -439,7 +479,8 @@ class _Measure:
                     roll_power=P_roll, pusher_power=P_push, penalty_power=pw["penalty_power"],
                     damper_power=P_damp, power_balance=pw["power_balance"],
                     power_balance_penalty=pw["power_balance_penalty"],
-                    stick=r.get("roll_contact_stick", 0), slip=r.get("roll_contact_slip", 0))
+                    stick=r.get("roll_contact_stick", 0), slip=r.get("roll_contact_slip", 0),
+                    **heat_columns(r))
 
 
 # ---- the result
@@ -501,6 +542,10 @@ class FlatRollingResult(SteadyRun):
                  f"{100 * th['slab_forward_slip']:.2f} %, neutral angle "
                  f"{th['slab_neutral_angle']:.4f}; Hill spread "
                  f"{100 * (th['hill_width'] / c.width - 1):.2f} %"]
+        if c.material is not None:
+            lines.append(f"material: {material_text(c, 'strip')}; sigma0 its mean over the "
+                         f"strain (2/sqrt 3) ln(h0/h1) = "
+                         f"{2 / math.sqrt(3) * math.log(c.h0 / self.h1):.3f}")
         if self.steady:
             lines += [
                 f"steady from increment {self.steady_from} of {self.increments} "
@@ -520,6 +565,7 @@ class FlatRollingResult(SteadyRun):
                 f"{100 * self.power_balance:.2f} % (with the penalty work "
                 f"{100 * self.power_balance_penalty:.2f} %); force oscillation "
                 f"+-{100 * self.force_oscillation:.1f} %"]
+        lines += heat_lines(self.history, c.heat, "strip")
         return "\n".join(lines + [self.run_summary()])
 
 
