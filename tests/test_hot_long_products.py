@@ -18,7 +18,11 @@ test files.
 * Bad set-ups: a heat tool that is no tool of the process, a material that is not a flow stress.
 
 The runs to steady state are ``slow`` (8, 30 and 70 s serially, twice that on 2 ranks); the rest
-takes a few seconds each. The checks hold on 1 and 2 ranks (bands, not values)."""
+takes a few seconds each. The checks hold on 1 and 2 ranks (bands, not values: measured once
+on 2 ranks, 703.3 kN and 1.643 × the ideal power for the bar against 703.7 kN and 1.645
+serially); the flat and bar rolling runs to steady state are kept to one rank in the test run
+(they take 3 minutes there; the per-cell law on 2 ranks is checked by the extrusion run here,
+the hot runs of every process and tests/test_viscoplastic.py)."""
 
 import math
 from dataclasses import replace
@@ -143,6 +147,8 @@ def test_hardening_extrusion_in_the_laws_band():
 
 
 @pytest.mark.slow
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="one rank in the test run (3 minutes on 2): "
+                    "the per-cell law on 2 ranks is checked by the other runs")
 def test_hardening_flat_rolling_in_the_laws_band():
     """The quick pass with a law K₀ = 70 (≈ K = 30 at ε̄ = 0, m = 0.3) hardening with
     n = 0.25: the steady roll force per unit width in the slab / Sims / Ford–Alexander band of
@@ -167,6 +173,8 @@ def test_hardening_flat_rolling_in_the_laws_band():
 
 
 @pytest.mark.slow
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="one rank in the test run (3 minutes on 2): "
+                    "the per-cell law on 2 ranks is checked by the other runs")
 def test_hardening_bar_rolling_above_the_ideal_work():
     """The quick pass (16 mm elements) with a law hardening from K₀ ε₀ⁿ = 50 (the plain K) by
     16 % over the pass's strain, to steady state (85 increments): the stand's power above the

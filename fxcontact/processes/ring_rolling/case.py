@@ -32,7 +32,7 @@ from fxcontact.idle import IDLE_METHODS
 from fxcontact.materials import Viscoplastic
 from fxcontact.processes.contact_laws import UNSET, Friction
 from fxcontact.processes.monitor import RunNumerics, is_number
-from fxcontact.processes.drawing import mean_norton_hoff
+from fxcontact.processes.common import mean_norton_hoff
 from fxcontact.processes.ring_rolling import mill as ring_mill
 from fxcontact.theory import forming
 from fxcontact.thermal import HeatSetup
