@@ -16,6 +16,7 @@ from fxcontact.checkpoint import list_checkpoints
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import Tresca
 from fxcontact.contact.nodal import NodalContact
+from fxcontact.contact.penalty import Penalty
 from fxcontact.meshing import BILLET_TAGS, BLOCK_TAGS, block, cylinder_billet
 from fxcontact.tools.analytic import Plane
 from helpers import shared_tmpdir
@@ -224,3 +225,38 @@ def test_heat_added_twice_or_different_on_the_ranks_refused():
         k = 30.0 + MPI.COMM_WORLD.rank
         with pytest.raises(ValueError, match="thermal"):
             fx.WorkpieceHeat(sim2, fx.ThermalMaterial(rho_c=3.9, conductivity=k), 20.0)
+
+
+def test_tresca_limit_reads_the_local_flow_stress():
+    """The Tresca limit m̄k of a contact on a flow-stress material takes k of each node's own
+    cells — their temperature here — not the law's reference at ε̄ = 0 and the material's
+    nominal temperature: a block at 1050 °C (by its heat, the material saying 950 °C) with a
+    table that is one power law per temperature slides and is pressed exactly as the plain
+    Norton–Hoff law of that power law at 1050 °C (friction force to 1e-7; the penalty given
+    as ρ, not scaled by the law's reference K); the reference at 950 °C would make k 1.3 times
+    larger. The heat takes nothing (η_q = 0, the tool's
+    effusivity takes all the friction heat)."""
+    strains, rates, temps = np.array([0.0]), np.array([0.1, 10.0]), np.array([950.0, 1150.0])
+    stress = np.array([[[130.0, 70.0], [260.0, 140.0]]])   # m = ln 2 / ln 100 at each T
+    flow = fx.TabulatedFlowStress(strains, rates, temps, stress)
+    hot = fx.Viscoplastic(flow, regularization=1e-4, temperature=1050.0).reference()
+    cold = fx.Viscoplastic(flow, regularization=1e-4, temperature=950.0).reference()
+    assert cold.K / hot.K == pytest.approx(1.3, rel=1e-12)
+    forces = {}
+    for name, mat in (("table", fx.Viscoplastic(flow, regularization=1e-4, temperature=950.0)),
+                      ("plain", fx.NortonHoff(K=hot.K, m=hot.m, regularization=1e-4))):
+        msh, _, ft = block(MPI.COMM_WORLD, (0, 0, 0), (1, 1, 1), 0.34)
+        sp = fx.MixedSpace(msh)
+        sim = fx.Simulation(sp, mat, progress=False)
+        sim.add_velocity_bc(sim.facets(ft, BLOCK_TAGS["zmax"]), np.array([1.0, 0.0, -0.05]))
+        c = NodalContact(ContactBoundary(sp, ft, BLOCK_TAGS["zmin"]),
+                         Plane((0, 0, 0), (0, 0, 1), name="anvil"), friction=Tresca(0.5),
+                         slip_velocity=1e-3, penalty=Penalty(penalty=1e4))   # ρ as given
+        sim.add_contributor(c)
+        sim.add_controller(fx.WorkpieceHeat(
+            sim, fx.ThermalMaterial(rho_c=3.9, conductivity=30.0, taylor_quinney=0.0), 1050.0,
+            tools={"anvil": fx.ToolHeat(temperature=1050.0, h_c=0.0, effusivity=1e12)}))
+        sim.run(0.04, 0.02)
+        forces[name] = np.array([r["anvil_friction_x"] for r in sim.history])
+    assert np.all(np.abs(forces["table"]) > 0.1)
+    np.testing.assert_allclose(forces["table"], forces["plain"], rtol=1e-7)

@@ -28,7 +28,9 @@ from petsc4py import PETSc
 
 from fxcontact import compat
 from fxcontact.collective import together
+from fxcontact.contact.friction import shear_flow_stress
 from fxcontact.materials.forms import equivalent_strain_rate_ufl
+from fxcontact.materials.laws import NortonHoff
 from fxcontact.spaces import MixedSpace, facets_with_tags
 
 __all__ = ["ContactBoundary", "p1_trace_check", "vertex_dof_map"]
@@ -250,6 +252,37 @@ class ContactBoundary:
             vals.append(b.getArray(readonly=True)[q1].copy() if len(q1) else np.zeros(0))
             b.destroy()
         return vals[0] / vals[1]
+
+    def material_law(self, w, dx, material, shear: bool = True):
+        """(K, k) at the contact vertices for a Norton–Hoff ``material``: its consistency K
+        [MPa s^m] and, with ``shear``, its shear flow stress k = K z^m [MPa] at the node's strain
+        rate (:meth:`strain_rate` of the mixed Function ``w``; z = √3 √(ε̄̇² + ε̇₀²); else
+        zeros). A law that varies per cell (a :class:`~fxcontact.Viscoplastic`'s: hardening,
+        temperature) gives each node the volume averages of K and m over its cells (lumped P1
+        projection; each cell's piece for its own rate): the node's own law. Collective."""
+        n = len(self)
+        rate = self.strain_rate(w, dx) if shear else None
+        if type(material).law_ufl is NortonHoff.law_ufl:   # one K, m: as ever
+            k = shear_flow_stress(material, rate) if shear else np.zeros(n)
+            return np.full(n, float(material.K)), k
+        if getattr(self, "_law_forms", (None, None))[:2] != (w, material):
+            Q1 = compat.function_space(self.mesh, ("Lagrange", 1))
+            q = ufl.TestFunction(Q1)
+            K, m = material.law_ufl(material.z_ufl(ufl.sym(ufl.grad(ufl.split(w)[0]))))
+            self._law_forms = (w, material, compat.form(K * q * dx), compat.form(m * q * dx),
+                               compat.form(q * dx), self.q1_dofs(Q1))
+        _, _, f_K, f_m, f_vol, q1 = self._law_forms
+        vals = []
+        for f in (f_K, f_m, f_vol):
+            b = dolfinx.fem.petsc.assemble_vector(f)
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            vals.append(b.getArray(readonly=True)[q1].copy() if len(q1) else np.zeros(0))
+            b.destroy()
+        K, m = vals[0] / vals[2], vals[1] / vals[2]
+        if not shear:
+            return K, np.zeros(n)
+        z = np.sqrt(3.0 * rate ** 2 + 3.0 * material.regularization ** 2)
+        return K, K * z ** m
 
     def total_area(self) -> float:
         return self.comm.allreduce(float(np.sum(self.areas)), op=MPI.SUM)

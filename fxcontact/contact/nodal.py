@@ -51,7 +51,7 @@ from mpi4py import MPI
 from fxcontact.collective import together
 from fxcontact.contact.boundary import ContactBoundary
 from fxcontact.contact.friction import (LAW_NONE, friction_kernel, friction_kernel_numpy,
-                                        laws_per_tool, shear_flow_stress)
+                                        laws_per_tool)
 from fxcontact.contact.nodal_io import STICK_FACTOR, NodalContactIO
 from fxcontact.contact.penalty import (  # noqa: F401
     DEFAULT_BETA,
@@ -321,11 +321,9 @@ class NodalContact(NodalContactIO):
         need_k = any(law.needs_shear_limit and law.k_source.kind == "local rate"
                      for law in self.friction)
         need_K = any(law.needs_consistency and law.K is None for law in self.friction)
-        if isinstance(mat, NortonHoff) and need_K:
-            self._K_node = np.full(len(self.boundary), mat.K)
-        if isinstance(mat, NortonHoff) and need_k:
-            self._k_node = shear_flow_stress(mat, self.boundary.strain_rate(sim.w,
-                                                                            sim.space.dx))
+        if isinstance(mat, NortonHoff) and (need_K or need_k):   # a law per cell: its own
+            self._K_node, self._k_node = self.boundary.material_law(sim.w, sim.space.dx, mat,
+                                                                    shear=need_k)
         # k of each law when it is the same at every node (given, or at a given rate); NaN: local
         self._k_law = np.array([law.k_source.k(mat) if law.needs_shear_limit else np.nan
                                 for law in self.friction])
