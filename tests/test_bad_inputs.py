@@ -823,3 +823,21 @@ def test_checkpoint_of_other_parameters(cube, out, change, words):
                        r".*Resume with the set-up of the checkpointed run"):
         other.resume()
     assert _files(out) == before
+
+
+@pytest.mark.parametrize("z, speed, touched", [(1.5, 0.1, False), (1.0, 0.3, True)])
+def test_run_without_contact_is_said(cube, out, caplog, z, speed, touched):
+    """A die that never reaches the body (0.5 mm above its top, both moving down at 0.1 mm/s):
+    the contact's summary line and a warning say that no node ever touched it (the forces are
+    zero: positions, motions, units); a die that touches says nothing of the kind."""
+    s = _pressed(cube, out)
+    die = fx.Plane((0, 0, z), (0, 0, -1), velocity=(0, 0, -speed), name="die")
+    c = fx.NodalContact(fx.ContactBoundary(cube["space"], cube["ft"], TAGS["z1"]), die,
+                        penalty=10.0)
+    s.add_contributor(c)
+    with caplog.at_level("WARNING", logger="fxcontact.contact"):
+        s.run(0.2, 0.1)
+    assert ("no node ever touched 'die' in 2 increment(s)" in c.summary()) is not touched
+    if COMM.rank == 0:
+        assert ("no node ever touched" in caplog.text) is not touched
+    s.close()

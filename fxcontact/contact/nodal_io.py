@@ -11,6 +11,7 @@ code outside :mod:`fxcontact.contact` reads it through :attr:`~NodalContactIO.no
 
 from __future__ import annotations
 
+import logging
 from typing import Dict
 
 import dolfinx.fem
@@ -25,6 +26,8 @@ from fxcontact.contact.view import ContactNodes
 from fxcontact.io.keys import CheckpointError, PerVertex
 from fxcontact.kinematics import pad3
 from fxcontact.tools.base import unit_vector
+
+log = logging.getLogger("fxcontact.contact")
 
 __all__ = ["NodalContactIO", "STICK_FACTOR"]
 
@@ -77,6 +80,9 @@ class NodalContactIO:
                # accepted iterate, and summed over every evaluation of the increment
                f"{self.name}_fallbacks": comm.allreduce(self._fallbacks, op=MPI.SUM),
                f"{self.name}_fallbacks_all": comm.allreduce(self._fallbacks_all, op=MPI.SUM)}
+        # a run in which no node ever touched a tool is said in the summary
+        self._increments_seen = getattr(self, "_increments_seen", 0) + 1
+        self._ever_touched = getattr(self, "_ever_touched", False) or out[f"{self.name}_nodes"] > 0
         for k, tool in enumerate(self.tools):
             F = self.tool_force(k)
             for j, c in enumerate("xyz"[: self.gdim]):
@@ -167,6 +173,14 @@ class NodalContactIO:
                 if law.code != LAW_NONE]
         if laws:
             text += "; friction " + "; ".join(laws)
+        if getattr(self, "_increments_seen", 0) and not self._ever_touched:
+            warning = (f"no node ever touched {', '.join(repr(t.name) for t in self.tools)} in "
+                       f"{self._increments_seen} increment(s): the forces are zero — check the "
+                       f"tools' positions and motions against the body (units: mm)")
+            if self.boundary.comm.rank == 0 and not getattr(self, "_warned", False):
+                log.warning("contact '%s': %s", self.name, warning)   # once, where it is seen
+                self._warned = True
+            text += f"; WARNING: {warning}"
         return text
 
     # ------------------------------------------------------------------ messages
