@@ -841,3 +841,22 @@ def test_run_without_contact_is_said(cube, out, caplog, z, speed, touched):
     if COMM.rank == 0:
         assert ("no node ever touched" in caplog.text) is not touched
     s.close()
+
+
+@pytest.mark.parametrize("process", ["upsetting", "drawing", "ring_rolling"])
+def test_process_output_dir_refused_before_the_run(out, process):
+    """A process run whose output_dir is a file is refused before its first increment, on
+    every rank, with the cause (not after the whole run, nor a hang of the other ranks)."""
+    from fxcontact.processes import (DrawingCase, RingRollingCase, UpsettingCase, ring_rolling,
+                                     run_drawing, run_upsetting)
+    runs = {"upsetting": lambda d: run_upsetting(UpsettingCase.quick(), COMM, output_dir=d),
+            "drawing": lambda d: run_drawing(DrawingCase.quick(), COMM, output_dir=d),
+            "ring_rolling": lambda d: ring_rolling.run(RingRollingCase().quick(), COMM,
+                                                       output_dir=d)}
+    path = os.path.join(out, "a_file")
+    if COMM.rank == 0:
+        with open(path, "w") as f:
+            f.write("not a directory\n")
+    COMM.barrier()
+    with pytest.raises(ValueError, match="is a file, not a directory.*nothing was computed"):
+        runs[process](path)

@@ -56,6 +56,7 @@ from fxcontact import compat
 from fxcontact.io.series import pyplot
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.power import PowerBalance
+from fxcontact.processes.common import check_output_dir
 from fxcontact.processes.common import (check_material_heat, gather, heat_columns, heat_lines,
                                         material_text, mean_norton_hoff, theory_temperature)
 from fxcontact.processes.contact_laws import UNSET, Former, Friction, contact_friction
@@ -649,6 +650,7 @@ def run(case: BarRollingCase, comm=None, output_dir: Optional[str] = None,
     rank; None writes nothing) the rows go to ``bar_rolling_{model}_diagnostics.csv`` and, at
     steady state with ``pictures``, the exit section to ``exit_section_{model}.png``."""
     comm = comm or MPI.COMM_WORLD
+    check_output_dir(output_dir, comm)
     s = build(case, comm)
     sim, L = s.sim, s.bite_length
     measure = _Measure(s)

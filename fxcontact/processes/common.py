@@ -21,7 +21,9 @@ import numpy as np
 from mpi4py import MPI
 
 from fxcontact import compat
+from fxcontact.collective import together
 from fxcontact.console import add_verbosity_arguments, configure_logging
+from fxcontact.io.outputs import output_dir_problem
 from fxcontact.io.series import pyplot
 from fxcontact.materials import Viscoplastic
 from fxcontact.processes.contact_laws import ContactLaws
@@ -34,6 +36,7 @@ from fxcontact.thermal import HeatSetup
 __all__ = ["CaseBase", "script_main", "gather", "numerics_columns", "run_summary",
            "steady_values", "run_increments", "ProcessResult", "meridian_section",
            "vertex_field", "plot_sections", "plot_curves", "write_rows", "mean_norton_hoff",
+           "check_output_dir",
            "check_material_heat", "theory_temperature", "material_text", "heat_columns",
            "heat_lines"]
 
@@ -365,6 +368,18 @@ def write_rows(comm, path: Optional[str], rows: Sequence[dict]) -> Optional[str]
 
 
 # ---- a case's flow-stress material and heat (the fields ``material`` and ``heat``)
+
+def check_output_dir(output_dir, comm) -> None:
+    """Before the first increment of a process run (collective): ``output_dir`` must be a
+    directory that exists or can be made and is writable, the same on every rank; else a
+    ValueError on every rank (not after the whole run, nor a hang)."""
+    with together(comm, "the process run's output_dir",
+                  output_dir=None if output_dir is None else os.path.abspath(str(output_dir))):
+        problem = output_dir_problem(output_dir)
+        if problem:
+            raise ValueError(f"output_dir {str(output_dir)!r} {problem}: give a directory "
+                             f"path (checked before the run, nothing was computed)")
+
 
 def mean_norton_hoff(material: Viscoplastic, strain: float, rate: float,
                      temperature: Optional[float] = None):

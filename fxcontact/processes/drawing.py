@@ -44,6 +44,7 @@ from fxcontact.io.series import pyplot
 from fxcontact.meshing import DRAWING_BAR_TAGS
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
+from fxcontact.processes.common import check_output_dir
 from fxcontact.processes.common import (CaseBase, ProcessResult, finish_run, gather,
                                         mean_norton_hoff, meridian_section, numerics_columns,
                                         plot_curves, plot_sections, run_increments, run_summary,
@@ -419,6 +420,7 @@ def run(case: DrawingCase, comm=None, output_dir: Optional[str] = None, pictures
     (``wire_drawing_strain.png``, ``wire_drawing_contact.png``) and, with ``vtk_every``, the
     VTK series ``wire_drawing.pvd``."""
     comm = comm or MPI.COMM_WORLD
+    check_output_dir(output_dir, comm)
     s = build(case, comm, output_dir, vtk_every)
     sim, contact, g = s.sim, s.contact, s.layout
     balance = PowerBalance(sim, [contact])

@@ -79,6 +79,7 @@ from fxcontact.meshing import DRAWING_BAR_TAGS
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
 from fxcontact.materials import Viscoplastic
+from fxcontact.processes.common import check_output_dir
 from fxcontact.processes.common import (CaseBase, ProcessResult, check_material_heat,
                                         finish_run, heat_columns, heat_lines, material_text,
                                         mean_norton_hoff, meridian_section, numerics_columns,
@@ -462,6 +463,7 @@ def run(case: ExtrusionCase, comm=None, output_dir: Optional[str] = None,
     axial velocity and the strain rate on the θ = 0 section, the dead-metal zone;
     ``extrusion_pressure.png``) and, with ``vtk_every``, the VTK series ``extrusion.pvd``."""
     comm = comm or MPI.COMM_WORLD
+    check_output_dir(output_dir, comm)
     s = build(case, comm, output_dir, vtk_every)
     sim, contact, g = s.sim, s.contact, s.layout
     balance = PowerBalance(sim, [contact])

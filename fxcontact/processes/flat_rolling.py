@@ -44,6 +44,7 @@ import fxcontact as fx
 from fxcontact import compat
 from fxcontact.io.series import pyplot
 from fxcontact.power import PowerBalance
+from fxcontact.processes.common import check_output_dir
 from fxcontact.processes.common import (check_material_heat, gather, heat_columns, heat_lines,
                                         material_text, mean_norton_hoff, theory_temperature)
 from fxcontact.processes.contact_laws import UNSET, Former, Friction, contact_friction, law_text
@@ -598,6 +599,7 @@ def run(case: FlatRollingCase, comm=None, output_dir: Optional[str] = None,
     per-increment rows go to ``flat_rolling_diagnostics.csv`` and, at steady state with
     ``pictures``, the PNGs of the arc of contact and of the strain."""
     comm = comm or MPI.COMM_WORLD
+    check_output_dir(output_dir, comm)
     s = build(case, comm, output_dir, vtk_every)
     sim, L = s.sim, case.bite.contact_length
     rules = StopRules(

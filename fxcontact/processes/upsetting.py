@@ -74,6 +74,7 @@ from fxcontact.materials import NortonHoff, Viscoplastic
 from fxcontact.meshing import DRAWING_BAR_TAGS, drawing_bar, sector_plane_normals
 from fxcontact.newton.solver import SolverOptions
 from fxcontact.power import PowerBalance
+from fxcontact.processes.common import check_output_dir
 from fxcontact.processes.common import (CaseBase, ProcessResult, finish_run, meridian_section,
                                         numerics_columns, plot_curves, run_summary)
 from fxcontact.processes.contact_laws import (UNSET, Former, Friction, contact_friction,
@@ -451,6 +452,7 @@ def run(case: UpsettingCase, comm=None, output_dir: Optional[str] = None,
     die; ``upsetting_pressure.png``: p̄/σ₀ against the band and the radii) and, with
     ``vtk_every``, the VTK series ``upsetting.pvd``."""
     comm = comm or MPI.COMM_WORLD
+    check_output_dir(output_dir, comm)
     s = build(case, comm, output_dir, vtk_every)
     sim, contact = s.sim, s.contact
     balance = PowerBalance(sim, [contact])

@@ -39,6 +39,7 @@ from fxcontact import compat
 from fxcontact.idle import ControlledMotion, IdleRotation
 from fxcontact.kinematics import RingAxisUpdate
 from fxcontact.power import PowerBalance, delivered_power
+from fxcontact.processes.common import check_output_dir
 from fxcontact.processes.contact_laws import law_text
 from fxcontact.processes.monitor import SteadyRun, contact_lines
 from fxcontact.processes.ring_rolling import heat as ring_heat, mill as ring_mill
@@ -565,6 +566,7 @@ def run(case: RingRollingCase, comm=None, output_dir: Optional[str] = None,
     ``checkpoint_every`` and ``resume`` as in :func:`build` (a resumed run's rows and pictures
     hold the resumed part; ``sim_history`` holds all)."""
     comm = comm or MPI.COMM_WORLD
+    check_output_dir(output_dir, comm)
     s = build(case, comm, output_dir, vtk_every, checkpoint_every, resume, name)
     sim, th = s.sim, s.theory
     measure = _Measure(s)
