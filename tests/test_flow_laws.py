@@ -391,3 +391,18 @@ def test_plot_flow_curves_needs_temperatures_of_an_analytic_law(tmp_path):
     with pytest.raises(ValueError, match="temperatures"):
         plot_flow_curves(LAWS["hansel-spittel"][0], str(tmp_path / "x.png"))
     assert not (tmp_path / "x.png").exists()
+
+
+def test_hansel_spittel_negative_m4_at_the_floor_warns():
+    """m4 < 0 makes e^(m4/ε̄) vanish at the strain floor: a warning with the factor and a floor
+    that cures it; the cured floor, and a mild m4, say nothing."""
+    with pytest.warns(UserWarning, match="nearly without strength.*raise strain_floor"):
+        HanselSpittel(A=1500.0, m1=-0.0025, m2=0.1, m3=0.14, m4=-0.05)
+    floor = 0.05 / 2.3
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        law = HanselSpittel(A=1500.0, m1=-0.0025, m2=0.1, m3=0.14, m4=-0.05,
+                               strain_floor=floor)
+        HanselSpittel(A=1500.0, m1=-0.0025, m2=0.1, m3=0.14, m4=-1e-4)
+    ratio = law.sigma0(0.0, 1.0, 1000.0) / law.sigma0(0.1, 1.0, 1000.0)
+    assert 0.1 < ratio < 1.0

@@ -292,6 +292,14 @@ class HanselSpittel(FlowStress):
             raise ValueError(f"the rate sensitivity m_loc = m3 + m8·T = m3 = {self.m3!r} must be "
                              "> 0 (convexity of the potential), at every temperature since "
                              "m8 = 0 [1/°C]")
+        drop = math.exp(self.m4 / self.strain_floor - self.m4 / 0.1)   # e^(m4/ε̄): floor vs 0.1
+        if drop < 0.1:
+            warnings.warn(f"HanselSpittel: with m4 = {self.m4!r} the factor e^(m4/ε̄) at the "
+                          f"strain floor {self.strain_floor:g} is {drop:.2g} × its value at "
+                          f"ε̄ = 0.1: an undeformed body (ε̄ = 0) is then nearly without "
+                          f"strength and the first increments may fail — raise strain_floor "
+                          f"(e.g. to {max(-self.m4 / 2.3, self.strain_floor):.3g}) or fit m4 "
+                          f"on the strains you form at", UserWarning, stacklevel=3)
 
     @property
     def uses_temperature(self):
