@@ -149,6 +149,11 @@ def test_penalty_given_as_one_object():
     for kw in (dict(beta=1.0), dict(gap_stiffness=1.0), dict(strain_rate=1.0)):
         with pytest.raises(ValueError, match=f"penalty is a Penalty: give .*{next(iter(kw))}"):
             NodalContact(b, tool, penalty=Penalty(beta=10.0), **kw)
+    # ρ and β together: refused, not β dropped in silence
+    for make in (lambda: Penalty(penalty=5.0, beta=10.0),
+                 lambda: NodalContact(b, tool, penalty=5.0, beta=10.0)):
+        with pytest.raises(ValueError, match="only one of penalty .* and beta"):
+            make()
     p = Penalty(gap_stiffness=2e6)
     runs = [_strip_under_arc(MPI.COMM_WORLD, "implicit", 0.4, t_end=0.8, penalty=pen)[0]
             for pen in (p, None)]

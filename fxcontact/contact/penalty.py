@@ -98,6 +98,9 @@ class Penalty:
                 raise ValueError(f"gap_stiffness must be finite and > 0, got {gap_stiffness!r}")
         elif penalty is None and beta is None:
             beta = DEFAULT_BETA
+        elif penalty is not None and beta is not None:
+            raise ValueError(f"give only one of penalty (rho = {penalty!r}, the value used) and "
+                             f"beta (= {beta!r}, rho scaled by the material): both were given")
         if penalty is not None and not (math.isfinite(penalty) and penalty > 0):
             raise ValueError(f"penalty must be finite and > 0, got {penalty!r}")
         if beta is not None and not (math.isfinite(beta) and beta > 0):
