@@ -592,3 +592,18 @@ def test_gmsh_failure_retried_once_then_reported(deformed_billet, monkeypatch, c
     with pytest.raises(RuntimeError, match="gmsh failed to mesh the boundary twice.*overlapping"
                                            ".*smaller h or feature_angle"):
         volume_mesh(COMM, surface, h=2.5, zones=[zone])
+
+
+@pytest.mark.parametrize("kw, words", [
+    (dict(min_quality=float("nan")), "min_quality must be a cell quality, in"),
+    (dict(min_volume_ratio=-1.0), "min_volume_ratio must be a volume ratio, in"),
+    (dict(max_strain_increment=0.0), "max_strain_increment must be an equivalent strain"),
+    (dict(min_elements_across={"roll": float("inf")}), "min_elements_across must be a number"),
+    (dict(every=2.5), "every must be an integer >= 1")])
+def test_remesh_criteria_that_never_fire_refused(kw, words):
+    """A threshold that can never be crossed (NaN, out of its range) would switch remeshing
+    off in silence: refused with its range; None (not checked) and sound values pass."""
+    with pytest.raises(ValueError, match=words):
+        criteria.RemeshCriteria(**kw)
+    criteria.RemeshCriteria(min_quality=None, min_volume_ratio=None, max_strain_increment=0.3,
+                            min_elements_across={"roll": 3}, every=5)

@@ -93,6 +93,30 @@ class RemeshCriteria:
     min_elements_across: Union[float, Dict[str, float], None] = None
     every: Optional[int] = None
 
+    def __post_init__(self):
+        # a threshold that can never be crossed (NaN, out of its range) would switch remeshing
+        # off in silence: refused, with the range
+        for name, lo, hi, what in (("min_quality", 0.0, 1.0, "a cell quality, in (0, 1)"),
+                                   ("min_volume_ratio", 0.0, 1.0, "a volume ratio, in (0, 1)"),
+                                   ("max_strain_increment", 0.0, math.inf,
+                                    "an equivalent strain increment, > 0")):
+            v = getattr(self, name)
+            if v is not None and not (isinstance(v, (int, float, np.integer, np.floating))
+                                      and lo < v < hi):
+                raise ValueError(f"RemeshCriteria.{name} must be {what} (or None: not "
+                                 f"checked), got {v!r}")
+        across = self.min_elements_across
+        values = across.values() if isinstance(across, dict) else [across]
+        for v in values:
+            if v is not None and not (isinstance(v, (int, float, np.integer, np.floating))
+                                      and math.isfinite(v) and v > 0):
+                raise ValueError(f"RemeshCriteria.min_elements_across must be a number of "
+                                 f"elements > 0 (or {{tool: number}}, or None), got {across!r}")
+        if self.every is not None and not (isinstance(self.every, (int, np.integer))
+                                           and self.every >= 1):
+            raise ValueError(f"RemeshCriteria.every must be an integer >= 1 (increments), or "
+                             f"None, got {self.every!r}")
+
 
 def _mean_edge(P: np.ndarray) -> tuple:
     """(Σ edge lengths, count) of the triangles or tetrahedra P (N, k, 3) (local)."""
