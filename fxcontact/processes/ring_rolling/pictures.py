@@ -181,8 +181,10 @@ def _temperatures(ax, t, h, T0):
     for key, lab, st in (("heat_T_max", "max", "r-"), ("heat_T_mean", "mean", "k-"),
                          ("heat_T_min", "min", "b-")):
         ax.plot(t, [q[key] for q in h], st, lw=1.5, label=lab)
+    marks = iter("osd^v<>")   # markers: a probe on another curve stays visible
     for k in (k for k in h[0] if k.startswith("heat_T_at_")):
-        ax.plot(t, [q[k] for q in h], "--", lw=1.0, label=f"probe '{k[10:]}'")
+        ax.plot(t, [q[k] for q in h], "--", lw=1.0, marker=next(marks, "x"), ms=3.5,
+                markevery=max(1, len(t) // 15), label=f"probe '{k[10:]}'")
     ax.axhline(T0, color="0.5", ls=":", lw=1.0, label=f"initial {T0:g} °C")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("temperature [°C]")
