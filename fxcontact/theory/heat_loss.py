@@ -5,8 +5,9 @@ a forming process, for the estimates the thermal process runs are compared with.
   loses to a tool through a contact coefficient h during a contact of duration t (the tool's
   surface kept at its temperature): with θ₀ = T − T_tool, b = √(kρc) the body's effusivity and
   β = h√t/b, Q/A = θ₀ (b²/h) [e^{β²} erfc β − 1 + 2β/√π] (the integral of the surface flux
-  h θ_s(t) of the semi-infinite body with a film, Carslaw & Jaeger, section 2.7). Small β: h θ₀ t (the
-  surface does not cool: a lumped estimate); large β: 2 b θ₀ √(t/π) (perfect contact).
+  h θ_s(t) of the semi-infinite body with a film, Carslaw & Jaeger, section 2.7). Small β:
+  h θ₀ t (the surface does not cool: a lumped estimate); large β: 2 b θ₀ √(t/π) (perfect
+  contact).
 * :func:`air_flux` — the flux a surface at T loses to air, h (T − T_a) + ε σ (T_K⁴ − T_a,K⁴).
 
 Units: N, mm, s, °C: h in N/(mm s K), b in N/(mm s^½ K), heat per area in N/mm (= mJ/mm²).
