@@ -860,3 +860,23 @@ def test_process_output_dir_refused_before_the_run(out, process):
     COMM.barrier()
     with pytest.raises(ValueError, match="is a file, not a directory.*nothing was computed"):
         runs[process](path)
+
+
+def test_increment_larger_than_the_mesh_is_said():
+    """dt = 1 s on the drawing moves the bar 100 mm per increment, more than the whole bar:
+    refused with the dt that keeps one element per increment (it reported −119.5 MPa as
+    "completed"); two elements per increment: a warning with the figure; the defaults and
+    the quick cases say nothing."""
+    from fxcontact.processes import DrawingCase, ExtrusionCase
+    with pytest.raises(ValueError, match=r"dt = 1 s moves the drawn bar by 100 mm in one "
+                                         r"increment, more than .* take dt <= 0.015 s"):
+        DrawingCase.quick(dt=1.0)
+    with pytest.warns(UserWarning, match=r"= 2 elements of 1.5 mm.*dt <= 0.015 s"):
+        DrawingCase.quick(dt=0.03)
+    with pytest.warns(UserWarning, match=r"the extruded product"):
+        ExtrusionCase.quick(dt=0.1)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for case in (DrawingCase(), DrawingCase.quick(), ExtrusionCase(), ExtrusionCase.quick()):
+            assert case.dt > 0

@@ -14,6 +14,7 @@ import functools
 import math
 import os
 import types
+import warnings
 from dataclasses import dataclass, field
 from typing import Callable, Dict, Optional, Sequence
 
@@ -84,6 +85,24 @@ class CaseBase(ContactLaws):
             raise ValueError(f"remesh_min_quality must be in (0, 1), got {q!r}")
         if self.remesh_zone_h is not None:
             self.check_positive(("remesh_zone_h",))
+
+    def check_increment(self, speed: float, element: float, what: str):
+        """The increment against the mesh: ``dt`` moving the fastest material (``speed``
+        [mm/s], ``what`` it is) by more than the workpiece's ``length`` is refused; by more than
+        one ``element`` [mm], a warning — the contact then follows a node across several
+        elements in one increment. Both say the dt that keeps one element per increment."""
+        travel, dt_one = speed * self.dt, element / speed
+        if travel >= self.length:
+            raise ValueError(f"dt = {self.dt:g} s moves {what} by {travel:.3g} mm in one "
+                             f"increment, more than the workpiece's length {self.length:g} mm: "
+                             f"take dt <= {dt_one:.3g} s (one element of {element:.3g} mm per "
+                             f"increment)")
+        if travel > element * (1.0 + 1e-9):
+            warnings.warn(f"dt = {self.dt:g} s moves {what} by {travel:.3g} mm per increment = "
+                          f"{travel / element:.2g} elements of {element:.3g} mm: the contact "
+                          f"follows a node across several elements at once (coarse in time); "
+                          f"dt <= {dt_one:.3g} s keeps one element per increment",
+                          UserWarning, stacklevel=4)
 
     def check_bar_and_die(self, alpha_max: float):
         """R1 < R0, the die semi-angle alpha in (0, alpha_max) degrees, the nose ratio in

@@ -231,6 +231,7 @@ class DrawingCase(CaseBase):
         self.check_positive(("R0", "R1", "length", "K", "speed", "alpha", "land", "h", "facet",
                              "size", "dt", "t_end", "window", "steady_tol", "sector"))
         self.check_bar_and_die(alpha_max=45.0)
+        self.check_increment(self.speed, self.h / self.size, "the drawn bar")
         if self.die not in DIES:
             raise ValueError(f"die must be one of {DIES}, got {self.die!r}")
         if self.die_mesh not in DIE_MESHES:

@@ -240,6 +240,8 @@ class ExtrusionCase(CaseBase):
         self.check_positive(("R0", "R1", "length", "K", "speed", "alpha", "land", "h", "dt",
                              "t_end", "window", "steady_tol", "sector"))
         self.check_bar_and_die(alpha_max=90.0)
+        self.check_increment(self.speed * (self.R0 / self.R1) ** 2, self.h,
+                             "the extruded product (punch speed × R0²/R1²)")
         if not (math.isfinite(self.entry_fillet) and self.entry_fillet >= 0):
             raise ValueError(f"entry_fillet must be finite and >= 0, got {self.entry_fillet}")
         laws = [self.tool_friction(t) for t in ("container", "die")]
