@@ -245,13 +245,8 @@ class ContactBoundary:
             self._rate_forms = (w, compat.form(rate * q * dx), compat.form(q * dx),
                                 self.q1_dofs(Q1))
         _, f_rate, f_vol, q1 = self._rate_forms
-        vals = []
-        for f in (f_rate, f_vol):
-            b = dolfinx.fem.petsc.assemble_vector(f)
-            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            vals.append(b.getArray(readonly=True)[q1].copy() if len(q1) else np.zeros(0))
-            b.destroy()
-        return vals[0] / vals[1]
+        rate, vol = _at_vertices((f_rate, f_vol), q1)
+        return rate / vol
 
     def material_law(self, w, dx, material, shear: bool = True):
         """(K, k) at the contact vertices for a Norton–Hoff ``material``: its consistency K
@@ -272,13 +267,8 @@ class ContactBoundary:
             self._law_forms = (w, material, compat.form(K * q * dx), compat.form(m * q * dx),
                                compat.form(q * dx), self.q1_dofs(Q1))
         _, _, f_K, f_m, f_vol, q1 = self._law_forms
-        vals = []
-        for f in (f_K, f_m, f_vol):
-            b = dolfinx.fem.petsc.assemble_vector(f)
-            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            vals.append(b.getArray(readonly=True)[q1].copy() if len(q1) else np.zeros(0))
-            b.destroy()
-        K, m = vals[0] / vals[2], vals[1] / vals[2]
+        K, m, vol = _at_vertices((f_K, f_m, f_vol), q1)
+        K, m = K / vol, m / vol
         if not shear:
             return K, np.zeros(n)
         z = np.sqrt(3.0 * rate ** 2 + 3.0 * material.regularization ** 2)
@@ -297,3 +287,15 @@ class ContactBoundary:
     def mesh_positions(self) -> np.ndarray:
         """(N, gdim) current mesh coordinates of the contact vertices."""
         return self.mesh.geometry.x[self.geometry_nodes, : self.gdim].copy()
+
+
+def _at_vertices(forms, q1) -> list:
+    """The assembled vectors of the P1 ``forms`` (ghost contributions added to their owners)
+    at the P1 dofs ``q1`` of the contact vertices (collective)."""
+    out = []
+    for f in forms:
+        b = dolfinx.fem.petsc.assemble_vector(f)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        out.append(b.getArray(readonly=True)[q1].copy() if len(q1) else np.zeros(0))
+        b.destroy()
+    return out
